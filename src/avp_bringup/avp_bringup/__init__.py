@@ -1,0 +1,1 @@
+"""Launch files, parameter files, the avp command line (launch, demo) and rendering."""

@@ -1,0 +1,1 @@
+"""Ego planner (paper §V-D); for now a scripted driver node."""
