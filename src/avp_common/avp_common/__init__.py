@@ -1,0 +1,1 @@
+"""ROS glue shared by the AVP nodes: message <-> core conversions, QoS profiles, validated parameters."""

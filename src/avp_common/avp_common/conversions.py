@@ -1,0 +1,157 @@
+"""Conversions between avp_msgs messages and the ROS-free core types (exact: float64 throughout).
+
+Incoming messages are validated: a NaN/inf or an inconsistent array raises :class:`MessageError`
+with a one-line reason, which nodes log (naming the topic) before dropping the message.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from avp_msgs.msg import LotMap as LotMapMsg
+from avp_msgs.msg import Observation as ObservationMsg
+from avp_msgs.msg import ObservedPedestrian as ObservedPedestrianMsg
+from avp_msgs.msg import ObservedVehicle as ObservedVehicleMsg
+from avp_msgs.msg import Road as RoadMsg
+from avp_msgs.msg import Spot as SpotMsg
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point, Pose2D
+
+from avp_world.lot import LotMap, lot_from_dict
+from avp_world.types import Observation, ObservedPedestrian, ObservedVehicle
+
+
+class MessageError(ValueError):
+    """An incoming message is malformed (NaN, inf, inconsistent sizes, unknown ids)."""
+
+
+def step_to_time(step: int, dt: float) -> Time:
+    """Sim time t = step * dt as builtin_interfaces/Time (integer nanoseconds, no float drift)."""
+    ns = step_to_ns(step, dt)
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def step_to_ns(step: int, dt: float) -> int:
+    return int(step) * int(round(dt * 1e9))
+
+
+def time_to_ns(t: Time) -> int:
+    return int(t.sec) * 1_000_000_000 + int(t.nanosec)
+
+
+def _finite(values, what: str) -> None:
+    arr = np.asarray(values, dtype=float)
+    if arr.size and not np.all(np.isfinite(arr)):
+        raise MessageError(f"{what}: contains NaN or inf")
+
+
+# ---------------------------------------------------------------------------------------------- lot
+
+
+def lot_to_msg(lot: LotMap) -> LotMapMsg:
+    msg = LotMapMsg()
+    msg.header.frame_id = "map"
+    msg.name = lot.name
+    msg.boundary = [Point(x=float(x), y=float(y), z=0.0) for x, y in lot.boundary]
+    msg.entrance = Point(x=float(lot.entrance[0]), y=float(lot.entrance[1]), z=0.0)
+    msg.spots = [
+        SpotMsg(id=s.id, pose=Pose2D(x=s.x, y=s.y, theta=s.heading), length=s.length, width=s.width)
+        for s in lot.spots
+    ]
+    msg.roads = [
+        RoadMsg(id=r.id, start=Point(x=r.start[0], y=r.start[1], z=0.0), end=Point(x=r.end[0], y=r.end[1], z=0.0),
+                width=r.width)
+        for r in lot.roads
+    ]
+    return msg
+
+
+def lot_from_msg(msg: LotMapMsg, source: str = "lot_map topic") -> LotMap:
+    """Rebuild (and validate) the lot from its message; raises LotMapError on a bad map."""
+    data = {
+        "name": msg.name,
+        "boundary": [[p.x, p.y] for p in msg.boundary],
+        "entrance": [msg.entrance.x, msg.entrance.y],
+        "roads": [{"id": r.id, "start": [r.start.x, r.start.y], "end": [r.end.x, r.end.y], "width": r.width}
+                  for r in msg.roads],
+        "spots": [{"id": s.id, "center": [s.pose.x, s.pose.y], "heading": s.pose.theta, "length": s.length,
+                   "width": s.width} for s in msg.spots],
+    }
+    return lot_from_dict(data, source=source)
+
+
+# ---------------------------------------------------------------------------------------- observation
+
+
+def observation_to_msg(obs: Observation, frame_id: str = "map") -> ObservationMsg:
+    msg = ObservationMsg()
+    msg.header.frame_id = frame_id
+    msg.header.stamp = step_to_time(obs.step, obs.dt)
+    msg.step = int(obs.step)
+    msg.dt = float(obs.dt)
+    msg.ego_pose = Pose2D(x=float(obs.ego_pose[0]), y=float(obs.ego_pose[1]), theta=float(obs.ego_pose[2]))
+    msg.ego_length = float(obs.ego_length)
+    msg.ego_width = float(obs.ego_width)
+    msg.ego_speed = float(obs.ego_speed)
+    msg.vacant_spot_ids = [int(i) for i in obs.vacant_spot_ids]
+    msg.occupied_spot_ids = [int(i) for i in obs.occupied_spot_ids]
+    msg.vehicles = [
+        ObservedVehicleMsg(
+            id=int(v.id), length=float(v.length), width=float(v.width), is_static=bool(v.is_static),
+            history=[Pose2D(x=float(p[0]), y=float(p[1]), theta=float(p[2])) for p in v.history],
+        )
+        for v in obs.vehicles
+    ]
+    msg.pedestrians = [
+        ObservedPedestrianMsg(
+            id=int(p.id), radius=float(p.radius),
+            position=Point(x=float(p.position[0]), y=float(p.position[1]), z=0.0),
+            previous_position=Point(x=float(p.previous_position[0]), y=float(p.previous_position[1]), z=0.0),
+        )
+        for p in obs.pedestrians
+    ]
+    msg.ray_angle_min = float(obs.ray_angle_min)
+    msg.ray_angle_increment = float(obs.ray_angle_increment)
+    msg.ray_ranges = np.asarray(obs.ray_ranges, dtype=np.float32)
+    return msg
+
+
+def observation_from_msg(msg: ObservationMsg) -> Observation:
+    """Core observation from its message; raises MessageError for NaN/inf or inconsistent fields."""
+    if not (math.isfinite(msg.dt) and msg.dt > 0):
+        raise MessageError(f"dt must be > 0 and finite, got {msg.dt}")
+    pose = np.array([msg.ego_pose.x, msg.ego_pose.y, msg.ego_pose.theta])
+    _finite(pose, "ego_pose")
+    _finite([msg.ego_length, msg.ego_width, msg.ego_speed], "ego size/speed")
+    vehicles = []
+    for v in msg.vehicles:
+        hist = np.array([[p.x, p.y, p.theta] for p in v.history]).reshape(-1, 3)
+        if len(hist) == 0:
+            raise MessageError(f"vehicle {v.id}: empty history")
+        _finite(hist, f"vehicle {v.id} history")
+        _finite([v.length, v.width], f"vehicle {v.id} size")
+        vehicles.append(ObservedVehicle(int(v.id), float(v.length), float(v.width), bool(v.is_static), hist))
+    peds = []
+    for p in msg.pedestrians:
+        pos = np.array([p.position.x, p.position.y])
+        prev = np.array([p.previous_position.x, p.previous_position.y])
+        _finite(np.concatenate([pos, prev, [p.radius]]), f"pedestrian {p.id}")
+        peds.append(ObservedPedestrian(int(p.id), float(p.radius), pos, prev))
+    ranges = np.asarray(msg.ray_ranges, dtype=np.float32)
+    _finite(ranges, "ray_ranges")
+    return Observation(
+        step=int(msg.step),
+        dt=float(msg.dt),
+        ego_pose=pose,
+        ego_length=float(msg.ego_length),
+        ego_width=float(msg.ego_width),
+        ego_speed=float(msg.ego_speed),
+        vacant_spot_ids=np.asarray(msg.vacant_spot_ids, dtype=np.int64),
+        occupied_spot_ids=np.asarray(msg.occupied_spot_ids, dtype=np.int64),
+        vehicles=tuple(vehicles),
+        pedestrians=tuple(peds),
+        ray_angle_min=float(msg.ray_angle_min),
+        ray_angle_increment=float(msg.ray_angle_increment),
+        ray_ranges=ranges,
+    )

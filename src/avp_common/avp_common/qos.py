@@ -1,0 +1,16 @@
+"""QoS profiles of the AVP graph (REP-2003 and the lock-step design in docs/architecture.md)."""
+
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+#: Static data a late joiner must still get (lot map): reliable + transient_local, depth 1.
+LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: Per-step data in lock-step (observations, beliefs, predictions, commands): every message matters.
+STEP = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
+                  durability=DurabilityPolicy.VOLATILE)
+#: Debug/visualisation streams: latest only.
+DEBUG = QoSProfile(depth=2, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
+                   durability=DurabilityPolicy.VOLATILE)
+#: Episode status: latched so a monitor that joins late sees the last one.
+STATUS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
+                    durability=DurabilityPolicy.TRANSIENT_LOCAL)

@@ -1,0 +1,89 @@
+"""scripted_driver node: a stand-in ego controller until the Hybrid A* planner (issue #3) lands.
+
+Subscribes lot_map (latched) and observation; publishes cmd (TwistStamped stamped like the
+observation it answers, so the simulator's lock-step matches it). Never reads ground truth.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import rclpy
+from avp_msgs.msg import LotMap, Observation
+from geometry_msgs.msg import TwistStamped
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+from avp_common.conversions import MessageError, lot_from_msg, observation_from_msg
+from avp_common.params import ParameterError, ParamSpec, declare_and_validate
+from avp_common.qos import LATCHED, STEP
+from avp_planner.scripted_driver import ScriptedDriver, ScriptedDriverConfig
+
+DRIVER_PARAMS = [
+    ParamSpec("speed", float, "Cruise speed of the scripted ego.", "v", "eq. (1)", min=0.0, max=5.0, default=1.5),
+    ParamSpec("lookahead", float, "Pure-pursuit look-ahead distance.", min=0.5, default=4.0),
+    ParamSpec("stop_distance", float, "Stop when an observed vehicle is this close ahead.", min=0.0, default=6.0),
+    ParamSpec("corridor_half_width", float, "Half width of the corridor checked ahead.", min=0.0, default=1.6),
+    ParamSpec("road_end_margin", float, "Stop this far before the end of the followed road.", min=0.0,
+              default=4.0),
+]
+
+
+class ScriptedDriverNode(Node):
+    def __init__(self) -> None:
+        super().__init__("scripted_driver")
+        p = declare_and_validate(self, DRIVER_PARAMS)
+        self.config = ScriptedDriverConfig(**p)
+        self.driver: ScriptedDriver | None = None
+        self.pending: Observation | None = None
+        self.pub = self.create_publisher(TwistStamped, "cmd", STEP)
+        self.create_subscription(LotMap, "lot_map", self._on_lot, LATCHED)
+        self.sub_obs = self.create_subscription(Observation, "observation", self._on_obs, STEP)
+
+    def _on_lot(self, msg: LotMap) -> None:
+        try:
+            self.driver = ScriptedDriver(lot_from_msg(msg), self.config)
+        except ValueError as exc:
+            self.get_logger().error(f"lot_map: {exc}")
+            return
+        if self.pending is not None:
+            self._on_obs(self.pending)
+
+    def _on_obs(self, msg: Observation) -> None:
+        if self.driver is None:
+            self.pending = msg
+            return
+        try:
+            obs = observation_from_msg(msg)
+        except MessageError as exc:
+            self.get_logger().error(f"{self.sub_obs.topic_name}: {exc}; message dropped")
+            return
+        v, om = self.driver.command(obs)
+        cmd = TwistStamped()
+        cmd.header.stamp = msg.header.stamp
+        cmd.header.frame_id = "ego"
+        cmd.twist.linear.x = float(v)
+        cmd.twist.angular.z = float(om)
+        self.pub.publish(cmd)
+
+
+def main(args=None) -> int:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = ScriptedDriverNode()
+        rclpy.spin(node)
+    except ParameterError as exc:
+        print(f"[scripted_driver] start-up failed: {exc}", file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,48 @@
+"""Build worlds from the (validated) simulator parameters — shared by the node and in-process runners."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+from avp_sim.core.observation import SensorConfig
+from avp_sim.core.scenario import ScenarioParams, generate_paper_scenario
+from avp_sim.core.world import World, WorldConfig
+from avp_world.lot import LotMap, load_bundled_lot, load_lot
+
+
+def load_lot_param(lot_file: str) -> LotMap:
+    return load_lot(lot_file) if lot_file else load_bundled_lot("paper_lot")
+
+
+def sensor_config(p: dict[str, Any]) -> SensorConfig:
+    cfg = SensorConfig(
+        n_ray=p["sensor.n_ray"], shape=p["sensor.shape"], radius=p["sensor.radius"], length=p["sensor.length"],
+        width=p["sensor.width"], semi_major=p["sensor.semi_major"], semi_minor=p["sensor.semi_minor"],
+        offset=tuple(p["sensor.offset"]),
+    )
+    cfg.validate()
+    return cfg
+
+
+def scenario_params(p: dict[str, Any]) -> ScenarioParams:
+    if p["scenario.passiveness_min"] > p["scenario.passiveness_max"]:
+        raise ValueError("parameter 'scenario.passiveness_min' must be <= 'scenario.passiveness_max'")
+    if p["scenario.n_dynamic_min"] > p["scenario.n_dynamic_max"]:
+        raise ValueError("parameter 'scenario.n_dynamic_min' must be <= 'scenario.n_dynamic_max'")
+    return replace(
+        ScenarioParams(),
+        dt=p["dt"], t_hist=p["t_hist"], t_final=p["t_final"],
+        passiveness=(p["scenario.passiveness_min"], p["scenario.passiveness_max"]),
+        n_dynamic=(p["scenario.n_dynamic_min"], p["scenario.n_dynamic_max"]),
+    )
+
+
+def world_config(p: dict[str, Any]) -> WorldConfig:
+    return WorldConfig(t_final=p["t_final"], sensor=sensor_config(p), ego_max_speed=p["ego_max_speed"])
+
+
+def make_world(lot: LotMap, p: dict[str, Any], seed: int, reactive: bool) -> World:
+    """A fresh episode of the §VI-A protocol for ``seed`` (same seed ⇒ same episode)."""
+    scenario = generate_paper_scenario(lot, seed, reactive, scenario_params(p))
+    return World(lot, scenario, world_config(p))

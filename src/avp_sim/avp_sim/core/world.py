@@ -1,0 +1,280 @@
+"""One episode of the simulated parking lot: reactive agents (§III-B), observations (§III-A), metrics (§VI-B).
+
+Step order at time t (k = t / dt):
+  1. :meth:`World.observe` returns the ego's observation of the state at t;
+  2. :meth:`World.step` takes the ego command u_0,t; each other agent A brakes (u = 0) if its next
+     n_pass,A planned footprints A_{t+dt..t+n_pass dt} meet the ego's current footprint V_0,t, else takes
+     its next unused planned control (§III-B);
+  3. everyone moves by eq. (1) / eq. (2); collisions and parking are checked at t + dt.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from avp_sim.core.observation import RayCaster, SensorConfig, classify_world
+from avp_sim.core.scenario import Scenario
+from avp_world.geometry import disc_rect_overlap, polygon_contains_points, rect_corners, rect_inside_rect, rects_overlap
+from avp_world.kinematics import step_pedestrian, step_vehicle
+from avp_world.lot import LotMap
+from avp_world.types import Observation, ObservedPedestrian, ObservedVehicle
+
+RUNNING, SUCCESS, COLLISION, TIMEOUT = "running", "success", "collision", "timeout"
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    t_final: float = 100.0  # t_f [s] (§VI-A)
+    sensor: SensorConfig = field(default_factory=SensorConfig)
+    ego_max_speed: float = 5.0  # |v| of the ego is clipped to this [m/s]
+
+
+@dataclass
+class EpisodeMetrics:
+    """§VI-B metrics of one episode (see docs/metrics.md for the exact definitions)."""
+
+    success: bool = False
+    collision: bool = False
+    collision_with: str = ""
+    spot_stolen: bool = False
+    parked_spot_id: int = -1
+    interrupted_steps: int = 0
+    interrupted_agent_steps: int = 0
+    parking_time: float = float("nan")
+    steps: int = 0
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+class World:
+    """Ground-truth state of one episode. Deterministic given the scenario and the ego commands."""
+
+    def __init__(self, lot: LotMap, scenario: Scenario, config: WorldConfig = WorldConfig()):
+        self.lot = lot
+        self.scenario = scenario
+        self.config = config
+        self.dt = scenario.dt
+        self.hist = scenario.hist_steps
+        self.caster = RayCaster(lot, config.sensor)
+        sc = scenario
+        n = len(sc.vehicles)
+        self.vehicle_ids = np.array([v.id for v in sc.vehicles], dtype=np.int64)
+        self.vehicle_dims = np.array([[v.length, v.width] for v in sc.vehicles]).reshape(n, 2)
+        self.passiveness = np.array([v.passiveness for v in sc.vehicles], dtype=np.int64)
+        self.target_spot = np.array([v.target_spot_id for v in sc.vehicles], dtype=np.int64)
+        self.is_dynamic = np.array([not v.parked for v in sc.vehicles], dtype=bool)
+        t_steps = int(round(config.t_final / self.dt)) + self.hist + int(self.passiveness.max(initial=0)) + 2
+        self.plans = np.zeros((n, t_steps, 2))
+        for i, v in enumerate(sc.vehicles):
+            m = min(len(v.controls), t_steps)
+            self.plans[i, :m] = v.controls[:m]
+        self.plan_index = np.zeros(n, dtype=np.int64)
+        self.states = np.array([v.initial_state for v in sc.vehicles], dtype=float).reshape(n, 3)
+        # pedestrians
+        p = len(sc.pedestrians)
+        self.ped_ids = np.array([q.id for q in sc.pedestrians], dtype=np.int64)
+        self.ped_radii = np.array([q.radius for q in sc.pedestrians], dtype=float)
+        self.ped_pass = np.array([q.passiveness for q in sc.pedestrians], dtype=np.int64)
+        self.ped_plans = np.zeros((p, t_steps, 2))
+        for i, q in enumerate(sc.pedestrians):
+            m = min(len(q.controls), t_steps)
+            self.ped_plans[i, :m] = q.controls[:m]
+        self.ped_index = np.zeros(p, dtype=np.int64)
+        self.ped_pos = np.array([q.initial_position for q in sc.pedestrians], dtype=float).reshape(p, 2)
+        self.ped_prev = self.ped_pos.copy()
+        # history buffer: (n, hist + 1, 3); filled by replaying the plans from t = -t_hist to t = 0
+        self.history = np.zeros((n, self.hist + 1, 3))
+        self.history[:, 0] = self.states
+        for k in range(self.hist):
+            self._advance_agents(np.zeros(n, dtype=bool), np.zeros(p, dtype=bool))
+            self.history[:, k + 1] = self.states
+        self.step_index = 0
+        self.ego = np.array(sc.ego_start, dtype=float)
+        self.ego_speed = 0.0
+        self.status = RUNNING
+        self.metrics = EpisodeMetrics()
+        self.braking = np.zeros(n, dtype=bool)
+        self.ped_braking = np.zeros(p, dtype=bool)
+        self.log_ego: list[np.ndarray] = [self.ego.copy()]
+        self.log_vehicles: list[np.ndarray] = [self.states.copy()]
+        self.log_braking: list[np.ndarray] = [self.braking.copy()]
+        self.log_commands: list[np.ndarray] = []
+        self._check_events()
+
+    # ------------------------------------------------------------------ dynamics
+    def _advance_agents(self, brake: np.ndarray, ped_brake: np.ndarray) -> None:
+        n = len(self.states)
+        idx = np.minimum(self.plan_index, self.plans.shape[1] - 1)
+        u = self.plans[np.arange(n), idx]
+        u[brake] = 0.0
+        self.states = step_vehicle(self.states, u, self.dt)
+        self.plan_index = self.plan_index + (~brake)
+        if len(self.ped_pos):
+            pidx = np.minimum(self.ped_index, self.ped_plans.shape[1] - 1)
+            pu = self.ped_plans[np.arange(len(self.ped_pos)), pidx]
+            pu[ped_brake, 0] = 0.0
+            self.ped_prev = self.ped_pos.copy()
+            self.ped_pos = step_pedestrian(self.ped_pos, pu, self.dt)
+            self.ped_index = self.ped_index + (~ped_brake)
+
+    def _reactive_brakes(self) -> tuple[np.ndarray, np.ndarray]:
+        """§III-B: agent A brakes iff A_tau meets V_0,t for some tau = t + dt, ..., t + n_pass,A dt."""
+        n = len(self.states)
+        ego_fp = rect_corners(self.ego, self.scenario.ego.length, self.scenario.ego.width)
+        max_pass = int(self.passiveness.max(initial=0))
+        brake = np.zeros(n, dtype=bool)
+        if max_pass > 0 and n:
+            cand = np.nonzero(self.passiveness > 0)[0]
+            s = self.states[cand]
+            for j in range(max_pass):
+                idx = np.minimum(self.plan_index[cand] + j, self.plans.shape[1] - 1)
+                s = step_vehicle(s, self.plans[cand, idx], self.dt)
+                fp = rect_corners(s, self.vehicle_dims[cand, 0], self.vehicle_dims[cand, 1])
+                hit = rects_overlap(fp, ego_fp[None]) & (j < self.passiveness[cand])
+                brake[cand[hit]] = True
+        p = len(self.ped_pos)
+        ped_brake = np.zeros(p, dtype=bool)
+        max_pp = int(self.ped_pass.max(initial=0))
+        if max_pp > 0 and p:
+            pos = self.ped_pos.copy()
+            for j in range(max_pp):
+                idx = np.minimum(self.ped_index + j, self.ped_plans.shape[1] - 1)
+                pos = step_pedestrian(pos, self.ped_plans[np.arange(p), idx], self.dt)
+                hit = disc_rect_overlap(pos, self.ped_radii, ego_fp[None]) & (j < self.ped_pass)
+                ped_brake |= hit
+        return brake, ped_brake
+
+    def clip_command(self, v: float, omega: float) -> tuple[float, float]:
+        """The ego is a car: |v| <= v_max and |omega| <= |v| / R_min (eq. 1 with a curvature bound)."""
+        vmax = self.config.ego_max_speed
+        v = float(np.clip(v, -vmax, vmax))
+        wmax = abs(v) * self.scenario.ego.max_curvature
+        return v, float(np.clip(omega, -wmax, wmax))
+
+    def step(self, v: float, omega: float) -> str:
+        """Advance one dt with ego command (v, omega); returns the episode status."""
+        if self.status != RUNNING:
+            return self.status
+        if not (math.isfinite(v) and math.isfinite(omega)):
+            raise ValueError(f"ego command must be finite, got v={v}, omega={omega}")
+        v, omega = self.clip_command(v, omega)
+        brake, ped_brake = self._reactive_brakes()
+        self.braking = brake
+        self.ped_braking = ped_brake
+        interrupted = int((brake & self.is_dynamic).sum()) + int(ped_brake.sum())
+        self.metrics.interrupted_agent_steps += interrupted
+        self.metrics.interrupted_steps += int(interrupted > 0)
+        self._advance_agents(brake, ped_brake)
+        self.history = np.concatenate([self.history[:, 1:], self.states[:, None]], axis=1)
+        self.ego = step_vehicle(self.ego, np.array([v, omega]), self.dt)
+        self.ego_speed = v
+        self.step_index += 1
+        self.metrics.steps = self.step_index
+        self.log_ego.append(self.ego.copy())
+        self.log_vehicles.append(self.states.copy())
+        self.log_braking.append(brake.copy())
+        self.log_commands.append(np.array([v, omega]))
+        self._check_events()
+        return self.status
+
+    # ------------------------------------------------------------------ events and metrics
+    def vehicle_corners(self) -> np.ndarray:
+        return rect_corners(self.states, self.vehicle_dims[:, 0], self.vehicle_dims[:, 1])
+
+    def ego_corners(self) -> np.ndarray:
+        return rect_corners(self.ego, self.scenario.ego.length, self.scenario.ego.width)
+
+    def _check_events(self) -> None:
+        ego_fp = self.ego_corners()
+        hit = rects_overlap(self.vehicle_corners(), ego_fp[None]) if len(self.states) else np.zeros(0, bool)
+        ped_hit = disc_rect_overlap(self.ped_pos, self.ped_radii, ego_fp[None]) if len(self.ped_pos) else []
+        if np.any(hit):
+            self._end(COLLISION, f"vehicle:{int(self.vehicle_ids[np.argmax(hit)])}")
+            return
+        if np.any(ped_hit):
+            self._end(COLLISION, f"pedestrian:{int(self.ped_ids[int(np.argmax(ped_hit))])}")
+            return
+        if not polygon_contains_points(self.lot.boundary, ego_fp).all():
+            self._end(COLLISION, "boundary")
+            return
+        inside = rect_inside_rect(ego_fp[None], self.lot.spot_corners)
+        if inside.any():
+            spot_id = int(self.lot.spot_ids[int(np.argmax(inside))])
+            m = self.metrics
+            m.parked_spot_id = spot_id
+            m.parking_time = self.step_index * self.dt
+            # stolen: a dynamic vehicle was heading for this spot (§VI-B)
+            m.spot_stolen = bool(np.any(self.target_spot[self.is_dynamic] == spot_id))
+            self._end(SUCCESS, "")
+            return
+        if self.step_index * self.dt >= self.config.t_final - 1e-9:
+            self._end(TIMEOUT, "")
+
+    def _end(self, status: str, collision_with: str) -> None:
+        self.status = status
+        self.metrics.success = status == SUCCESS
+        self.metrics.collision = status == COLLISION
+        self.metrics.collision_with = collision_with
+
+    @property
+    def done(self) -> bool:
+        return self.status != RUNNING
+
+    # ------------------------------------------------------------------ observation (§III-A)
+    def observe(self) -> Observation:
+        """What the ego senses now: rays stop at the lot boundary, other vehicles or dQ (no ground truth)."""
+        corners = self.vehicle_corners()
+        scan = self.caster.cast(self.ego, corners, self.ped_pos, self.ped_radii)
+        occupied, vehicle_spot = classify_world(self.lot, corners)
+        seen_spots = scan.seen_spots
+        vac = self.lot.spot_ids[seen_spots & ~occupied]
+        occ = self.lot.spot_ids[seen_spots & occupied]
+        vehicles = tuple(
+            ObservedVehicle(
+                id=int(self.vehicle_ids[i]),
+                length=float(self.vehicle_dims[i, 0]),
+                width=float(self.vehicle_dims[i, 1]),
+                is_static=bool(vehicle_spot[i] >= 0),
+                history=self.history[i].copy(),
+            )
+            for i in np.nonzero(scan.seen_vehicles)[0]
+        )
+        peds = tuple(
+            ObservedPedestrian(int(self.ped_ids[i]), float(self.ped_radii[i]), self.ped_pos[i].copy(),
+                               self.ped_prev[i].copy())
+            for i in np.nonzero(scan.seen_pedestrians)[0]
+        )
+        n_ray = self.config.sensor.n_ray
+        return Observation(
+            step=self.step_index,
+            dt=self.dt,
+            ego_pose=self.ego.copy(),
+            ego_length=self.scenario.ego.length,
+            ego_width=self.scenario.ego.width,
+            ego_speed=self.ego_speed,
+            vacant_spot_ids=vac.astype(np.int64),
+            occupied_spot_ids=occ.astype(np.int64),
+            vehicles=vehicles,
+            pedestrians=peds,
+            ray_angle_min=0.0,
+            ray_angle_increment=2.0 * math.pi / n_ray,
+            ray_ranges=scan.ranges.astype(np.float32),
+        )
+
+    def ground_truth(self) -> dict:
+        """Everything, for metrics and rendering only (the debug topic)."""
+        return {
+            "step": self.step_index,
+            "ego": self.ego.copy(),
+            "vehicle_ids": self.vehicle_ids,
+            "vehicles": self.states.copy(),
+            "dims": self.vehicle_dims,
+            "braking": self.braking.copy(),
+            "target_spot": self.target_spot,
+            "is_dynamic": self.is_dynamic,
+            "pedestrians": self.ped_pos.copy(),
+        }

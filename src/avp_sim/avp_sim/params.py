@@ -1,0 +1,56 @@
+"""Parameters of the simulator node (config/sim.param.yaml); each row names the paper's symbol."""
+
+from __future__ import annotations
+
+import math
+
+from avp_common.params import ParamSpec
+
+SIM_PARAMS: list[ParamSpec] = [
+    ParamSpec("lot_file", str, "Lot map YAML; empty = the bundled paper lot (avp_world/maps/paper_lot.yaml).",
+              "L", "§II-A", default=""),
+    ParamSpec("mode", str, "lockstep: publish step k, wait for the command stamped k, then step; "
+              "realtime: step at 1/dt wall rate with the latest command.", choices=("lockstep", "realtime"),
+              default="lockstep"),
+    ParamSpec("dt", float, "Timestep.", "Δt", "§II-B", min=0.01, max=1.0, default=0.1),
+    ParamSpec("t_final", float, "Episode time limit.", "t_f", "§VI-A", min=0.1, default=100.0),
+    ParamSpec("t_hist", float, "History length given for every observed vehicle.", "t_hist", "§III-A",
+              min=0.0, max=20.0, default=4.0),
+    ParamSpec("sensor.n_ray", int, "Number of rays.", "n_ray", "§III-A", min=1, max=100000, default=360),
+    ParamSpec("sensor.shape", str, "Shape of the base sensing region Q_0 (ego frame).", "Q_0", "§III-A",
+              choices=("disc", "rectangle", "ellipse"), default="disc"),
+    ParamSpec("sensor.radius", float, "Disc radius of Q_0.", "Q_0", "§VI-A", min=0.1, default=11.5),
+    ParamSpec("sensor.length", float, "Rectangle Q_0: extent along the ego heading.", "Q_0", "§III-A",
+              min=0.1, default=23.0),
+    ParamSpec("sensor.width", float, "Rectangle Q_0: extent across the ego heading.", "Q_0", "§III-A",
+              min=0.1, default=23.0),
+    ParamSpec("sensor.semi_major", float, "Ellipse Q_0: semi-axis along the heading.", "Q_0", "§III-A",
+              min=0.1, default=11.5),
+    ParamSpec("sensor.semi_minor", float, "Ellipse Q_0: semi-axis across the heading.", "Q_0", "§III-A",
+              min=0.1, default=11.5),
+    ParamSpec("sensor.offset", list, "Centre of Q_0 in the ego frame [x, y].", "Q_0", "§III-A",
+              default=[0.0, 0.0]),
+    ParamSpec("seed", int, "Scenario seed of the first episode.", "", "§VI-A", min=0, max=2**32 - 1, default=0),
+    ParamSpec("reactive", bool, "Reactive agents (passiveness ~ U{2..6}) or not (n_pass = 0).", "n_pass",
+              "§III-B, §VI-B", default=True),
+    ParamSpec("autostart", bool, "Start the first episode at launch (else wait for the reset service).",
+              default=True),
+    ParamSpec("scenario.passiveness_min", int, "Smallest passiveness in reactive mode.", "n_pass", "§VI-B",
+              min=0, max=100, default=2),
+    ParamSpec("scenario.passiveness_max", int, "Largest passiveness in reactive mode.", "n_pass", "§VI-B",
+              min=0, max=100, default=6),
+    ParamSpec("scenario.n_dynamic_min", int, "Fewest dynamic vehicles.", "", "§VI-A", min=0, max=10, default=1),
+    ParamSpec("scenario.n_dynamic_max", int, "Most dynamic vehicles.", "", "§VI-A", min=0, max=10, default=2),
+    ParamSpec("ego_max_speed", float, "Ego speed limit; commands are clipped to it and to |ω| <= |v|/R_min.",
+              "v", "eq. (1)", min=0.0, default=5.0),
+    ParamSpec("lockstep_timeout", float, "Lock-step: wall seconds without a matching command before the "
+              "observation is re-sent with a warning.", min=0.05, default=5.0),
+    ParamSpec("command_watchdog", float, "Real-time: a command older than this (wall seconds) is ignored and "
+              "the ego holds still.", min=0.0, default=0.3),
+    ParamSpec("wait_for_subscribers", bool, "Lock-step: hold step 0 until a subscriber to observation and a "
+              "publisher on cmd exist.", default=True),
+    ParamSpec("publish_markers", bool, "Publish debug/markers (MarkerArray) and debug/scan (LaserScan).",
+              default=True),
+]
+
+_ = math  # (symbols documented above)

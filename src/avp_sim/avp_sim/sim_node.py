@@ -1,0 +1,248 @@
+"""avp_sim node: the thin ROS wrapper around :class:`avp_sim.core.world.World`.
+
+Topics (relative; the launcher puts every node in namespace /avp):
+  publishes  lot_map (LATCHED), observation, episode_status (latched), debug/ground_truth,
+             debug/markers, debug/scan, /clock
+  subscribes cmd (geometry_msgs/TwistStamped, header.stamp = stamp of the observation it answers)
+  service    reset_episode (avp_msgs/srv/ResetEpisode)
+
+Lock-step: observation k is published, the command stamped t_k is awaited, then the world steps,
+so results do not depend on compute speed. Real-time: a wall timer steps every dt with the latest
+command; no fresh command (watchdog) ⇒ the ego holds still.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import numpy as np
+import rclpy
+from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation
+from avp_msgs.srv import ResetEpisode
+from geometry_msgs.msg import Pose2D, TwistStamped
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import LaserScan
+from visualization_msgs.msg import MarkerArray
+
+from avp_common.conversions import lot_to_msg, observation_to_msg, step_to_ns, step_to_time, time_to_ns
+from avp_common.params import ParameterError, declare_and_validate
+from avp_common.qos import DEBUG, LATCHED, STATUS, STEP
+from avp_sim.core.factory import load_lot_param, make_world, world_config
+from avp_sim.core.world import COLLISION, RUNNING, SUCCESS, TIMEOUT, World
+from avp_sim.markers import world_markers
+from avp_sim.params import SIM_PARAMS
+
+_STATE = {RUNNING: EpisodeStatus.STATE_RUNNING, SUCCESS: EpisodeStatus.STATE_SUCCESS,
+          COLLISION: EpisodeStatus.STATE_COLLISION, TIMEOUT: EpisodeStatus.STATE_TIMEOUT}
+
+
+class SimNode(Node):
+    def __init__(self) -> None:
+        super().__init__("avp_sim")
+        self.p = declare_and_validate(self, SIM_PARAMS)
+        world_config(self.p)  # validates the sensor block at start-up
+        self.lot = load_lot_param(self.p["lot_file"])
+        self.dt = self.p["dt"]
+        self.lockstep = self.p["mode"] == "lockstep"
+        self.pub_lot = self.create_publisher(type(lot_to_msg(self.lot)), "lot_map", LATCHED)
+        self.pub_obs = self.create_publisher(Observation, "observation", STEP)
+        self.pub_status = self.create_publisher(EpisodeStatus, "episode_status", STATUS)
+        self.pub_gt = self.create_publisher(GroundTruth, "debug/ground_truth", STEP)
+        self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", DEBUG)
+        self.pub_scan = self.create_publisher(LaserScan, "debug/scan", DEBUG)
+        self.pub_clock = self.create_publisher(Clock, "/clock", 10)
+        self.sub_cmd = self.create_subscription(TwistStamped, "cmd", self._on_cmd, STEP)
+        self.srv = self.create_service(ResetEpisode, "reset_episode", self._on_reset)
+        self.pub_lot.publish(lot_to_msg(self.lot))
+        self.world: World | None = None
+        self.seed = self.p["seed"]
+        self.reactive = self.p["reactive"]
+        self.started = False  # step 0 published
+        self.last_pub_wall = 0.0
+        self.latest_cmd: tuple[float, float, float] | None = None  # (v, omega, wall time)
+        if self.p["autostart"]:
+            self._new_episode(self.seed, self.reactive)
+        if self.lockstep:
+            self.timer = self.create_timer(0.05, self._lockstep_tick)
+        else:
+            self.timer = self.create_timer(self.dt, self._realtime_tick)
+        self.get_logger().info(
+            f"avp_sim up: lot '{self.lot.name}' ({self.lot.n_spots} spots), mode {self.p['mode']}, dt {self.dt}"
+        )
+
+    # ---------------------------------------------------------------- episodes
+    def _new_episode(self, seed: int, reactive: bool) -> World:
+        self.world = make_world(self.lot, self.p, seed, reactive)
+        self.seed, self.reactive = seed, reactive
+        self.started = False
+        self.latest_cmd = None
+        dyn = [(v.id, v.target_spot_id, v.maneuver, v.passiveness) for v in self.world.scenario.dynamic_vehicles()]
+        self.get_logger().info(f"episode seed={seed} reactive={reactive}: dynamic vehicles {dyn}")
+        return self.world
+
+    def _on_reset(self, req: ResetEpisode.Request, resp: ResetEpisode.Response) -> ResetEpisode.Response:
+        try:
+            if req.scenario_file:
+                raise ValueError("scenario files are not supported yet; give a seed")
+            w = self._new_episode(int(req.seed), bool(req.reactive))
+            if not self.lockstep:
+                self._publish_step()
+            resp.success, resp.message, resp.n_vehicles = True, "ok", len(w.scenario.vehicles)
+        except Exception as exc:  # noqa: BLE001 - any bad request is answered, the node keeps running
+            resp.success, resp.message = False, f"reset_episode: {exc}"
+            self.get_logger().error(resp.message)
+        return resp
+
+    # ---------------------------------------------------------------- stepping
+    def _publish_step(self) -> None:
+        w = self.world
+        assert w is not None
+        stamp = step_to_time(w.step_index, self.dt)
+        self.pub_clock.publish(Clock(clock=stamp))
+        obs = w.observe()
+        self.pub_gt.publish(self._ground_truth_msg(w, stamp))
+        self.pub_status.publish(self._status_msg(w, stamp))
+        if self.p["publish_markers"]:
+            self.pub_markers.publish(world_markers(self.lot, w, obs, stamp))
+            self.pub_scan.publish(self._scan_msg(obs, stamp))
+        if not w.done:
+            self.pub_obs.publish(observation_to_msg(obs))
+        self.last_pub_wall = time.monotonic()
+        self.started = True
+
+    def _lockstep_tick(self) -> None:
+        w = self.world
+        if w is None or w.done:
+            return
+        if not self.started:
+            if self.p["wait_for_subscribers"] and (
+                self.pub_obs.get_subscription_count() < 1 or self.count_publishers(self.sub_cmd.topic_name) < 1
+            ):
+                return
+            self._publish_step()
+            return
+        if time.monotonic() - self.last_pub_wall > self.p["lockstep_timeout"]:
+            self.get_logger().warning(
+                f"lock-step: no command stamped step {w.step_index} on {self.sub_cmd.topic_name} for "
+                f"{self.p['lockstep_timeout']} s; re-sending the observation"
+            )
+            self._publish_step()
+
+    def _realtime_tick(self) -> None:
+        w = self.world
+        if w is None or w.done:
+            return
+        if not self.started:
+            self._publish_step()
+            return
+        v, om = 0.0, 0.0
+        if self.latest_cmd is not None and time.monotonic() - self.latest_cmd[2] <= self.p["command_watchdog"]:
+            v, om = self.latest_cmd[0], self.latest_cmd[1]
+        w.step(v, om)
+        self._publish_step()
+
+    def _on_cmd(self, msg: TwistStamped) -> None:
+        v, om = float(msg.twist.linear.x), float(msg.twist.angular.z)
+        if not (math.isfinite(v) and math.isfinite(om)):
+            self.get_logger().error(f"{self.sub_cmd.topic_name}: command with NaN/inf (v={v}, omega={om}) dropped")
+            return
+        w = self.world
+        if w is None or w.done:
+            return
+        if not self.lockstep:
+            self.latest_cmd = (v, om, time.monotonic())
+            return
+        expected = step_to_ns(w.step_index, self.dt)
+        got = time_to_ns(msg.header.stamp)
+        if not self.started or got != expected:
+            if got > expected:
+                self.get_logger().warning(
+                    f"{self.sub_cmd.topic_name}: command stamped {got} ns is ahead of step {w.step_index}; dropped")
+            return  # stale commands (re-sent observations) are ignored
+        w.step(v, om)
+        self._publish_step()
+        if w.done:
+            self.get_logger().info(f"episode seed={self.seed} ended: {w.status} {w.metrics.as_dict()}")
+
+    # ---------------------------------------------------------------- messages
+    def _status_msg(self, w: World, stamp) -> EpisodeStatus:
+        m = w.metrics
+        msg = EpisodeStatus()
+        msg.header.stamp = stamp
+        msg.step = w.step_index
+        msg.sim_time = w.step_index * self.dt
+        msg.seed = int(self.seed)
+        msg.reactive = bool(self.reactive)
+        msg.state = _STATE[w.status]
+        msg.lock_step = self.lockstep
+        mm = msg.metrics
+        mm.success, mm.collision, mm.collision_with = m.success, m.collision, m.collision_with
+        mm.spot_stolen, mm.parked_spot_id = m.spot_stolen, int(m.parked_spot_id)
+        mm.interrupted_steps, mm.interrupted_agent_steps = int(m.interrupted_steps), int(m.interrupted_agent_steps)
+        mm.parking_time, mm.steps = float(m.parking_time), int(m.steps)
+        return msg
+
+    def _ground_truth_msg(self, w: World, stamp) -> GroundTruth:
+        msg = GroundTruth()
+        msg.header.stamp = stamp
+        msg.header.frame_id = "map"
+        msg.step = w.step_index
+        ego = AgentState(id=0, kind=AgentState.KIND_EGO, length=w.scenario.ego.length, width=w.scenario.ego.width,
+                         target_spot_id=-1)
+        ego.pose = Pose2D(x=float(w.ego[0]), y=float(w.ego[1]), theta=float(w.ego[2]))
+        agents = [ego]
+        for i in range(len(w.states)):
+            a = AgentState(id=int(w.vehicle_ids[i]), kind=AgentState.KIND_VEHICLE, length=float(w.vehicle_dims[i, 0]),
+                           width=float(w.vehicle_dims[i, 1]), is_static=not bool(w.is_dynamic[i]),
+                           braking=bool(w.braking[i]), target_spot_id=int(w.target_spot[i]))
+            a.pose = Pose2D(x=float(w.states[i, 0]), y=float(w.states[i, 1]), theta=float(w.states[i, 2]))
+            agents.append(a)
+        for i in range(len(w.ped_pos)):
+            a = AgentState(id=int(w.ped_ids[i]), kind=AgentState.KIND_PEDESTRIAN, radius=float(w.ped_radii[i]),
+                           braking=bool(w.ped_braking[i]), target_spot_id=-1)
+            a.pose = Pose2D(x=float(w.ped_pos[i, 0]), y=float(w.ped_pos[i, 1]), theta=0.0)
+            agents.append(a)
+        msg.agents = agents
+        from avp_sim.core.observation import classify_world
+
+        occupied, _ = classify_world(self.lot, w.vehicle_corners())
+        msg.occupied_spot_ids = [int(i) for i in self.lot.spot_ids[occupied]]
+        return msg
+
+    def _scan_msg(self, obs, stamp) -> LaserScan:
+        scan = LaserScan()
+        scan.header.stamp = stamp
+        scan.header.frame_id = "ego"
+        scan.angle_min = float(obs.ray_angle_min)
+        scan.angle_increment = float(obs.ray_angle_increment)
+        scan.angle_max = float(obs.ray_angle_min + obs.ray_angle_increment * (len(obs.ray_ranges) - 1))
+        scan.range_min = 0.0
+        scan.range_max = float(np.max(obs.ray_ranges)) if len(obs.ray_ranges) else 0.0
+        scan.ranges = np.asarray(obs.ray_ranges, dtype=np.float32)
+        return scan
+
+
+def main(args=None) -> int:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = SimNode()
+        rclpy.spin(node)
+    except (ParameterError, ValueError) as exc:
+        print(f"[avp_sim] start-up failed: {exc}", file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,66 @@
+"""Plain data passed between the simulator, perception and planner cores (no ROS types).
+
+:class:`Observation` is exactly what the ego may know at one step (paper §III-A): the ego pipeline
+is built on it alone; ground truth never appears here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ObservedVehicle:
+    """A vehicle touched by a ray: size, static/dynamic flag and its states over t_hist (oldest first)."""
+
+    id: int
+    length: float
+    width: float
+    is_static: bool
+    history: np.ndarray  # (H, 3) poses (x, y, theta) at t - t_hist ... t; history[-1] is the current state
+
+    @property
+    def pose(self) -> np.ndarray:
+        return self.history[-1]
+
+
+@dataclass(frozen=True)
+class ObservedPedestrian:
+    """A pedestrian touched by a ray: radius and positions at t - dt and t."""
+
+    id: int
+    radius: float
+    position: np.ndarray  # (2,)
+    previous_position: np.ndarray  # (2,)
+
+
+@dataclass(frozen=True)
+class Observation:
+    """The ego's observation at step ``step`` (time t = step * dt), paper §III-A."""
+
+    step: int
+    dt: float
+    ego_pose: np.ndarray  # (3,)
+    ego_length: float
+    ego_width: float
+    ego_speed: float
+    vacant_spot_ids: np.ndarray  # I_vac,t (int64)
+    occupied_spot_ids: np.ndarray  # I_occ,t (int64)
+    vehicles: tuple[ObservedVehicle, ...] = ()
+    pedestrians: tuple[ObservedPedestrian, ...] = ()
+    ray_angle_min: float = 0.0  # relative to the ego heading
+    ray_angle_increment: float = 0.0
+    ray_ranges: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def t(self) -> float:
+        return self.step * self.dt
+
+    def ray_endpoints(self) -> np.ndarray:
+        """(n_ray, 2) world coordinates where each ray stopped."""
+        n = len(self.ray_ranges)
+        ang = self.ego_pose[2] + self.ray_angle_min + self.ray_angle_increment * np.arange(n)
+        r = np.asarray(self.ray_ranges, dtype=float)
+        return self.ego_pose[:2] + np.stack([r * np.cos(ang), r * np.sin(ang)], axis=1)

@@ -1,0 +1,129 @@
+"""World stepping on hand-built episodes: reactive braking (§III-B) and the §VI-B metric definitions.
+
+Oracles: shapely for footprints/containment, closed-form straight-line motion for positions.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from shapely.geometry import Polygon
+
+from avp_sim.core.observation import SensorConfig
+from avp_sim.core.scenario import Scenario, VehicleAgent
+from avp_sim.core.world import COLLISION, SUCCESS, TIMEOUT, World, WorldConfig
+from avp_world.geometry import rect_corners
+from avp_world.vehicle import VehicleSpec
+
+EGO = VehicleSpec()
+
+
+def _straight_agent(agent_id, start_t0, heading, speed, n_steps, passiveness, hist=40, target=-1):
+    """An agent that drives straight at ``speed`` for ``hist`` steps before t = 0 and ``n_steps`` after."""
+    d = np.array([math.cos(heading), math.sin(heading)])
+    init = np.array([*(np.asarray(start_t0) - d * speed * hist * 0.1), heading])
+    controls = np.tile([speed, 0.0], (hist + n_steps, 1))
+    return VehicleAgent(id=agent_id, length=4.6, width=1.85, initial_state=init, controls=controls,
+                        passiveness=passiveness, target_spot_id=target)
+
+
+def _world(lot, ego_start, vehicles, t_final=30.0):
+    sc = Scenario(seed=0, reactive=True, ego_start=np.array(ego_start, float), ego=EGO, vehicles=tuple(vehicles))
+    return World(lot, sc, WorldConfig(t_final=t_final, sensor=SensorConfig()))
+
+
+def _poly(pose, length=4.6, width=1.85):
+    return Polygon(rect_corners(np.asarray(pose), length, width))
+
+
+def test_history_exists_at_t0(paper_lot):
+    a = _straight_agent(1000, (21.5 - 1.75, 30.0), -math.pi / 2, 1.0, 50, 0)
+    w = _world(paper_lot, (21.5, 38.0, -math.pi / 2), [a])
+    assert w.history.shape == (1, 41, 3)
+    # 4 s of history: straight line at 1 m/s ending at the t = 0 position
+    assert np.allclose(w.history[0, -1, :2], [19.75, 30.0])
+    assert np.allclose(w.history[0, 0, :2], [19.75, 34.0])
+
+
+def test_reactive_agent_brakes_for_ego_and_resumes(paper_lot):
+    # agent drives south in the middle road towards an ego standing across its lane
+    n_pass = 3
+    a = _straight_agent(1000, (21.5, 30.0), -math.pi / 2, 1.0, 200, n_pass)
+    ego_start = (21.5, 20.0, 0.0)
+    w = _world(paper_lot, ego_start, [a], t_final=60.0)
+    stopped_gap = None
+    for k in range(150):  # ego waits 12 s, then drives east out of the lane
+        v = 0.0 if k < 120 else 2.0
+        w.step(v, 0.0)
+        assert w.status != COLLISION
+        if k == 110:
+            assert w.braking[0], "agent should be braking while the ego blocks its lane"
+            stopped_gap = _poly(w.states[0]).distance(_poly(w.ego))
+    assert stopped_gap is not None and 0.0 < stopped_gap <= n_pass * 1.0 * 0.1 + 1e-9
+    braked = np.array(w.log_braking)[:, 0]
+    assert w.metrics.interrupted_steps == int(braked.sum()) > 0
+    # it resumed its plan where it left it: 200 planned steps at 1 m/s, none skipped
+    while not w.done and w.step_index < 400:
+        w.step(0.0, 0.0)
+    executed = int(w.plan_index[0])
+    assert executed == 40 + (w.step_index - int(braked.sum()))
+    expected_y = 30.0 - min(executed - 40, 200) * 0.1 * 1.0  # plan ends after 200 steps
+    assert math.isclose(w.states[0, 1], expected_y, abs_tol=1e-9)
+
+
+def test_non_reactive_agent_collides_with_a_standing_ego(paper_lot):
+    a = _straight_agent(1007, (21.5, 30.0), -math.pi / 2, 1.0, 200, 0)
+    w = _world(paper_lot, (21.5, 20.0, 0.0), [a])
+    while not w.done:
+        w.step(0.0, 0.0)
+    assert w.status == COLLISION and w.metrics.collision_with == "vehicle:1007"
+    assert not w.metrics.success and w.metrics.interrupted_steps == 0
+    # collision happens at the first step where the shapely footprints meet
+    first = next(k for k, s in enumerate(w.log_vehicles) if _poly(s[0]).intersects(_poly(w.ego)))
+    assert w.step_index == first
+
+
+def test_parking_success_time_and_stolen(paper_lot):
+    spot = paper_lot.spots[paper_lot.spot_index(20)]  # column 2, faces east, centre (27.75, 8.375)
+    # a dynamic vehicle far away whose plan targets spot 20
+    a = _straight_agent(1001, (3.5 + 1.75, 20.0), math.pi / 2, 0.0, 10, 2, target=20)
+    w = _world(paper_lot, (24.0, spot.y, 0.0), [a])
+    while not w.done:
+        w.step(1.0, 0.0)
+    spot_poly = Polygon(paper_lot.spot_corners[paper_lot.spot_index(20)])
+    first_inside = next(k for k, e in enumerate(w.log_ego) if _poly(e).within(spot_poly))
+    assert w.status == SUCCESS and w.metrics.success
+    assert w.metrics.parked_spot_id == 20 and w.metrics.spot_stolen
+    assert math.isclose(w.metrics.parking_time, first_inside * 0.1)
+
+
+def test_parking_elsewhere_is_not_stolen(paper_lot):
+    a = _straight_agent(1001, (3.5 + 1.75, 20.0), math.pi / 2, 0.0, 10, 2, target=21)
+    w = _world(paper_lot, (24.0, paper_lot.spots[20].y, 0.0), [a])
+    while not w.done:
+        w.step(1.0, 0.0)
+    assert w.metrics.success and not w.metrics.spot_stolen
+
+
+def test_boundary_collision_and_timeout(paper_lot):
+    w = _world(paper_lot, (4.05, 20.0, math.pi), [])  # not exactly touching at any step
+    while not w.done:
+        w.step(1.0, 0.0)
+    assert w.status == COLLISION and w.metrics.collision_with == "boundary"
+    # first step at which the footprint leaves L (shapely oracle)
+    lot_poly = Polygon(paper_lot.boundary)
+    first_out = next(k for k, e in enumerate(w.log_ego) if not _poly(e).within(lot_poly))
+    assert w.step_index == first_out
+    w = _world(paper_lot, (21.5, 30.0, 0.0), [], t_final=2.0)
+    while not w.done:
+        w.step(0.0, 0.0)
+    assert w.status == TIMEOUT and w.step_index == 20 and not w.metrics.success
+
+
+def test_ego_command_clipped_to_car_limits(paper_lot):
+    w = _world(paper_lot, (21.5, 30.0, -math.pi / 2), [])
+    assert w.clip_command(9.0, 0.0) == (5.0, 0.0)
+    v, om = w.clip_command(1.0, 5.0)
+    assert v == 1.0 and math.isclose(om, 1.0 / EGO.min_turning_radius)
+    assert w.clip_command(0.0, 1.0) == (0.0, 0.0)  # a car cannot turn on the spot
