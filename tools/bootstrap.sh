@@ -33,7 +33,7 @@ WRAP
 chmod +x "$VENV/bin/avp"
 
 # 3. colcon build (skipped when no source file changed since the last successful build)
-SRC_HASH="$(cd "$ROOT" && find src -type f -not -path '*/__pycache__/*' -not -name '*.pyc' -print0 | sort -z | xargs -0 sha1sum | sha1sum | cut -d' ' -f1)"
+SRC_HASH="$(cd "$ROOT" && find src -type f -not -path '*/__pycache__/*' -not -name '*.pyc' -not -path '*.egg-info*' -print0 | sort -z | xargs -0 sha1sum | sha1sum | cut -d' ' -f1)"
 if [ "$(cat "$ROOT/ros2_ws/.build.sha1" 2>/dev/null || true)" != "$SRC_HASH" ] || [ ! -f "$ROOT/ros2_ws/install/setup.bash" ]; then
   log "colcon build in ros2_ws/"
   (

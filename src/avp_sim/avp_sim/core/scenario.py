@@ -221,8 +221,9 @@ def generate_paper_scenario(
         agent = build_dynamic_vehicle(lot, 1000 + len(dynamic), spot, key, v_c, approach, params, vehicle)
         if _valid_dynamic(lot, agent, ego_start, vehicle, params, dynamic):
             dynamic.append(agent)
-    dynamic = [replace(d, passiveness=int(rng.integers(params.passiveness[0], params.passiveness[1] + 1))
-                       if reactive else 0) for d in dynamic]
+    # drawn in both modes so that reactive and non-reactive runs of a seed share the same setup (§VI-B)
+    passiveness = [int(rng.integers(params.passiveness[0], params.passiveness[1] + 1)) for _ in dynamic]
+    dynamic = [replace(d, passiveness=n if reactive else 0) for d, n in zip(dynamic, passiveness, strict=True)]
 
     parked: list[VehicleAgent] = []
     empty = set(vacant) | set(outer)
