@@ -71,6 +71,24 @@ def main() -> None:
         f"cast x {args.repeats}: median {np.median(ms):.3f} ms, p95 {np.percentile(ms, 95):.3f} ms, "
         f"mean {ms.mean():.3f} ms, min {ms.min():.3f} ms"
     )
+    # the whole observation step of the simulator (ray casting + spot/vehicle classification + histories)
+    from avp_sim.core.scenario import generate_paper_scenario
+    from avp_sim.core.world import World, WorldConfig
+
+    world = World(lot, generate_paper_scenario(lot, args.seed, True), WorldConfig(sensor=caster.config))
+    obs_times = []
+    for _ in range(300):
+        t0 = time.perf_counter()
+        world.observe()
+        obs_times.append(time.perf_counter() - t0)
+        world.step(1.0, 0.0)
+        if world.done:
+            break
+    om = np.array(obs_times[20:]) * 1e3
+    print(
+        f"World.observe() (seeded scenario, {len(world.states)} vehicles) x {len(om)}: median {np.median(om):.3f} ms, "
+        f"p95 {np.percentile(om, 95):.3f} ms"
+    )
     print(
         f"machine: {platform.platform()}, {platform.processor() or platform.machine()}, "
         f"{os.cpu_count()} CPUs, Python {platform.python_version()}, numpy {np.__version__}"

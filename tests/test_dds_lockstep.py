@@ -19,13 +19,14 @@ T_FINAL = 6.0
 
 
 def _inprocess_trajectory(lot):
+    from ament_index_python.packages import get_package_share_directory as share
+
     from avp_bringup.inproc import run_episode
     from avp_common.params import load_yaml_params
     from avp_planner.scripted_driver import ScriptedDriver, ScriptedDriverConfig
     from avp_planner.scripted_driver_node import DRIVER_PARAMS
     from avp_sim.core.factory import make_world
     from avp_sim.params import SIM_PARAMS
-    from ament_index_python.packages import get_package_share_directory as share
 
     p = load_yaml_params(f"{share('avp_sim')}/config/sim.param.yaml", "avp_sim", SIM_PARAMS)
     p["t_final"] = T_FINAL

@@ -35,7 +35,7 @@ def test_paper_lot_layout(paper_lot):
             assert p.intersection(r).area < 1e-9
     # each spot's heading points away from the road it borders: the point 1 m behind the spot's
     # back edge... in front of its road edge lies on a road
-    for k, s in enumerate(lot.spots):
+    for s in lot.spots:
         road_side = np.array([s.x, s.y]) - (s.length / 2 + 1.0) * np.array([math.cos(s.heading), math.sin(s.heading)])
         from shapely.geometry import Point
 

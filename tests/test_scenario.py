@@ -38,8 +38,8 @@ def test_same_seed_same_scenario_and_episode(paper_lot, seed):
 
 
 def test_different_seeds_differ(paper_lot):
-    keys = {tuple((v.target_spot_id, v.maneuver) for v in generate_paper_scenario(paper_lot, s, True).dynamic_vehicles())
-            for s in SEEDS}
+    scenarios = [generate_paper_scenario(paper_lot, s, True) for s in SEEDS]
+    keys = {tuple((v.target_spot_id, v.maneuver) for v in sc.dynamic_vehicles()) for sc in scenarios}
     assert len(keys) > 6
 
 

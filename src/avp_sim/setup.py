@@ -19,7 +19,7 @@ setup(
     zip_safe=True,
     maintainer="AVP stack maintainers",
     maintainer_email="maintainers@avp-stack.org",
-    description="Parking-lot simulator: occlusion-aware ray-casting observations, reactive agents doing ParkSim maneuvers, seeded scenarios, episode metrics (paper §III, §VI-A).",
+    description="Parking-lot simulator node and ROS-free core (paper §III, §VI-A).",
     license="Apache-2.0",
     entry_points={"console_scripts": ["sim_node = avp_sim.sim_node:main"]},
 )

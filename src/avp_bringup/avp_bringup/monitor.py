@@ -7,11 +7,11 @@ import math
 from pathlib import Path
 
 import numpy as np
-from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation
 from rclpy.node import Node
 
 from avp_common.conversions import observation_from_msg
 from avp_common.qos import DEBUG, STATUS, STEP
+from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation
 
 STATE_NAMES = {EpisodeStatus.STATE_IDLE: "idle", EpisodeStatus.STATE_RUNNING: "running",
                EpisodeStatus.STATE_SUCCESS: "success", EpisodeStatus.STATE_COLLISION: "collision",

@@ -17,7 +17,7 @@ PARKED, DYNAMIC, EGO, RAY, EGO_PATH, DYN_PATH = (200, 120, 60), (0, 220, 255), (
 
 
 class Canvas:
-    def __init__(self, lot: LotMap, px_per_m: float = 20.0, margin: float = 1.0):
+    def __init__(self, lot: LotMap, px_per_m: float = 20.0, margin: float = 1.5):
         xmin, ymin, xmax, ymax = lot.bounds()
         self.lot, self.s, self.x0, self.y1, self.m = lot, px_per_m, xmin - margin, ymax + margin, margin
         w = int((xmax - xmin + 2 * margin) * px_per_m)
@@ -67,9 +67,13 @@ def render_episode(lot: LotMap, ego_traj: np.ndarray, ego_dims: tuple[float, flo
     """
     c = Canvas(lot)
     draw_lot(c, occupied_ids)
-    if rays is not None and len(ego_traj):
-        o = c.px(ego_traj[-1][:2])
-        for e in c.px(rays):
+    if rays is not None and len(rays):
+        # the region the rays sweep (what the ego sees), translucent, with every 8th ray drawn
+        overlay = c.img.copy()
+        cv2.fillPoly(overlay, [c.px(rays)], RAY, lineType=cv2.LINE_AA)
+        c.img = cv2.addWeighted(overlay, 0.3, c.img, 0.7, 0)
+        o = c.px(np.asarray(ego_traj)[-1][:2])
+        for e in c.px(rays)[::8]:
             cv2.line(c.img, tuple(int(v) for v in o), tuple(int(v) for v in e), RAY, 1, cv2.LINE_AA)
     for vid, v in vehicles.items():
         traj = np.asarray(v["traj"])
@@ -84,4 +88,12 @@ def render_episode(lot: LotMap, ego_traj: np.ndarray, ego_dims: tuple[float, flo
     c.line(np.asarray(ego_traj)[:, :2], EGO_PATH, 2)
     c.poly(rect_corners(np.asarray(ego_traj)[-1], *ego_dims), EGO)
     cv2.putText(c.img, title, (8, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
+    legend = [("ego", EGO), ("ego path", EGO_PATH), ("dynamic vehicle + path/target", DYNAMIC), ("parked", PARKED),
+              ("vacant spot", VACANT), ("occupied spot", OCCUPIED), ("sensed region / rays", RAY)]
+    x = 8
+    h = c.img.shape[0] - 8
+    for name, col in legend:
+        cv2.rectangle(c.img, (x, h - 10), (x + 10, h), col, -1)
+        cv2.putText(c.img, name, (x + 14, h), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
+        x += 22 + 7 * len(name)
     c.save(path)

@@ -9,15 +9,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point, Pose2D
+
 from avp_msgs.msg import LotMap as LotMapMsg
 from avp_msgs.msg import Observation as ObservationMsg
 from avp_msgs.msg import ObservedPedestrian as ObservedPedestrianMsg
 from avp_msgs.msg import ObservedVehicle as ObservedVehicleMsg
 from avp_msgs.msg import Road as RoadMsg
 from avp_msgs.msg import Spot as SpotMsg
-from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Point, Pose2D
-
 from avp_world.lot import LotMap, lot_from_dict
 from avp_world.types import Observation, ObservedPedestrian, ObservedVehicle
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 import sys
 
 import rclpy
-from avp_msgs.msg import LotMap, Observation
 from geometry_msgs.msg import TwistStamped
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -17,6 +16,7 @@ from rclpy.node import Node
 from avp_common.conversions import MessageError, lot_from_msg, observation_from_msg
 from avp_common.params import ParameterError, ParamSpec, declare_and_validate
 from avp_common.qos import LATCHED, STEP
+from avp_msgs.msg import LotMap, Observation
 from avp_planner.scripted_driver import ScriptedDriver, ScriptedDriverConfig
 
 DRIVER_PARAMS = [

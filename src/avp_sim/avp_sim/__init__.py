@@ -1,1 +1,5 @@
-"""Parking-lot simulator: occlusion-aware ray-casting observations, reactive agents doing ParkSim maneuvers, seeded scenarios, episode metrics (paper §III, §VI-A)."""
+"""Parking-lot simulator (paper §III, §VI-A).
+
+Occlusion-aware ray-casting observations, reactive agents doing ParkSim maneuvers, seeded scenarios,
+episode metrics.
+"""

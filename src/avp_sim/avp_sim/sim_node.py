@@ -19,8 +19,6 @@ import time
 
 import numpy as np
 import rclpy
-from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation
-from avp_msgs.srv import ResetEpisode
 from geometry_msgs.msg import Pose2D, TwistStamped
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -31,6 +29,8 @@ from visualization_msgs.msg import MarkerArray
 from avp_common.conversions import lot_to_msg, observation_to_msg, step_to_ns, step_to_time, time_to_ns
 from avp_common.params import ParameterError, declare_and_validate
 from avp_common.qos import DEBUG, LATCHED, STATUS, STEP
+from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation
+from avp_msgs.srv import ResetEpisode
 from avp_sim.core.factory import load_lot_param, make_world, world_config
 from avp_sim.core.world import COLLISION, RUNNING, SUCCESS, TIMEOUT, World
 from avp_sim.markers import world_markers

@@ -227,7 +227,7 @@ def generate_paper_scenario(
 
     parked: list[VehicleAgent] = []
     empty = set(vacant) | set(outer)
-    for k, s in enumerate(lot.spots):
+    for s in lot.spots:
         if s.id in empty:
             continue
         heading = s.heading + (math.pi if rng.random() < 0.5 else 0.0)
