@@ -64,3 +64,21 @@ class Observation:
         ang = self.ego_pose[2] + self.ray_angle_min + self.ray_angle_increment * np.arange(n)
         r = np.asarray(self.ray_ranges, dtype=float)
         return self.ego_pose[:2] + np.stack([r * np.cos(ang), r * np.sin(ang)], axis=1)
+
+
+@dataclass(frozen=True)
+class PredictedTrajectory:
+    """One predicted future of one agent, conditioned on one intention (paper §V-C).
+
+    ``poses[j]`` is the predicted state at t + (j + 1) * dt, where t is the observation time.
+    """
+
+    agent_id: int
+    poses: np.ndarray  # (T, 3) for vehicles; (T, 3) with theta = 0 for pedestrians
+    dt: float
+    probability: float = 1.0  # eta of the conditioning intention
+    is_pedestrian: bool = False
+    length: float = 0.0  # vehicles
+    width: float = 0.0
+    radius: float = 0.0  # pedestrians
+    spot_id: int = -1  # the intended spot, -1 for exploration / unconditioned
