@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from shapely.geometry import Polygon
 
 from avp_sim.core.observation import SensorConfig
@@ -127,3 +128,20 @@ def test_ego_command_clipped_to_car_limits(paper_lot):
     v, om = w.clip_command(1.0, 5.0)
     assert v == 1.0 and math.isclose(om, 1.0 / EGO.min_turning_radius)
     assert w.clip_command(0.0, 1.0) == (0.0, 0.0)  # a car cannot turn on the spot
+
+
+def test_metrics_recomputed_from_logged_ground_truth_equal_live(paper_lot):
+    from avp_sim.core.metrics import metrics_from_log
+
+    n_pass = 3
+    a = _straight_agent(1000, (21.5, 30.0), -math.pi / 2, 1.0, 200, n_pass)
+    w = _world(paper_lot, (21.5, 20.0, 0.0), [a], t_final=40.0)
+    for k in range(400):
+        w.step(0.0 if k < 120 else 2.0, 0.0 if k < 150 else -0.2)
+        if w.done:
+            break
+    status, m = metrics_from_log(paper_lot, 0.1, 40.0, (4.6, 1.85), np.array(w.log_ego), np.array(w.log_vehicles),
+                                 w.vehicle_dims, w.vehicle_ids, w.is_dynamic, w.target_spot, np.array(w.log_braking))
+    assert status == w.status
+    assert m.as_dict() == pytest.approx(w.metrics.as_dict(), nan_ok=True)
+    assert m.interrupted_steps > 0

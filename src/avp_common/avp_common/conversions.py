@@ -155,3 +155,73 @@ def observation_from_msg(msg: ObservationMsg) -> Observation:
         ray_angle_increment=float(msg.ray_angle_increment),
         ray_ranges=ranges,
     )
+
+
+# ------------------------------------------------------------------------------- beliefs / predictions
+
+
+def beliefs_to_msg(step: int, dt: float, spot_ids: np.ndarray, beliefs: np.ndarray):
+    from avp_msgs.msg import SpotBeliefs
+
+    msg = SpotBeliefs()
+    msg.header.frame_id = "map"
+    msg.header.stamp = step_to_time(step, dt)
+    msg.step = int(step)
+    msg.spot_ids = [int(i) for i in spot_ids]
+    msg.beliefs = np.asarray(beliefs, dtype=np.float32)
+    return msg
+
+
+def beliefs_from_msg(msg, lot: LotMap) -> np.ndarray:
+    """Belief vector indexed like ``lot.spots``; MessageError on unknown ids, NaN or values outside [0, 1]."""
+    if len(msg.spot_ids) != len(msg.beliefs):
+        raise MessageError(f"{len(msg.spot_ids)} spot ids but {len(msg.beliefs)} beliefs")
+    b = np.full(lot.n_spots, 0.5)
+    vals = np.asarray(msg.beliefs, dtype=float)
+    _finite(vals, "beliefs")
+    if vals.size and (vals.min() < 0 or vals.max() > 1):
+        raise MessageError("beliefs must lie in [0, 1]")
+    for sid, v in zip(msg.spot_ids, vals, strict=True):
+        if not lot.has_spot(sid):
+            raise MessageError(f"unknown spot id {sid}")
+        b[lot.spot_index(sid)] = v
+    return b
+
+
+def predictions_to_msg(step: int, dt: float, predictions):
+    from avp_msgs.msg import PredictedTrajectory as PredMsg
+    from avp_msgs.msg import PredictedTrajectoryArray
+
+    msg = PredictedTrajectoryArray()
+    msg.header.frame_id = "map"
+    msg.header.stamp = step_to_time(step, dt)
+    msg.step = int(step)
+    for p in predictions:
+        m = PredMsg(agent_id=int(p.agent_id), agent_type=PredMsg.AGENT_PEDESTRIAN if p.is_pedestrian
+                    else PredMsg.AGENT_VEHICLE, length=float(p.length), width=float(p.width), radius=float(p.radius),
+                    intention_kind=PredMsg.INTENT_SPOT if p.spot_id >= 0 else PredMsg.INTENT_NONE,
+                    spot_id=int(p.spot_id), probability=float(p.probability), dt=float(p.dt))
+        m.poses = [Pose2D(x=float(q[0]), y=float(q[1]), theta=float(q[2])) for q in p.poses]
+        if len(p.poses):
+            m.goal = m.poses[-1]
+        msg.trajectories.append(m)
+    return msg
+
+
+def predictions_from_msg(msg):
+    from avp_msgs.msg import PredictedTrajectory as PredMsg
+
+    from avp_world.types import PredictedTrajectory
+
+    out = []
+    for m in msg.trajectories:
+        poses = np.array([[q.x, q.y, q.theta] for q in m.poses]).reshape(-1, 3)
+        _finite(poses, f"prediction of agent {m.agent_id}")
+        _finite([m.probability, m.dt, m.length, m.width, m.radius], f"prediction of agent {m.agent_id}")
+        if not (m.dt > 0):
+            raise MessageError(f"prediction of agent {m.agent_id}: dt must be > 0")
+        out.append(PredictedTrajectory(agent_id=int(m.agent_id), poses=poses, dt=float(m.dt),
+                                       probability=float(m.probability),
+                                       is_pedestrian=m.agent_type == PredMsg.AGENT_PEDESTRIAN, length=float(m.length),
+                                       width=float(m.width), radius=float(m.radius), spot_id=int(m.spot_id)))
+    return out

@@ -15,14 +15,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from avp_sim.core.metrics import COLLISION, RUNNING, SUCCESS, TIMEOUT, EpisodeMetrics, apply_event, step_event
 from avp_sim.core.observation import RayCaster, SensorConfig, classify_world
 from avp_sim.core.scenario import Scenario
-from avp_world.geometry import disc_rect_overlap, polygon_contains_points, rect_corners, rect_inside_rect, rects_overlap
+from avp_world.geometry import disc_rect_overlap, rect_corners, rects_overlap
 from avp_world.kinematics import step_pedestrian, step_vehicle
 from avp_world.lot import LotMap
 from avp_world.types import Observation, ObservedPedestrian, ObservedVehicle
 
-RUNNING, SUCCESS, COLLISION, TIMEOUT = "running", "success", "collision", "timeout"
+__all__ = ["World", "WorldConfig", "EpisodeMetrics", "RUNNING", "SUCCESS", "COLLISION", "TIMEOUT"]
 
 
 @dataclass(frozen=True)
@@ -30,24 +31,6 @@ class WorldConfig:
     t_final: float = 100.0  # t_f [s] (§VI-A)
     sensor: SensorConfig = field(default_factory=SensorConfig)
     ego_max_speed: float = 5.0  # |v| of the ego is clipped to this [m/s]
-
-
-@dataclass
-class EpisodeMetrics:
-    """§VI-B metrics of one episode (see docs/metrics.md for the exact definitions)."""
-
-    success: bool = False
-    collision: bool = False
-    collision_with: str = ""
-    spot_stolen: bool = False
-    parked_spot_id: int = -1
-    interrupted_steps: int = 0
-    interrupted_agent_steps: int = 0
-    parking_time: float = float("nan")
-    steps: int = 0
-
-    def as_dict(self) -> dict:
-        return dict(self.__dict__)
 
 
 class World:
@@ -189,36 +172,10 @@ class World:
         return rect_corners(self.ego, self.scenario.ego.length, self.scenario.ego.width)
 
     def _check_events(self) -> None:
-        ego_fp = self.ego_corners()
-        hit = rects_overlap(self.vehicle_corners(), ego_fp[None]) if len(self.states) else np.zeros(0, bool)
-        ped_hit = disc_rect_overlap(self.ped_pos, self.ped_radii, ego_fp[None]) if len(self.ped_pos) else []
-        if np.any(hit):
-            self._end(COLLISION, f"vehicle:{int(self.vehicle_ids[np.argmax(hit)])}")
-            return
-        if np.any(ped_hit):
-            self._end(COLLISION, f"pedestrian:{int(self.ped_ids[int(np.argmax(ped_hit))])}")
-            return
-        if not polygon_contains_points(self.lot.boundary, ego_fp).all():
-            self._end(COLLISION, "boundary")
-            return
-        inside = rect_inside_rect(ego_fp[None], self.lot.spot_corners)
-        if inside.any():
-            spot_id = int(self.lot.spot_ids[int(np.argmax(inside))])
-            m = self.metrics
-            m.parked_spot_id = spot_id
-            m.parking_time = self.step_index * self.dt
-            # stolen: a dynamic vehicle was heading for this spot (§VI-B)
-            m.spot_stolen = bool(np.any(self.target_spot[self.is_dynamic] == spot_id))
-            self._end(SUCCESS, "")
-            return
-        if self.step_index * self.dt >= self.config.t_final - 1e-9:
-            self._end(TIMEOUT, "")
-
-    def _end(self, status: str, collision_with: str) -> None:
-        self.status = status
-        self.metrics.success = status == SUCCESS
-        self.metrics.collision = status == COLLISION
-        self.metrics.collision_with = collision_with
+        status, who, parked = step_event(self.lot, self.ego_corners(), self.vehicle_corners(), self.vehicle_ids,
+                                         self.ped_pos, self.ped_radii, self.ped_ids)
+        self.status = apply_event(self.metrics, status, who, parked, self.step_index, self.dt,
+                                  self.config.t_final, self.target_spot[self.is_dynamic])
 
     @property
     def done(self) -> bool:
