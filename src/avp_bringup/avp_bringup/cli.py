@@ -3,6 +3,9 @@
   avp launch [--params FILE] [--log-dir DIR]       start the node graph; Ctrl-C stops it
   avp demo   [--seed N] [--non-reactive] [--out DIR] [--params FILE]
                                                    one seeded episode over DDS -> metrics.json, episode.png
+  avp record OUT [--topics T ...] [--storage mcap|sqlite3]
+                                                   record the graph to a rosbag2 until Ctrl-C
+  avp metrics BAG                                  recompute an episode's metrics from a bag
   avp params [NODE]                                print the parameter tables (Markdown)
 """
 
@@ -62,13 +65,23 @@ def cmd_demo(args: argparse.Namespace) -> int:
     log_dir = out / "logs"
     nodes = default_graph()
     sim = nodes[0]
-    extra = {"seed": args.seed, "reactive": not args.non_reactive}
+    extra = {"seed": args.seed, "reactive": not args.non_reactive, "min_subscribers": 3}
     if args.t_final is not None:
         extra["t_final"] = args.t_final
     nodes[0] = type(sim)(sim.name, sim.package, sim.executable, sim.param_file, extra)
     lot = load_lot(args.lot) if args.lot else load_bundled_lot()
+    from rclpy.executors import SingleThreadedExecutor
+
+    from avp_bringup.bag import BagRecorder
+
+    bag = Path(args.bag) if args.bag else _root() / "bags" / f"demo_seed{args.seed}_{time.strftime('%Y%m%d-%H%M%S')}"
+    bag.parent.mkdir(parents=True, exist_ok=True)
     rclpy.init()
     monitor = EpisodeMonitor()
+    recorder = BagRecorder(bag)
+    executor = SingleThreadedExecutor()
+    executor.add_node(monitor)
+    executor.add_node(recorder)
     graph = Graph(nodes, log_dir, args.params)
     t0 = time.monotonic()
     graph.start()
@@ -76,7 +89,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
           f"over DDS; node logs in {log_dir}/")
     try:
         while not monitor.finished:
-            rclpy.spin_once(monitor, timeout_sec=0.2)
+            executor.spin_once(timeout_sec=0.2)
             dead = {n: rc for n, rc in graph.poll().items() if rc is not None}
             if dead:
                 print(f"[avp demo] node(s) exited early: {dead}; see {log_dir}/", file=sys.stderr)
@@ -85,16 +98,67 @@ def cmd_demo(args: argparse.Namespace) -> int:
                 print(f"[avp demo] no episode end after {args.timeout} s wall time", file=sys.stderr)
                 return 1
         for _ in range(10):  # drain the last ground-truth messages
-            rclpy.spin_once(monitor, timeout_sec=0.05)
+            executor.spin_once(timeout_sec=0.05)
         wall = time.monotonic() - t0
         metrics = monitor.write(lot, out, {"wall_time_s": round(wall, 2), "ego_driver": "scripted_driver"})
     finally:
         graph.stop()
+        recorder.close()
         monitor.destroy_node()
+        recorder.destroy_node()
         rclpy.try_shutdown()
+    print(f"[avp demo] bag: {bag}  (recompute its metrics: avp metrics {bag})")
     print(f"[avp demo] {metrics['state']} after {metrics['sim_time']:.1f} s sim time ({wall:.1f} s wall); "
           f"wrote {out / 'metrics.json'} and {out / 'episode.png'}")
     return 0
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    import rclpy
+
+    from avp_bringup.bag import GRAPH_TOPICS, OPTIONAL_TOPICS, BagRecorder
+
+    known = {**GRAPH_TOPICS, **OPTIONAL_TOPICS}
+    topics = GRAPH_TOPICS
+    if args.topics:
+        unknown = [t for t in args.topics if t not in known]
+        if unknown:
+            print(f"[avp record] unknown topic(s) {unknown}; known: {sorted(known)}", file=sys.stderr)
+            return 2
+        topics = {t: known[t] for t in args.topics}
+    rclpy.init()
+    rec = BagRecorder(Path(args.out), topics, storage=args.storage)
+    print(f"[avp record] recording {len(topics)} topics to {args.out} ({args.storage}); Ctrl-C stops")
+    stop = {"flag": False}
+    signal.signal(signal.SIGTERM, lambda *_: stop.update(flag=True))
+    t0 = time.monotonic()
+    try:
+        while not stop["flag"] and (args.duration is None or time.monotonic() - t0 < args.duration):
+            rclpy.spin_once(rec, timeout_sec=0.1)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        rec.close()
+        print(f"[avp record] closed {args.out}: {rec.counts}")
+        rec.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+def cmd_metrics(args: argparse.Namespace) -> int:
+    import json
+
+    from avp_bringup.bag import metrics_from_bag
+
+    try:
+        recomputed, live = metrics_from_bag(Path(args.bag))
+    except (ValueError, OSError) as exc:
+        print(f"[avp metrics] {exc}", file=sys.stderr)
+        return 2
+    print(json.dumps({"recomputed_from_ground_truth": recomputed, "live_episode_status": live}, indent=2))
+    same = recomputed == live
+    print(f"[avp metrics] recomputed metrics {'equal' if same else 'DIFFER FROM'} the live ones")
+    return 0 if same else 1
 
 
 def cmd_params(args: argparse.Namespace) -> int:
@@ -126,6 +190,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--lot", help="lot YAML used for the picture (default: the bundled paper lot)")
     p.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit [s]")
     p.set_defaults(func=cmd_demo)
+    p.add_argument("--bag", help="where to record the demo's bag (default bags/demo_seed<N>_<time>)")
+    p = sub.add_parser("record", help="record the graph to a rosbag2")
+    p.add_argument("out")
+    p.add_argument("--topics", nargs="+")
+    p.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
+    p.add_argument("--duration", type=float, default=None, help="stop after this many wall seconds")
+    p.set_defaults(func=cmd_record)
+    p = sub.add_parser("metrics", help="recompute an episode's metrics from a bag")
+    p.add_argument("bag")
+    p.set_defaults(func=cmd_metrics)
     p = sub.add_parser("params", help="print parameter tables")
     p.add_argument("node", nargs="?")
     p.set_defaults(func=cmd_params)

@@ -49,6 +49,8 @@ SIM_PARAMS: list[ParamSpec] = [
               "the ego holds still.", min=0.0, default=0.3),
     ParamSpec("wait_for_subscribers", bool, "Lock-step: hold step 0 until a subscriber to observation and a "
               "publisher on cmd exist.", default=True),
+    ParamSpec("min_subscribers", int, "Lock-step: step 0 waits for this many observation subscribers (the ego "
+              "pipeline, plus recorders/monitors that must see step 0).", min=1, max=100, default=1),
     ParamSpec("publish_markers", bool, "Publish debug/markers (MarkerArray) and debug/scan (LaserScan).",
               default=True),
 ]

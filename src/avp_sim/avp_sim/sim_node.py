@@ -120,7 +120,7 @@ class SimNode(Node):
             return
         if not self.started:
             if self.p["wait_for_subscribers"] and (
-                self.pub_obs.get_subscription_count() < 1 or self.count_publishers(self.sub_cmd.topic_name) < 1
+                self.pub_obs.get_subscription_count() < self.p["min_subscribers"] or self.count_publishers(self.sub_cmd.topic_name) < 1
             ):
                 return
             self._publish_step()
@@ -175,6 +175,8 @@ class SimNode(Node):
         msg.header.stamp = stamp
         msg.step = w.step_index
         msg.sim_time = w.step_index * self.dt
+        msg.dt = float(self.dt)
+        msg.t_final = float(w.config.t_final)
         msg.seed = int(self.seed)
         msg.reactive = bool(self.reactive)
         msg.state = _STATE[w.status]
