@@ -12,13 +12,13 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy")
 
-from avp_msgs.msg import EpisodeStatus, GroundTruth, Observation  # noqa: E402
-from avp_msgs.srv import ResetEpisode  # noqa: E402
 from geometry_msgs.msg import TwistStamped  # noqa: E402
 
 from avp_bringup.graph import Graph, NodeSpec  # noqa: E402
 from avp_common.conversions import step_to_time  # noqa: E402
 from avp_common.qos import STATUS, STEP  # noqa: E402
+from avp_msgs.msg import EpisodeStatus, GroundTruth, Observation  # noqa: E402
+from avp_msgs.srv import ResetEpisode  # noqa: E402
 
 
 def _sim(extra):

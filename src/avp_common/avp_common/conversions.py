@@ -210,7 +210,6 @@ def predictions_to_msg(step: int, dt: float, predictions):
 
 def predictions_from_msg(msg):
     from avp_msgs.msg import PredictedTrajectory as PredMsg
-
     from avp_world.types import PredictedTrajectory
 
     out = []

@@ -119,9 +119,9 @@ class SimNode(Node):
         if w is None or w.done:
             return
         if not self.started:
-            if self.p["wait_for_subscribers"] and (
-                self.pub_obs.get_subscription_count() < self.p["min_subscribers"] or self.count_publishers(self.sub_cmd.topic_name) < 1
-            ):
+            n_subs = self.pub_obs.get_subscription_count()
+            n_cmd = self.count_publishers(self.sub_cmd.topic_name)
+            if self.p["wait_for_subscribers"] and (n_subs < self.p["min_subscribers"] or n_cmd < 1):
                 return
             self._publish_step()
             return
