@@ -5,6 +5,8 @@
                                                    one seeded episode over DDS -> metrics.json, episode.png
   avp record OUT [--topics T ...] [--storage mcap|sqlite3]
                                                    record the graph to a rosbag2 until Ctrl-C
+  avp replay BAG [--rate R] [--start S] [--topics T ...]
+                                                   republish a bag with its sim clock
   avp metrics BAG                                  recompute an episode's metrics from a bag
   avp params [NODE]                                print the parameter tables (Markdown)
 """
@@ -107,7 +109,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         monitor.destroy_node()
         recorder.destroy_node()
         rclpy.try_shutdown()
-    print(f"[avp demo] bag: {bag}  (recompute its metrics: avp metrics {bag})")
+    print(f"[avp demo] bag: {bag}\n[avp demo]   replay it: avp replay {bag}   metrics from it: avp metrics {bag}")
     print(f"[avp demo] {metrics['state']} after {metrics['sim_time']:.1f} s sim time ({wall:.1f} s wall); "
           f"wrote {out / 'metrics.json'} and {out / 'episode.png'}")
     return 0
@@ -141,6 +143,32 @@ def cmd_record(args: argparse.Namespace) -> int:
         rec.close()
         print(f"[avp record] closed {args.out}: {rec.counts}")
         rec.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    import rclpy
+
+    from avp_bringup.replay import BagReplayer
+
+    rclpy.init()
+    try:
+        rep = BagReplayer(Path(args.bag), args.topics)
+    except (ValueError, OSError) as exc:
+        print(f"[avp replay] {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    print(f"[avp replay] {args.bag}: {len(rep.connections)} topics at rate {args.rate}, from +{args.start} s")
+    try:
+        time.sleep(args.delay)  # let subscribers discover the publishers
+        n = rep.play(rate=args.rate, start_offset=args.start)
+        print(f"[avp replay] published {n} messages")
+    except KeyboardInterrupt:
+        pass
+    finally:
+        rep.close()
+        rep.destroy_node()
         rclpy.try_shutdown()
     return 0
 
@@ -197,6 +225,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
     p.add_argument("--duration", type=float, default=None, help="stop after this many wall seconds")
     p.set_defaults(func=cmd_record)
+    p = sub.add_parser("replay", help="republish a bag with its sim clock")
+    p.add_argument("bag")
+    p.add_argument("--rate", type=float, default=1.0, help="1 = as recorded, 0 = as fast as possible")
+    p.add_argument("--start", type=float, default=0.0, help="start offset into the bag [s]")
+    p.add_argument("--topics", nargs="+")
+    p.add_argument("--delay", type=float, default=1.0, help="wall seconds to wait for subscribers first")
+    p.set_defaults(func=cmd_replay)
     p = sub.add_parser("metrics", help="recompute an episode's metrics from a bag")
     p.add_argument("bag")
     p.set_defaults(func=cmd_metrics)

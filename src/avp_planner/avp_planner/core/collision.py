@@ -1,0 +1,373 @@
+"""Collision checking of the ego footprint for the planner of §V-D (ROS-free, vectorised).
+
+**Static world** (:class:`StaticWorld`, rebuilt once per decision step): what the Hybrid A* of §V-D must
+avoid, i.e. V_0,τ ⊆ L and V_0,τ ∩ S_i = ∅ for every spot believed occupied (b_t,i >= β), plus the observed
+static vehicles; the goal spot is never drawn. Obstacles are kept twice:
+
+* exactly, as oriented rectangles (spots drawn as full spot rectangles, vehicles as their rectangles) and
+  the lot polygon L;
+* as an occupancy grid (``grid_resolution``; outside L is occupied) and its Euclidean distance transform
+  (``cv2.distanceTransform``). Obstacles are rasterised grown by a cell diagonal (so every cell containing
+  an obstacle point is marked whatever the rasteriser's edge rule), hence the distance from any point q to
+  the obstacles is at least EDT(cell of q) - 2h, h being half a cell diagonal.
+
+A batch of poses is checked in two stages: the car is covered by ``n_discs`` discs along its axis; a pose
+whose every disc clears the EDT by radius + margin + 2h is free (conservative, one array lookup per disc).
+The remaining poses (near obstacles) get an exact separating-axis test against the rectangles within reach
+and an exact test of the corners against L shrunk by the margin. "Free with margin m" means: for every
+obstacle some separating axis shows a gap > m (which implies Euclidean distance > m), and the footprint
+lies in L shrunk by m.
+
+**Dynamic obstacles** (:class:`DynamicObstacles`): predicted trajectories (§V-C) of vehicles (rectangles)
+and pedestrians (discs); ``poses[j]`` is the prediction at t + (j + 1) Δt and a prediction holds its last
+pose after its end. An ego pose with time index k (time t + k Δt) is compared with prediction index k - 1;
+an ego plan that has ended holds its last pose too.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+
+from avp_planner.core.settings import CollisionSettings
+from avp_world.geometry import points_in_rects, polygon_contains_points, rect_corners, segments_intersect
+from avp_world.lot import LotMap
+from avp_world.types import PredictedTrajectory
+
+
+def _disc_layout(length: float, width: float, n: int) -> tuple[np.ndarray, float]:
+    """Offsets along the axis and radius of ``n`` equal discs covering a length x width rectangle."""
+    seg = length / n
+    offsets = -0.5 * length + seg * (np.arange(n) + 0.5)
+    return offsets, math.hypot(0.5 * seg, 0.5 * width)
+
+
+def _is_convex_ccw(poly: np.ndarray) -> bool:
+    d1 = np.roll(poly, -1, axis=0) - poly
+    d2 = np.roll(d1, -1, axis=0)
+    cross = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+    return bool((cross >= -1e-12).all())
+
+
+class _Boundary:
+    """Exact test "footprint inside L shrunk by m" (half-planes if L is convex, else a general test)."""
+
+    def __init__(self, polygon: np.ndarray):
+        poly = np.asarray(polygon, dtype=float)
+        area2 = float(np.sum(poly[:, 0] * np.roll(poly[:, 1], -1) - np.roll(poly[:, 0], -1) * poly[:, 1]))
+        if area2 < 0:
+            poly = poly[::-1]
+        self.polygon = poly
+        self.convex = _is_convex_ccw(poly)
+        e = np.roll(poly, -1, axis=0) - poly
+        n = np.stack([-e[:, 1], e[:, 0]], axis=1)
+        n /= np.linalg.norm(n, axis=1, keepdims=True)  # inward normals of a ccw polygon
+        self.normals = n
+        self.offsets = np.einsum("ij,ij->i", n, poly)
+        self._shrunk: dict[float, list[np.ndarray]] = {}
+
+    def _shrunk_rings(self, margin: float) -> list[np.ndarray]:
+        if margin not in self._shrunk:
+            from shapely.geometry import Polygon
+
+            g = Polygon(self.polygon).buffer(-margin, join_style="mitre") if margin > 0 else Polygon(self.polygon)
+            geoms = getattr(g, "geoms", [g])
+            self._shrunk[margin] = [np.asarray(p.exterior.coords)[:-1] for p in geoms if not p.is_empty]
+        return self._shrunk[margin]
+
+    def inside(self, corners: np.ndarray, margin: float) -> np.ndarray:
+        """corners (N, 4, 2) -> (N,) bool."""
+        if self.convex:
+            d = np.einsum("nkd,ed->nke", corners, self.normals) - self.offsets
+            return (d >= margin).all(axis=(1, 2))
+        ok = np.zeros(len(corners), dtype=bool)
+        for ring in self._shrunk_rings(margin):
+            inside = polygon_contains_points(ring, corners).all(-1)
+            # no ring vertex strictly inside the footprint and no ring edge crossing a footprint edge
+            vin = points_in_rects(ring[None, :, :], corners[:, None, :, :], tol=-1e-9).any(-1)
+            a0, a1 = ring, np.roll(ring, -1, axis=0)
+            c0, c1 = corners, np.roll(corners, -1, axis=1)
+            cross = segments_intersect(c0[:, :, None], c1[:, :, None], a0[None, None], a1[None, None])
+            ok |= inside & ~vin & ~cross.any(axis=(1, 2))
+        return ok
+
+
+class StaticWorld:
+    """Static obstacles of one decision step (see the module docstring).
+
+    Args:
+        lot: the lot map (its boundary is L).
+        rect_poses, rect_dims: (K, 3) centres/headings and (K, 2) length/width of obstacle rectangles.
+        length, width: the ego footprint.
+        settings: grid resolution, disc count.
+    """
+
+    def __init__(
+        self,
+        lot: LotMap,
+        rect_poses: np.ndarray,
+        rect_dims: np.ndarray,
+        length: float,
+        width: float,
+        settings: CollisionSettings = CollisionSettings(),
+    ):
+        self.lot = lot
+        self.settings = settings
+        self.length, self.width = float(length), float(width)
+        self.half_l, self.half_w = 0.5 * self.length, 0.5 * self.width
+        self.circum = math.hypot(self.half_l, self.half_w)
+        self.rect_poses = np.asarray(rect_poses, dtype=float).reshape(-1, 3)
+        self.rect_dims = np.asarray(rect_dims, dtype=float).reshape(-1, 2)
+        self.rect_half = 0.5 * self.rect_dims
+        self.rect_cos = np.cos(self.rect_poses[:, 2])
+        self.rect_sin = np.sin(self.rect_poses[:, 2])
+        self.rect_circum = np.hypot(self.rect_half[:, 0], self.rect_half[:, 1])
+        self.boundary = _Boundary(lot.boundary)
+        self.disc_offsets, self.disc_radius = _disc_layout(self.length, self.width, settings.n_discs)
+        self._build_grid()
+
+    # ------------------------------------------------------------------ grid
+    def _build_grid(self) -> None:
+        res = self.settings.grid_resolution
+        xmin, ymin, xmax, ymax = self.lot.bounds()
+        pad = 2 * res
+        self.origin = np.array([xmin - pad, ymin - pad])
+        self.res = res
+        w = int(math.ceil((xmax - xmin + 2 * pad) / res))
+        h = int(math.ceil((ymax - ymin + 2 * pad) / res))
+        grid = np.ones((h, w), dtype=np.uint8)  # 1 = occupied
+        half_diag = res * math.sqrt(0.5)
+        grow = 2.0 * half_diag  # every cell that contains an obstacle point lies well inside the grown shape
+        self.slack = 2.0 * half_diag + 1e-6
+        shift = 8
+        scale = float(1 << shift)
+
+        def px(pts: np.ndarray) -> np.ndarray:
+            u = (pts - self.origin) / res - 0.5  # pixel-centre coordinates
+            return np.round(u * scale).astype(np.int32)
+
+        for ring in self.boundary._shrunk_rings(grow):
+            cv2.fillPoly(grid, [px(ring)], 0, lineType=cv2.LINE_8, shift=shift)
+        if len(self.rect_poses):
+            grown = rect_corners(self.rect_poses, self.rect_dims[:, 0] + 2 * grow, self.rect_dims[:, 1] + 2 * grow)
+            cv2.fillPoly(grid, [px(c) for c in grown], 1, lineType=cv2.LINE_8, shift=shift)
+        self.grid = grid
+        free = (grid == 0).astype(np.uint8)
+        self.edt = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE).astype(np.float32) * res
+        self.shape = grid.shape
+
+    def clearance(self, xy: np.ndarray) -> np.ndarray:
+        """Lower bound on the distance (m) from points (..., 2) to the static obstacles (0 off the grid)."""
+        xy = np.asarray(xy, dtype=float)
+        j = np.floor((xy[..., 0] - self.origin[0]) / self.res).astype(np.int64)
+        i = np.floor((xy[..., 1] - self.origin[1]) / self.res).astype(np.int64)
+        ok = (i >= 0) & (i < self.shape[0]) & (j >= 0) & (j < self.shape[1])
+        out = np.zeros(xy.shape[:-1], dtype=np.float64)
+        out[ok] = self.edt[i[ok], j[ok]]
+        return np.maximum(out - self.slack, 0.0)
+
+    def disc_centres(self, poses: np.ndarray) -> np.ndarray:
+        """(N, n_discs, 2) centres of the covering discs."""
+        p = np.asarray(poses, dtype=float).reshape(-1, 3)
+        c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
+        off = self.disc_offsets
+        return np.stack([p[:, 0, None] + c[:, None] * off, p[:, 1, None] + s[:, None] * off], axis=-1)
+
+    def footprint_clearance(self, poses: np.ndarray) -> np.ndarray:
+        """Approximate (lower-bound) clearance of each footprint: min over discs of clearance - disc radius."""
+        return self.clearance(self.disc_centres(poses)).min(axis=1) - self.disc_radius
+
+    # ------------------------------------------------------------------ checks
+    def rect_collisions(self, poses: np.ndarray, margin: float) -> np.ndarray:
+        """Exact: (N,) True where the footprint comes within ``margin`` (SAT sense) of an obstacle rectangle."""
+        p = np.asarray(poses, dtype=float).reshape(-1, 3)
+        hit = np.zeros(len(p), dtype=bool)
+        if not len(self.rect_poses) or not len(p):
+            return hit
+        dx = self.rect_poses[None, :, 0] - p[:, 0, None]
+        dy = self.rect_poses[None, :, 1] - p[:, 1, None]
+        reach = self.circum + self.rect_circum[None, :] + margin
+        ii, jj = np.nonzero(dx * dx + dy * dy <= reach * reach)
+        if not len(ii):
+            return hit
+        tx, ty = dx[ii, jj], dy[ii, jj]
+        c, s = np.cos(p[ii, 2]), np.sin(p[ii, 2])
+        oc, os_ = self.rect_cos[jj], self.rect_sin[jj]
+        bl, bw = self.rect_half[jj, 0], self.rect_half[jj, 1]
+        al, aw = self.half_l, self.half_w
+        cd = np.abs(c * oc + s * os_)
+        sd = np.abs(s * oc - c * os_)
+        sep = (
+            (np.abs(tx * c + ty * s) > al + bl * cd + bw * sd + margin)
+            | (np.abs(-tx * s + ty * c) > aw + bl * sd + bw * cd + margin)
+            | (np.abs(tx * oc + ty * os_) > bl + al * cd + aw * sd + margin)
+            | (np.abs(-tx * os_ + ty * oc) > bw + al * sd + aw * cd + margin)
+        )
+        np.logical_or.at(hit, ii, ~sep)
+        return hit
+
+    def exact_free(self, poses: np.ndarray, margin: float) -> np.ndarray:
+        """Exact test of every pose: (N,) True where free with ``margin``."""
+        p = np.asarray(poses, dtype=float).reshape(-1, 3)
+        corners = rect_corners(p, self.length, self.width)
+        return self.boundary.inside(corners, margin) & ~self.rect_collisions(p, margin)
+
+    def free(self, poses: np.ndarray, margin: float) -> np.ndarray:
+        """(N,) True where the footprint at each pose is free with ``margin`` (disc pre-check, then exact)."""
+        p = np.asarray(poses, dtype=float).reshape(-1, 3)
+        if not len(p):
+            return np.zeros(0, dtype=bool)
+        if not np.isfinite(p).all():
+            out = np.zeros(len(p), dtype=bool)
+            fin = np.isfinite(p).all(axis=1)
+            out[fin] = self.free(p[fin], margin)
+            return out
+        clr = self.clearance(self.disc_centres(p)).min(axis=1)
+        sure = clr > self.disc_radius + margin
+        out = sure.copy()
+        unsure = np.nonzero(~sure)[0]
+        if len(unsure):
+            out[unsure] = self.exact_free(p[unsure], margin)
+        return out
+
+    def all_free(self, poses: np.ndarray, margin: float) -> bool:
+        return bool(self.free(poses, margin).all())
+
+
+# ---------------------------------------------------------------------------------------------- dynamic
+
+
+class DynamicObstacles:
+    """Time-indexed predicted agents (see the module docstring).
+
+    Args:
+        predictions: §V-C predicted trajectories (vehicles: rectangles; pedestrians: discs).
+        length, width: the ego footprint.
+        vehicle_margin, pedestrian_margin: clearances required.
+    """
+
+    def __init__(
+        self,
+        predictions: Sequence[PredictedTrajectory],
+        length: float,
+        width: float,
+        vehicle_margin: float = 0.3,
+        pedestrian_margin: float = 0.4,
+    ):
+        self.half_l, self.half_w = 0.5 * float(length), 0.5 * float(width)
+        self.circum = math.hypot(self.half_l, self.half_w)
+        self.vm, self.pm = float(vehicle_margin), float(pedestrian_margin)
+        veh = [p for p in predictions if not p.is_pedestrian and len(p.poses)]
+        ped = [p for p in predictions if p.is_pedestrian and len(p.poses)]
+        self.horizon = max((len(p.poses) for p in (*veh, *ped)), default=0)
+        t = max(self.horizon, 1)
+
+        def pad(a: np.ndarray, cols: int) -> np.ndarray:
+            a = np.asarray(a, dtype=float).reshape(-1, 3)[:, :cols]
+            return np.concatenate([a, np.repeat(a[-1:], t - len(a), axis=0)]) if len(a) < t else a[:t]
+
+        self.veh_poses = np.array([pad(p.poses, 3) for p in veh]).reshape(len(veh), t, 3)
+        self.veh_half = np.array([[0.5 * p.length, 0.5 * p.width] for p in veh]).reshape(len(veh), 2)
+        self.veh_ids = [p.agent_id for p in veh]
+        self.ped_pos = np.array([pad(p.poses, 2) for p in ped]).reshape(len(ped), t, 2)
+        self.ped_radius = np.array([p.radius for p in ped], dtype=float)
+        self.ped_ids = [p.agent_id for p in ped]
+
+    @property
+    def empty(self) -> bool:
+        return self.horizon == 0
+
+    def _extend(self, ego: np.ndarray) -> np.ndarray:
+        """Ego poses for k = 0..max(K-1, horizon), holding the last pose."""
+        ego = np.asarray(ego, dtype=float).reshape(-1, 3)
+        n = max(len(ego), self.horizon + 1)
+        if len(ego) < n:
+            ego = np.concatenate([ego, np.repeat(ego[-1:], n - len(ego), axis=0)])
+        return ego
+
+    def _vehicle_gaps(self, ego: np.ndarray, k: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """SAT separation (max over the 4 axes of the projected gap) of ego pose k vs vehicle a at index k-1."""
+        j = np.clip(k - 1, 0, self.horizon - 1)
+        o = self.veh_poses[a, j]
+        tx, ty = o[:, 0] - ego[k, 0], o[:, 1] - ego[k, 1]
+        c, s = np.cos(ego[k, 2]), np.sin(ego[k, 2])
+        oc, os_ = np.cos(o[:, 2]), np.sin(o[:, 2])
+        bl, bw = self.veh_half[a, 0], self.veh_half[a, 1]
+        al, aw = self.half_l, self.half_w
+        cd = np.abs(c * oc + s * os_)
+        sd = np.abs(s * oc - c * os_)
+        return np.maximum.reduce([
+            np.abs(tx * c + ty * s) - (al + bl * cd + bw * sd),
+            np.abs(-tx * s + ty * c) - (aw + bl * sd + bw * cd),
+            np.abs(tx * oc + ty * os_) - (bl + al * cd + aw * sd),
+            np.abs(-tx * os_ + ty * oc) - (bw + al * sd + aw * cd),
+        ])
+
+    def _ped_gaps(self, ego: np.ndarray, k: np.ndarray, a: np.ndarray) -> np.ndarray:
+        j = np.clip(k - 1, 0, self.horizon - 1)
+        q = self.ped_pos[a, j]
+        dx, dy = q[:, 0] - ego[k, 0], q[:, 1] - ego[k, 1]
+        c, s = np.cos(ego[k, 2]), np.sin(ego[k, 2])
+        lx = np.maximum(np.abs(dx * c + dy * s) - self.half_l, 0.0)
+        ly = np.maximum(np.abs(-dx * s + dy * c) - self.half_w, 0.0)
+        return np.hypot(lx, ly) - self.ped_radius[a]
+
+    def _pairs(self, ego: np.ndarray, centres: np.ndarray, reach: np.ndarray, k0: int):
+        """Candidate (k, agent) pairs whose centres are within reach (k >= k0)."""
+        n = len(ego)
+        k = np.arange(k0, n)
+        j = np.clip(k - 1, 0, self.horizon - 1)
+        d = centres[:, j, :] - ego[None, k0:, :2]  # (A, n - k0, 2)
+        near = np.einsum("akd,akd->ak", d, d) <= (reach[:, None]) ** 2
+        aa, kk = np.nonzero(near)
+        return kk + k0, aa
+
+    def collision_steps(self, ego_poses: np.ndarray, k0: int = 1) -> np.ndarray:
+        """Sorted time indices k >= k0 at which the ego (holding its last pose) meets a predicted agent."""
+        if self.empty:
+            return np.zeros(0, dtype=np.int64)
+        ego = self._extend(ego_poses)
+        hits = []
+        if len(self.veh_poses):
+            reach = self.circum + np.hypot(self.veh_half[:, 0], self.veh_half[:, 1]) + self.vm
+            k, a = self._pairs(ego, self.veh_poses[..., :2], reach, k0)
+            if len(k):
+                hits.append(k[self._vehicle_gaps(ego, k, a) <= self.vm])
+        if len(self.ped_pos):
+            reach = self.circum + self.ped_radius + self.pm
+            k, a = self._pairs(ego, self.ped_pos, reach, k0)
+            if len(k):
+                hits.append(k[self._ped_gaps(ego, k, a) <= self.pm])
+        if not hits:
+            return np.zeros(0, dtype=np.int64)
+        return np.unique(np.concatenate(hits))
+
+    def first_collision(self, ego_poses: np.ndarray, k0: int = 1) -> int:
+        """First colliding time index (>= k0), or -1."""
+        steps = self.collision_steps(ego_poses, k0)
+        return int(steps[0]) if len(steps) else -1
+
+    def proximity_cost(self, ego_poses: np.ndarray, dt: float, decay: float = 2.0, reach: float = 3.0) -> float:
+        """sum_k sum_agents exp(-decay * gap) dt over pairs closer than ``reach`` (gap: SAT lower bound)."""
+        if self.empty:
+            return 0.0
+        ego = self._extend(ego_poses)
+        total = 0.0
+        if len(self.veh_poses):
+            r = self.circum + np.hypot(self.veh_half[:, 0], self.veh_half[:, 1]) + reach
+            k, a = self._pairs(ego, self.veh_poses[..., :2], r, 1)
+            if len(k):
+                g = self._vehicle_gaps(ego, k, a)
+                g = g[g < reach]
+                total += float(np.exp(-decay * np.maximum(g, 0.0)).sum())
+        if len(self.ped_pos):
+            r = self.circum + self.ped_radius + reach
+            k, a = self._pairs(ego, self.ped_pos, r, 1)
+            if len(k):
+                g = self._ped_gaps(ego, k, a)
+                g = g[g < reach]
+                total += float(np.exp(-decay * np.maximum(g, 0.0)).sum())
+        return total * dt
