@@ -134,3 +134,88 @@ def markdown_table(specs: list[ParamSpec]) -> str:
         paper = " ".join(x for x in (f"`{s.symbol}`" if s.symbol else "", s.section) if x)
         rows.append(f"| `{s.name}` | {s.type.__name__} | `{s.default}` | {paper} | {s.description}{rng} |")
     return "\n".join(rows)
+
+
+# ------------------------------------------------------------------- parameters from settings dataclasses
+
+
+def _field_comments(cls) -> dict[str, str]:
+    """Trailing ``# comments`` of a dataclass's field lines (the settings' documentation)."""
+    import inspect
+    import re
+
+    try:
+        src = inspect.getsource(cls)
+    except (OSError, TypeError):
+        return {}
+    out = {}
+    for line in src.splitlines():
+        m = re.match(r"\s+(\w+)\s*:\s*[^=]+=.*?#\s*(.+)$", line)
+        if m:
+            out[m.group(1)] = m.group(2).strip()
+    return out
+
+
+def specs_from_dataclass(instance, prefix: str = "") -> list[ParamSpec]:
+    """One :class:`ParamSpec` per leaf field of a (nested) frozen settings dataclass, named ``a.b.c``.
+
+    Types follow the default values (tuples of numbers become lists); descriptions are the trailing
+    comments of the field lines, so the settings class is the single source of the parameter table.
+    """
+    import dataclasses
+
+    specs: list[ParamSpec] = []
+    docs = _field_comments(type(instance))
+    for f in dataclasses.fields(instance):
+        if not f.init:
+            continue
+        value = getattr(instance, f.name)
+        name = f"{prefix}{f.name}"
+        if dataclasses.is_dataclass(value):
+            specs += specs_from_dataclass(value, name + ".")
+            continue
+        if isinstance(value, bool):
+            t = bool
+        elif isinstance(value, int):
+            t = int
+        elif isinstance(value, float):
+            t = float
+        elif isinstance(value, str):
+            t = str
+        elif isinstance(value, (tuple, list)):
+            t = list
+            value = [float(x) for x in value]
+        else:
+            continue
+        specs.append(ParamSpec(name, t, docs.get(f.name, ""), default=value))
+    return specs
+
+
+def dataclass_from_values(instance, values: dict[str, Any], prefix: str = ""):
+    """A copy of ``instance`` with leaf fields replaced by ``values[prefix + name]`` where present."""
+    import dataclasses
+
+    changes = {}
+    for f in dataclasses.fields(instance):
+        if not f.init:
+            continue
+        value = getattr(instance, f.name)
+        name = f"{prefix}{f.name}"
+        if dataclasses.is_dataclass(value):
+            changes[f.name] = dataclass_from_values(value, values, name + ".")
+        elif name in values:
+            v = values[name]
+            changes[f.name] = tuple(v) if isinstance(value, tuple) else v
+    return dataclasses.replace(instance, **changes)
+
+
+def yaml_block(specs: list[ParamSpec]) -> str:
+    """``/**: ros__parameters:`` YAML with every spec's default, nested by the dotted names."""
+    tree: dict = {}
+    for s in specs:
+        node = tree
+        *parents, leaf = s.name.split(".")
+        for p in parents:
+            node = node.setdefault(p, {})
+        node[leaf] = s.default
+    return yaml.safe_dump({"/**": {"ros__parameters": tree}}, sort_keys=False, default_flow_style=False)

@@ -15,11 +15,11 @@ class VehicleSpec:
     (2.7 m, 40 deg -> 3.22 m), i.e. |omega| <= |v| / R_min.
     """
 
-    length: float = 4.6
-    width: float = 1.85
-    wheelbase: float = 2.7
-    max_steer: float = math.radians(40.0)
-    max_speed: float = 5.0
+    length: float = 4.6  # l_V0 [m], rectangle along the heading (§II-B; ParkSim body)
+    width: float = 1.85  # w_V0 [m] (§II-B)
+    wheelbase: float = 2.7  # [m]; with max_steer gives R_min = wheelbase / tan(max_steer) = 3.22 m
+    max_steer: float = math.radians(40.0)  # [rad] (ParkSim)
+    max_speed: float = 5.0  # |v| limit [m/s] (ParkSim)
 
     @property
     def min_turning_radius(self) -> float:
