@@ -117,7 +117,8 @@ def test_reset_service(ros, tmp_path):
 
 def test_avp_launch_starts_graph_and_ctrl_c_stops_it(ros, tmp_path):
     probe, env = ros
-    proc = subprocess.Popen([sys.executable, "-m", "avp_bringup.cli", "launch", "--log-dir", str(tmp_path)],
+    cmd = [sys.executable, "-m", "avp_bringup.cli", "launch", "--ego", "scripted", "--log-dir", str(tmp_path)]
+    proc = subprocess.Popen(cmd,
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         assert probe.spin_until(lambda: len(probe.gt) >= 5, timeout=30), "graph did not run"

@@ -21,5 +21,8 @@ setup(
     maintainer_email="maintainers@avp-stack.org",
     description="Ego planner (paper §V-D); for now a scripted driver node.",
     license="Apache-2.0",
-    entry_points={"console_scripts": ["scripted_driver = avp_planner.scripted_driver_node:main"]},
+    entry_points={"console_scripts": [
+        "planner = avp_planner.planner_node:main",
+        "scripted_driver = avp_planner.scripted_driver_node:main",
+    ]},
 )

@@ -33,7 +33,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
     from avp_bringup.graph import Graph, default_graph
 
     log_dir = _log_dir(args.log_dir)
-    graph = Graph(default_graph(), log_dir, args.params)
+    graph = Graph(default_graph(args.ego), log_dir, args.params)
     graph.start()
     print(f"[avp] started {len(graph.procs)} nodes in namespace /avp; logs in {log_dir}/")
     for name, p in graph.procs.items():
@@ -65,9 +65,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     log_dir = out / "logs"
-    nodes = default_graph()
+    nodes = default_graph(args.ego)
     sim = nodes[0]
-    extra = {"seed": args.seed, "reactive": not args.non_reactive, "min_subscribers": 3}
+    extra = {"seed": args.seed, "reactive": not args.non_reactive, "min_subscribers": 3, "min_debug_subscribers": 2}
     if args.t_final is not None:
         extra["t_final"] = args.t_final
     nodes[0] = type(sim)(sim.name, sim.package, sim.executable, sim.param_file, extra)
@@ -102,7 +102,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         for _ in range(10):  # drain the last ground-truth messages
             executor.spin_once(timeout_sec=0.05)
         wall = time.monotonic() - t0
-        metrics = monitor.write(lot, out, {"wall_time_s": round(wall, 2), "ego_driver": "scripted_driver"})
+        metrics = monitor.write(lot, out, {"wall_time_s": round(wall, 2), "ego_node": nodes[1].name})
     finally:
         graph.stop()
         recorder.close()
@@ -191,10 +191,11 @@ def cmd_metrics(args: argparse.Namespace) -> int:
 
 def cmd_params(args: argparse.Namespace) -> int:
     from avp_common.params import markdown_table
+    from avp_planner.planner_node import PLANNER_PARAMS
     from avp_planner.scripted_driver_node import DRIVER_PARAMS
     from avp_sim.params import SIM_PARAMS
 
-    tables = {"avp_sim": SIM_PARAMS, "scripted_driver": DRIVER_PARAMS}
+    tables = {"avp_sim": SIM_PARAMS, "avp_planner": PLANNER_PARAMS, "scripted_driver": DRIVER_PARAMS}
     for name, specs in tables.items():
         if args.node and args.node != name:
             continue
@@ -208,10 +209,12 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("launch", help="start the node graph")
     p.add_argument("--params", help="extra ROS 2 parameter file applied after the defaults")
     p.add_argument("--log-dir")
+    p.add_argument("--ego", choices=("planner", "scripted"), default="planner", help="the ego's node")
     p.set_defaults(func=cmd_launch)
     p = sub.add_parser("demo", help="run one seeded episode through the live graph")
     p.add_argument("--seed", type=int, default=3)
     p.add_argument("--non-reactive", action="store_true")
+    p.add_argument("--ego", choices=("planner", "scripted"), default="planner", help="the ego's node")
     p.add_argument("--t-final", type=float, default=None)
     p.add_argument("--out", default=str(_root() / "out" / "demo"))
     p.add_argument("--params")

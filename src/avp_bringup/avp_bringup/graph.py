@@ -33,12 +33,19 @@ class NodeSpec:
         return Path(get_package_share_directory(self.package)) / self.param_file
 
 
-def default_graph() -> list[NodeSpec]:
-    """The live graph of this issue: simulator + stand-in ego driver (replaced by the planner in #3)."""
-    return [
-        NodeSpec("avp_sim", "avp_sim", "sim_node", "config/sim.param.yaml"),
-        NodeSpec("scripted_driver", "avp_planner", "scripted_driver", "config/scripted_driver.param.yaml"),
-    ]
+EGO_NODES = {
+    "planner": NodeSpec("avp_planner", "avp_planner", "planner", "config/planner.param.yaml"),
+    "scripted": NodeSpec("scripted_driver", "avp_planner", "scripted_driver", "config/scripted_driver.param.yaml"),
+}
+
+
+def default_graph(ego: str = "planner") -> list[NodeSpec]:
+    """The live graph: simulator + the ego's Hybrid A* planner (§V-D) — or the scripted stand-in driver.
+
+    Until the perception nodes (#4) land, the planner runs with beliefs from observation only and no
+    predictions (its `use_beliefs` / `use_predictions` parameters are false).
+    """
+    return [NodeSpec("avp_sim", "avp_sim", "sim_node", "config/sim.param.yaml"), EGO_NODES[ego]]
 
 
 def _ros_value(v) -> str:

@@ -121,7 +121,9 @@ class SimNode(Node):
         if not self.started:
             n_subs = self.pub_obs.get_subscription_count()
             n_cmd = self.count_publishers(self.sub_cmd.topic_name)
-            if self.p["wait_for_subscribers"] and (n_subs < self.p["min_subscribers"] or n_cmd < 1):
+            n_debug = self.pub_gt.get_subscription_count()
+            if self.p["wait_for_subscribers"] and (n_subs < self.p["min_subscribers"] or n_cmd < 1
+                                                   or n_debug < self.p["min_debug_subscribers"]):
                 return
             self._publish_step()
             return

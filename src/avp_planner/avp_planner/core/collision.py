@@ -45,6 +45,46 @@ def _disc_layout(length: float, width: float, n: int) -> tuple[np.ndarray, float
     return offsets, math.hypot(0.5 * seg, 0.5 * width)
 
 
+def merge_rects(poses: np.ndarray, dims: np.ndarray, tol: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """Merge rectangles whose union is exactly a rectangle (parallel, sharing a full edge), repeatedly.
+
+    Adjacent occupied spots of a row (and back-to-back rows) become one rectangle, so the exact test
+    compares each pose with a handful of rectangles instead of one per spot. The union is unchanged.
+    """
+    rects = [(float(p[0]), float(p[1]), float(p[2]), float(d[0]), float(d[1]))
+             for p, d in zip(np.asarray(poses).reshape(-1, 3), np.asarray(dims).reshape(-1, 2), strict=True)]
+    merged = True
+    while merged and len(rects) > 1:
+        merged = False
+        for i in range(len(rects)):
+            xi, yi, ti, li, wi = rects[i]
+            ci, si = math.cos(ti), math.sin(ti)
+            for j in range(i + 1, len(rects)):
+                xj, yj, tj, lj, wj = rects[j]
+                if abs(math.sin(tj - ti)) > tol:
+                    continue
+                dx, dy = xj - xi, yj - yi
+                lon, lat = ci * dx + si * dy, -si * dx + ci * dy
+                new = None
+                if abs(lj - li) < tol and abs(lon) < tol and abs(abs(lat) - 0.5 * (wi + wj)) < tol:
+                    off = (0.5 * (wj - wi) if lat > 0 else -0.5 * (wj - wi)) * 0.5  # centre of the union
+                    mid = 0.5 * lat + off
+                    new = (xi - si * mid, yi + ci * mid, ti, li, wi + wj)
+                elif abs(wj - wi) < tol and abs(lat) < tol and abs(abs(lon) - 0.5 * (li + lj)) < tol:
+                    off = (0.5 * (lj - li) if lon > 0 else -0.5 * (lj - li)) * 0.5
+                    mid = 0.5 * lon + off
+                    new = (xi + ci * mid, yi + si * mid, ti, li + lj, wi)
+                if new is not None:
+                    rects[i] = new
+                    del rects[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    out = np.array(rects, dtype=float).reshape(-1, 5)
+    return out[:, :3].copy(), out[:, 3:].copy()
+
+
 def _is_convex_ccw(poly: np.ndarray) -> bool:
     d1 = np.roll(poly, -1, axis=0) - poly
     d2 = np.roll(d1, -1, axis=0)
@@ -116,11 +156,13 @@ class StaticWorld:
     ):
         self.lot = lot
         self.settings = settings
+        self.key = None  # set by the owner (cache key)
         self.length, self.width = float(length), float(width)
         self.half_l, self.half_w = 0.5 * self.length, 0.5 * self.width
         self.circum = math.hypot(self.half_l, self.half_w)
-        self.rect_poses = np.asarray(rect_poses, dtype=float).reshape(-1, 3)
-        self.rect_dims = np.asarray(rect_dims, dtype=float).reshape(-1, 2)
+        self.obstacle_poses = np.asarray(rect_poses, dtype=float).reshape(-1, 3)
+        self.obstacle_dims = np.asarray(rect_dims, dtype=float).reshape(-1, 2)
+        self.rect_poses, self.rect_dims = merge_rects(self.obstacle_poses, self.obstacle_dims)
         self.rect_half = 0.5 * self.rect_dims
         self.rect_cos = np.cos(self.rect_poses[:, 2])
         self.rect_sin = np.sin(self.rect_poses[:, 2])
@@ -157,17 +199,32 @@ class StaticWorld:
         self.grid = grid
         free = (grid == 0).astype(np.uint8)
         self.edt = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE).astype(np.float32) * res
+        depth = cv2.distanceTransform(grid, cv2.DIST_L2, cv2.DIST_MASK_PRECISE).astype(np.float32) * res
         self.shape = grid.shape
+        # signed field: distance to obstacles outside them, minus the depth inside them
+        self._sdf_flat = (self.edt - depth).ravel()
+        # a point deeper than this inside the raster lies inside a true obstacle
+        self.sure_depth = grow + 2.0 * half_diag + 1e-6
 
     def clearance(self, xy: np.ndarray) -> np.ndarray:
         """Lower bound on the distance (m) from points (..., 2) to the static obstacles (0 off the grid)."""
         xy = np.asarray(xy, dtype=float)
-        j = np.floor((xy[..., 0] - self.origin[0]) / self.res).astype(np.int64)
-        i = np.floor((xy[..., 1] - self.origin[1]) / self.res).astype(np.int64)
-        ok = (i >= 0) & (i < self.shape[0]) & (j >= 0) & (j < self.shape[1])
-        out = np.zeros(xy.shape[:-1], dtype=np.float64)
-        out[ok] = self.edt[i[ok], j[ok]]
-        return np.maximum(out - self.slack, 0.0)
+        return self._clearance_xy(xy[..., 0], xy[..., 1])
+
+    def _clearance_xy(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return np.maximum(self._sdf_xy(x, y) - self.slack, 0.0)
+
+    def _sdf_xy(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Raw signed field at points (off the grid: -inf, i.e. certainly outside L)."""
+        j = ((x - self.origin[0]) * (1.0 / self.res)).astype(np.int64)  # >= 0 on the grid (padded)
+        i = ((y - self.origin[1]) * (1.0 / self.res)).astype(np.int64)
+        h, w = self.shape
+        ok = (x >= self.origin[0]) & (y >= self.origin[1]) & (i < h) & (j < w)
+        if ok.all():
+            return self._sdf_flat[i * w + j]
+        out = np.full(np.shape(x), -np.inf, dtype=np.float32)
+        out[ok] = self._sdf_flat[i[ok] * w + j[ok]]
+        return out
 
     def disc_centres(self, poses: np.ndarray) -> np.ndarray:
         """(N, n_discs, 2) centres of the covering discs."""
@@ -181,20 +238,21 @@ class StaticWorld:
         return self.clearance(self.disc_centres(poses)).min(axis=1) - self.disc_radius
 
     # ------------------------------------------------------------------ checks
-    def rect_collisions(self, poses: np.ndarray, margin: float) -> np.ndarray:
+    def _rect_hits(self, x, y, c, s, margin: float) -> np.ndarray:
         """Exact: (N,) True where the footprint comes within ``margin`` (SAT sense) of an obstacle rectangle."""
-        p = np.asarray(poses, dtype=float).reshape(-1, 3)
-        hit = np.zeros(len(p), dtype=bool)
-        if not len(self.rect_poses) or not len(p):
+        hit = np.zeros(len(x), dtype=bool)
+        if not len(self.rect_poses) or not len(x):
             return hit
-        dx = self.rect_poses[None, :, 0] - p[:, 0, None]
-        dy = self.rect_poses[None, :, 1] - p[:, 1, None]
-        reach = self.circum + self.rect_circum[None, :] + margin
+        dx = self.rect_poses[None, :, 0] - x[:, None]
+        dy = self.rect_poses[None, :, 1] - y[:, None]
+        reach = self.circum + self.rect_circum[None, :] + (margin[:, None] if np.ndim(margin) else margin)
         ii, jj = np.nonzero(dx * dx + dy * dy <= reach * reach)
         if not len(ii):
             return hit
+        if np.ndim(margin):
+            margin = margin[ii]
         tx, ty = dx[ii, jj], dy[ii, jj]
-        c, s = np.cos(p[ii, 2]), np.sin(p[ii, 2])
+        c, s = c[ii], s[ii]
         oc, os_ = self.rect_cos[jj], self.rect_sin[jj]
         bl, bw = self.rect_half[jj, 0], self.rect_half[jj, 1]
         al, aw = self.half_l, self.half_w
@@ -206,32 +264,67 @@ class StaticWorld:
             | (np.abs(tx * oc + ty * os_) > bl + al * cd + aw * sd + margin)
             | (np.abs(-tx * os_ + ty * oc) > bw + al * sd + aw * cd + margin)
         )
-        np.logical_or.at(hit, ii, ~sep)
+        hit[ii[~sep]] = True
         return hit
+
+    def _inside_lot(self, x, y, c, s, margin: float) -> np.ndarray:
+        b = self.boundary
+        if b.convex:  # support function of the rectangle along each inward normal
+            nx, ny = b.normals[:, 0], b.normals[:, 1]
+            centre = x[:, None] * nx + y[:, None] * ny - b.offsets
+            ext = self.half_l * np.abs(c[:, None] * nx + s[:, None] * ny) + self.half_w * np.abs(
+                -s[:, None] * nx + c[:, None] * ny)
+            return (centre - ext >= (margin[:, None] if np.ndim(margin) else margin)).all(axis=1)
+        poses = np.stack([x, y, np.arctan2(s, c)], axis=1)
+        corners = rect_corners(poses, self.length, self.width)
+        if not np.ndim(margin):
+            return b.inside(corners, margin)
+        out = np.zeros(len(x), dtype=bool)
+        for m in np.unique(margin):
+            sel = margin == m
+            out[sel] = b.inside(corners[sel], float(m))
+        return out
+
+    def exact_free_xyc(self, x, y, c, s, margin: float) -> np.ndarray:
+        inside = self._inside_lot(x, y, c, s, margin)
+        return inside & ~self._rect_hits(x, y, c, s, margin)
+
+    def free_xyc(self, x: np.ndarray, y: np.ndarray, c: np.ndarray, s: np.ndarray, margin) -> np.ndarray:
+        """:meth:`free` for poses given as centre coordinates and heading cosine/sine (1-D arrays).
+
+        ``margin`` is a scalar or one value per pose.
+        """
+        off = self.disc_offsets
+        sdf = self._sdf_xy(x[:, None] + c[:, None] * off, y[:, None] + s[:, None] * off).min(axis=1)
+        out = sdf > self.disc_radius + margin + self.slack
+        unsure = np.nonzero(~out & (sdf >= -self.sure_depth))[0]
+        if len(unsure):
+            m = margin[unsure] if np.ndim(margin) else margin
+            out[unsure] = self.exact_free_xyc(x[unsure], y[unsure], c[unsure], s[unsure], m)
+        return out
+
+    def rect_collisions(self, poses: np.ndarray, margin: float) -> np.ndarray:
+        """Exact: (N,) True where the footprint comes within ``margin`` (SAT sense) of an obstacle rectangle."""
+        p = np.asarray(poses, dtype=float).reshape(-1, 3)
+        return self._rect_hits(p[:, 0], p[:, 1], np.cos(p[:, 2]), np.sin(p[:, 2]), margin)
 
     def exact_free(self, poses: np.ndarray, margin: float) -> np.ndarray:
         """Exact test of every pose: (N,) True where free with ``margin``."""
         p = np.asarray(poses, dtype=float).reshape(-1, 3)
-        corners = rect_corners(p, self.length, self.width)
-        return self.boundary.inside(corners, margin) & ~self.rect_collisions(p, margin)
+        return self.exact_free_xyc(p[:, 0], p[:, 1], np.cos(p[:, 2]), np.sin(p[:, 2]), margin)
 
     def free(self, poses: np.ndarray, margin: float) -> np.ndarray:
-        """(N,) True where the footprint at each pose is free with ``margin`` (disc pre-check, then exact)."""
+        """(N,) True where the footprint at each pose is free with ``margin`` (disc pre-check, then exact).
+
+        Non-finite poses are reported as not free.
+        """
         p = np.asarray(poses, dtype=float).reshape(-1, 3)
-        if not len(p):
-            return np.zeros(0, dtype=bool)
-        if not np.isfinite(p).all():
+        fin = np.isfinite(p).all(axis=1)
+        if not fin.all():
             out = np.zeros(len(p), dtype=bool)
-            fin = np.isfinite(p).all(axis=1)
             out[fin] = self.free(p[fin], margin)
             return out
-        clr = self.clearance(self.disc_centres(p)).min(axis=1)
-        sure = clr > self.disc_radius + margin
-        out = sure.copy()
-        unsure = np.nonzero(~sure)[0]
-        if len(unsure):
-            out[unsure] = self.exact_free(p[unsure], margin)
-        return out
+        return self.free_xyc(p[:, 0], p[:, 1], np.cos(p[:, 2]), np.sin(p[:, 2]), margin)
 
     def all_free(self, poses: np.ndarray, margin: float) -> bool:
         return bool(self.free(poses, margin).all())

@@ -192,6 +192,56 @@ def _cusps(lens) -> int:
     return n
 
 
+def rs_candidates(
+    start: tuple[float, float, float], goal: tuple[float, float, float], radius: float, cusp_penalty: float = 0.0,
+    k: int = 3, slack: float = math.inf,
+) -> list[tuple[float, tuple[tuple[str, float], ...]]]:
+    """Up to ``k`` Reeds-Shepp paths (distinct words) in increasing order of length + ``cusp_penalty`` per cusp,
+    keeping only those whose score is within ``slack`` (metres) of the best; same format as :func:`rs_shortest`."""
+    found = _evaluate(start, goal, radius, cusp_penalty)
+    found.sort(key=lambda e: e[0])
+    out = []
+    for score, total, word, r in found[:k]:
+        if score > found[0][0] + slack:
+            break
+        out.append((total * radius, tuple((kk, v * radius) for kk, v in zip(word, r, strict=True) if abs(v) > 1e-10)))
+    return out
+
+
+def _evaluate(start, goal, radius, cusp_penalty):
+    """All valid instances: [(score, total, word, normalised lengths)] in instance order."""
+    sx0, sy0, sth = float(start[0]), float(start[1]), float(start[2])
+    dx, dy = float(goal[0]) - sx0, float(goal[1]) - sy0
+    c, s = math.cos(sth), math.sin(sth)
+    x = (c * dx + s * dy) / radius
+    y = (-s * dx + c * dy) / radius
+    phi = _mod2pi(float(goal[2]) - sth)
+    cphi, sphi_ = math.cos(phi), math.sin(phi)
+    xb, yb = x * cphi + y * sphi_, x * sphi_ - y * cphi
+    pen = cusp_penalty / radius
+    out = []
+    for f, word, back, flip, refl in _INSTANCES:
+        bx, by = (xb, yb) if back else (x, y)
+        if flip:
+            bx = -bx
+        if refl:
+            by = -by
+        r = f(bx, by, -phi if flip != refl else phi)
+        if r is None:
+            continue
+        if back:
+            r = r[::-1]
+        if flip:
+            r = tuple(-v for v in r)
+        total = 0.0
+        for v in r:
+            total += abs(v)
+        if not math.isfinite(total):
+            continue
+        out.append((total + pen * _cusps(r) if pen > 0 else total, total, word, r))
+    return out
+
+
 def rs_shortest(
     start: tuple[float, float, float], goal: tuple[float, float, float], radius: float, cusp_penalty: float = 0.0
 ) -> tuple[float, tuple[tuple[str, float], ...]]:

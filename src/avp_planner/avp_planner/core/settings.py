@@ -49,10 +49,14 @@ class SearchSettings:
     rs_table_extent: float = 15.0  # |x|, |y| covered by the table (Euclidean distance beyond)
     analytic_every: int = 3  # try a Reeds-Shepp shot every N pops (and on every pop when near)
     analytic_near: float = 12.0  # "near": heuristic below this distance
+    analytic_detour: float = 1.3  # no shot when the 2-D distance exceeds this times the straight line
+    analytic_candidates: int = 1  # Reeds-Shepp words tried per shot, shortest (cusps charged) first
+    analytic_slack: float = 8.0  # ... only words at most this much longer than the shortest
+    batch_size: int = 4  # open nodes expanded together in one vectorised call
     max_iterations: int = 1500  # node pops per query
     time_cap: float = 0.25  # seconds per query (wall clock; the iteration cap normally ends first)
-    goal_tolerance_xy: float = 0.05  # goal poses are searched exactly; tolerance accepted on verification
-    goal_tolerance_heading: float = math.radians(3.0)
+    goal_tolerance_xy: float = 0.1  # goals are searched exactly; the tracked end state may miss them by this
+    goal_tolerance_heading: float = math.radians(3.0)  # ... and by this heading error (parking plans)
 
 
 @dataclass(frozen=True)
@@ -94,6 +98,8 @@ class DecisionSettings:
     fallback_prediction: str = "constant_velocity"  # for observed agents without a prediction: | "static" | "none"
     fallback_horizon: float = 3.0  # seconds of the fallback constant-velocity prediction
     dynamic_as_static_fallback: bool = True  # replan around current agent footprints if all plans are blocked
+    decision_time_cap: float = 0.4  # seconds of searching per decision step (remaining candidates skipped)
+    park_retry_steps: int = 5  # while exploring, parking is re-tried at least this often (and on any change)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,395 @@
+"""Intent model (paper §V-A): the ParkPredict+ "SmallRegularizedCNN" on reconstructed BEVs (§V-B).
+
+For observed dynamic vehicle V_k the network scores every candidate spot i in I_can,k (BEV I_k,i with the
+spot marked purple) and one "none / keep exploring" option (the unmarked I_k,0), each with 5 non-spatial
+features (reference sheet §1.3, with the paper's definitions of §V-A):
+
+    [cos_k,i, d_k,i, v_hat_k, d_ent, t_lot]
+
+cos_k,i: cosine between V_k's heading and the vector from V_k to the spot centre; d_k,i: distance to the
+spot centre (m); v_hat_k: speed from the last two history poses (m/s); d_ent: distance from V_k's *true*
+position to the lot entrance (m) — ParkPredict+'s training data fed ground coordinates through a
+pixel->ground transform here (sheet §1.3), which is not copied; t_lot: time in the lot in minutes
+(ParkPredict+'s unit), counted from the oldest history pose of V_k's first observation. The "none" row is
+[0, 0, v_hat, d_ent, t_lot].
+
+Network (sheet §1.4), adapted to the input size: 3 blocks Conv(k=7, 5, 3; 3->8->8->3 channels, no padding)
+-> BatchNorm2d -> Dropout(0.2) -> LeakyReLU(0.01) -> MaxPool2d(2); flatten || 5 features -> Linear(100) ->
+BatchNorm1d -> Dropout(0.2) (no activation) -> Linear(1): one logit per candidate. A 100 px input gives
+3 x 9 x 9 = 243 image features (400 px: 6627 as ParkPredict+). Probabilities (sheet §1.5): sigmoid of each
+logit, divided by their sum over the candidates of V_k (not a softmax).
+
+Inference (all three ``mode``s compute the same logits; tests compare them):
+
+* "reference": the torch module above on every image;
+* "fused": :class:`FusedIntentNet` — BatchNorm folded into the layer before it, dropout dropped, LeakyReLU
+  moved after the max-pool (it is increasing, so it commutes with max), pooling by strided maxima (this
+  CPU build's MaxPool2d kernel is several times slower on these small tensors), and the last 6 of 100
+  input rows / cols cropped (floor-mode pooling never reads them);
+* "incremental" (default): the images of one vehicle differ only inside the marked spot. conv1 is affine,
+  so conv1(I_k,i) = conv1(I_k,0) + conv1_linear(I_k,i - I_k,0), the difference being convolved over the
+  marked box only; the rest of the stack (receptive field 30 px, stride 8 px, no padding) is recomputed on
+  the patch of conv1's output that feeds the output cells whose 30 px window meets the box, aligned to the
+  8 px grid so that the pools line up, and those cells replace I_k,0's. Per candidate this costs a
+  fraction of a full pass; I_k,0 is computed once per vehicle.
+
+Untrained (random, seeded) weights work: :meth:`IntentPredictor.predict` then returns valid but
+uninformative distributions.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from avp_perception.core.belief import BeliefMap
+from avp_perception.core.bev import BEVConfig, BEVRenderer, VehicleBEV
+from avp_perception.core.intention import Intention, split_none_mass
+from avp_world.lot import LotMap
+from avp_world.types import Observation, ObservedVehicle
+
+N_FEATURES = 5
+FEATURE_NAMES = ("cos_to_target", "distance_to_target", "speed", "distance_to_entrance", "time_in_lot_min")
+KERNELS = (7, 5, 3)
+CHANNELS = (3, 8, 8, 3)
+
+
+def conv_output_size(size: int) -> int:
+    """Side of the conv-stack output for a ``size`` px input (valid convs, floor-mode 2x2 pools)."""
+    n = int(size)
+    for k in KERNELS:
+        n = (n - k + 1) // 2
+    if n < 1:
+        raise ValueError(f"input of {size} px is too small for the conv stack")
+    return n
+
+
+def receptive_field() -> tuple[int, int]:
+    """(receptive field, stride) in input pixels of one output cell of the conv stack: (30, 8)."""
+    r, s = 1, 1
+    for k in KERNELS:
+        r += (k - 1) * s  # conv
+        r += s  # 2x2 pool
+        s *= 2
+    return r, s
+
+
+def _block(c_in: int, c_out: int, k: int, dropout: float) -> nn.Sequential:
+    return nn.Sequential(nn.Conv2d(c_in, c_out, k), nn.BatchNorm2d(c_out), nn.Dropout(dropout),
+                         nn.LeakyReLU(0.01), nn.MaxPool2d(2))
+
+
+class SmallRegularizedCNN(nn.Module):
+    """ParkPredict+ SmallRegularizedCNN (sheet §1.4) for ``image_size`` px RGB inputs in [0, 1]."""
+
+    def __init__(self, image_size: int = 100, n_features: int = N_FEATURES, hidden: int = 100,
+                 dropout: float = 0.2):
+        super().__init__()
+        self.image_size = int(image_size)
+        self.out_size = conv_output_size(self.image_size)
+        self.conv = nn.Sequential(*[_block(CHANNELS[i], CHANNELS[i + 1], KERNELS[i], dropout) for i in range(3)])
+        n_flat = CHANNELS[-1] * self.out_size**2
+        self.fc = nn.Sequential(nn.Linear(n_flat + n_features, hidden), nn.BatchNorm1d(hidden), nn.Dropout(dropout),
+                                nn.Linear(hidden, 1))
+
+    def encode(self, images: torch.Tensor) -> torch.Tensor:
+        """(B, 3, H, W) -> (B, 3, h, w) conv features."""
+        return self.conv(images)
+
+    def head(self, encoded: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
+        """(B, 3, h, w) conv features and (B, 5) features -> (B,) logits."""
+        return self.fc(torch.cat([encoded.flatten(1), features], dim=1)).squeeze(1)
+
+    def forward(self, images: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
+        return self.head(self.encode(images), features)
+
+
+def sigmoid_normalise(logits: np.ndarray | torch.Tensor) -> np.ndarray:
+    """ParkPredict+ probabilities (sheet §1.5): sigmoid(z_j) / sum_j sigmoid(z_j)."""
+    z = torch.as_tensor(logits, dtype=torch.float64)
+    s = torch.sigmoid(z)
+    return (s / s.sum()).numpy()
+
+
+def intent_features(pose: np.ndarray, speed: float, targets: np.ndarray, entrance: np.ndarray,
+                    time_in_lot_min: float) -> np.ndarray:
+    """(K + 1, 5) float32 features: row 0 the "none" option, rows 1..K the candidate spot centres ``targets``."""
+    tg = np.asarray(targets, dtype=float).reshape(-1, 2)
+    p = np.asarray(pose, dtype=float)
+    d = tg - p[:2]
+    dist = np.hypot(d[:, 0], d[:, 1])
+    cos = (d @ np.array([math.cos(p[2]), math.sin(p[2])])) / np.maximum(dist, 1e-9)
+    cos[dist < 1e-9] = 1.0  # on top of the spot: aligned by convention
+    d_ent = float(np.hypot(*(p[:2] - np.asarray(entrance, dtype=float)[:2])))
+    out = np.empty((len(tg) + 1, N_FEATURES), dtype=np.float32)
+    out[0] = (0.0, 0.0, speed, d_ent, time_in_lot_min)
+    out[1:, 0] = cos
+    out[1:, 1] = dist
+    out[1:, 2] = speed
+    out[1:, 3] = d_ent
+    out[1:, 4] = time_in_lot_min
+    return out
+
+
+def images_to_tensor(images: np.ndarray) -> torch.Tensor:
+    """(B, H, W, 3) uint8 -> (B, 3, H, W) float32 in [0, 1] (channels-last memory, no transpose copy)."""
+    return torch.from_numpy(np.ascontiguousarray(images)).permute(0, 3, 1, 2).float().mul_(1.0 / 255.0)
+
+
+def _cell_range(lo: int, hi: int, n_out: int, field: int, stride: int) -> tuple[int, int]:
+    """Output cells whose window [stride*i, stride*i + field - 1] meets pixels lo..hi (inclusive)."""
+    a = max(0, -((field - 1 - lo) // stride))  # ceil((lo - field + 1) / stride)
+    b = min(n_out - 1, hi // stride)
+    return a, b
+
+
+def max_pool_2x2(x: torch.Tensor) -> torch.Tensor:
+    """nn.MaxPool2d(2) (floor mode) as the max of four strided views: the same numbers, several times faster
+    than this CPU build's pooling kernel on these small tensors."""
+    h, w = x.shape[-2] // 2 * 2, x.shape[-1] // 2 * 2
+    return torch.maximum(torch.maximum(x[..., 0:h:2, 0:w:2], x[..., 1:h:2, 0:w:2]),
+                         torch.maximum(x[..., 0:h:2, 1:w:2], x[..., 1:h:2, 1:w:2]))
+
+
+class FusedIntentNet:
+    """Inference form of a :class:`SmallRegularizedCNN` in eval mode (same function, fewer operations).
+
+    Each BatchNorm is folded into the layer before it, dropout is the identity, and LeakyReLU is applied
+    after the 2x2 max-pool (it is strictly increasing, so it commutes with max): per block
+    y = leaky_relu(maxpool(conv'(x))). Build it again after the model's weights change.
+    """
+
+    def __init__(self, model: SmallRegularizedCNN):
+        model = model.eval()
+        self.out_size = model.out_size
+        self.slope = 0.01
+        self.convs: list[tuple[torch.Tensor, torch.Tensor]] = []
+        with torch.no_grad():
+            for block in model.conv:
+                conv, bn = block[0], block[1]
+                scale = bn.weight / torch.sqrt(bn.running_var + bn.eps)
+                w = (conv.weight * scale[:, None, None, None]).contiguous(memory_format=torch.channels_last)
+                b = (conv.bias - bn.running_mean) * scale + bn.bias
+                self.convs.append((w.detach().clone(), b.detach().clone()))
+            fc1, bn1, fc2 = model.fc[0], model.fc[1], model.fc[3]
+            scale = bn1.weight / torch.sqrt(bn1.running_var + bn1.eps)
+            self.w1 = (fc1.weight * scale[:, None]).detach().clone()
+            self.b1 = ((fc1.bias - bn1.running_mean) * scale + bn1.bias).detach().clone()
+            self.w2 = fc2.weight.detach().clone()
+            self.b2 = fc2.bias.detach().clone()
+        self.kernel1 = int(self.convs[0][0].shape[-1])
+        field, stride = receptive_field()
+        self.used = stride * (self.out_size - 1) + field  # input rows/cols the output depends on (94 of 100)
+
+    def conv1(self, x: torch.Tensor) -> torch.Tensor:
+        """First conv with BN folded in (affine in x): (B, 3, H, W) -> (B, 8, H - 6, W - 6)."""
+        w, b = self.convs[0]
+        return torch.nn.functional.conv2d(x, w, b)
+
+    def conv1_linear(self, dx: torch.Tensor) -> torch.Tensor:
+        """The linear part of :meth:`conv1` (no bias), for image differences."""
+        return torch.nn.functional.conv2d(dx, self.convs[0][0])
+
+    def after_conv1(self, a1: torch.Tensor) -> torch.Tensor:
+        """Everything after conv1: (B, 8, h1, w1) -> (B, 3, h, w)."""
+        lrelu = torch.nn.functional.leaky_relu
+        y = lrelu(max_pool_2x2(a1), self.slope)
+        for w, b in self.convs[1:]:
+            y = lrelu(max_pool_2x2(torch.nn.functional.conv2d(y, w, b)), self.slope)
+        return y
+
+    def encode(self, x: torch.Tensor) -> torch.Tensor:
+        """The floor-mode pools never read the last rows/cols: they are cropped first (same output)."""
+        return self.after_conv1(self.conv1(x[..., : self.used, : self.used]))
+
+    def head(self, encoded: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
+        h = torch.nn.functional.linear(torch.cat([encoded.flatten(1), features], dim=1), self.w1, self.b1)
+        return torch.nn.functional.linear(h, self.w2, self.b2).squeeze(1)
+
+    def __call__(self, images: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
+        return self.head(self.encode(images), features)
+
+
+MODES = ("incremental", "fused", "reference")
+
+
+class IntentPredictor:
+    """The intent model of §V-A on reconstructed BEVs: ``predict(obs, vehicle, beliefs, lot) -> Intention``.
+
+    Args:
+        lot: the lot map (can also be given per call).
+        bev_config: BEV reconstruction parameters (image size and resolution set the network input).
+        model: a :class:`SmallRegularizedCNN` (e.g. trained); default: seeded random weights.
+        seed: seed of the random weights.
+        mode: how logits are computed, all the same function: "incremental" (fused network + the shared-
+            feature shortcut of the module docstring, fastest), "fused" (:class:`FusedIntentNet` on every
+            image) or "reference" (the plain torch module on every image).
+    """
+
+    def __init__(self, lot: LotMap | None = None, bev_config: BEVConfig = BEVConfig(),
+                 model: SmallRegularizedCNN | None = None, seed: int = 0, mode: str = "incremental"):
+        self.bev_config = bev_config.validate()
+        if mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+        if model is None:
+            with torch.random.fork_rng(devices=[]):
+                torch.manual_seed(int(seed))
+                model = SmallRegularizedCNN(bev_config.size_px)
+        if model.image_size != bev_config.size_px:
+            raise ValueError(f"model input {model.image_size} px != BEV size {bev_config.size_px} px")
+        self.model = model.eval()
+        self.net = FusedIntentNet(self.model)
+        self.mode = mode
+        self.field, self.stride = receptive_field()
+        self._renderer: BEVRenderer | None = BEVRenderer(lot, bev_config) if lot is not None else None
+        self._first_seen: dict[int, float] = {}
+        self._last_t = -math.inf
+
+    # ------------------------------------------------------------------ state
+    def renderer(self, lot: LotMap | None = None) -> BEVRenderer:
+        if lot is not None and (self._renderer is None or self._renderer.lot is not lot):
+            self._renderer = BEVRenderer(lot, self.bev_config)
+        if self._renderer is None:
+            raise ValueError("no lot: pass one to IntentPredictor(...) or to predict(...)")
+        return self._renderer
+
+    def reset(self) -> None:
+        """Forget the time-in-lot bookkeeping (new episode)."""
+        self._first_seen.clear()
+        self._last_t = -math.inf
+
+    def time_in_lot(self, obs: Observation, vehicle: ObservedVehicle) -> float:
+        """Minutes since the oldest history pose of ``vehicle``'s first observation (episode-local)."""
+        if obs.t < self._last_t:  # time went back: a new episode
+            self.reset()
+        self._last_t = obs.t
+        span = (len(vehicle.history) - 1) * obs.dt
+        first = self._first_seen.setdefault(int(vehicle.id), obs.t - span)
+        return max(0.0, obs.t - first) / 60.0
+
+    def load_weights(self, path: str | Path) -> None:
+        """Load a state dict saved with ``torch.save(model.state_dict(), path)``."""
+        state = torch.load(Path(path), map_location="cpu", weights_only=True)
+        self.model.load_state_dict(state)
+        self.model.eval()
+        self.net = FusedIntentNet(self.model)
+
+    # ------------------------------------------------------------------ inference
+    def predict(self, obs: Observation, vehicle: ObservedVehicle, beliefs: np.ndarray | BeliefMap,
+                lot: LotMap | None = None, *, ego_history: np.ndarray | None = None) -> Intention:
+        """Intention of one observed dynamic vehicle (§V-A) from the belief b~ after eq. (7)."""
+        return self.predict_all(obs, [vehicle], beliefs, lot, ego_history=ego_history)[0]
+
+    def predict_all(self, obs: Observation, vehicles: Sequence[ObservedVehicle], beliefs: np.ndarray | BeliefMap,
+                    lot: LotMap | None = None, *, ego_history: np.ndarray | None = None,
+                    return_bevs: bool = False) -> list[Intention] | tuple[list[Intention], list[VehicleBEV]]:
+        """Intentions of several vehicles with one network call over all their candidates.
+
+        ``beliefs`` is b~_t (array in lot spot order) or a :class:`BeliefMap` after ``observe`` (its
+        ``b_tilde`` and observed spots are used).
+        """
+        r = self.renderer(lot)
+        if isinstance(beliefs, BeliefMap):
+            b_tilde, observed = beliefs.b_tilde, beliefs.observed_mask
+        else:
+            b_tilde, observed = np.asarray(beliefs, dtype=float), r.observed_mask(obs)
+        bevs = r.render_all(obs, list(vehicles), b_tilde, observed, ego_history)
+        feats = [intent_features(bev.pose, bev.speed, r.spot_centers[bev.candidate_idx], r.lot.entrance,
+                                 self.time_in_lot(obs, v)) for bev, v in zip(bevs, vehicles, strict=True)]
+        logits = self.logits(bevs, feats)
+        out = []
+        start = 0
+        for bev, f in zip(bevs, feats, strict=True):
+            p = sigmoid_normalise(logits[start:start + len(f)])
+            start += len(f)
+            p_none = float(p[0])
+            ex = split_none_mass(p_none, len(bev.exploration_points))
+            out.append(Intention(
+                vehicle_id=bev.vehicle_id,
+                spot_ids=bev.candidate_spot_ids.copy(),
+                spot_probabilities=p[1:].astype(float),
+                exploration_points=bev.exploration_points[: len(ex)].copy(),
+                exploration_probabilities=ex,
+                none_probability=p_none,
+            ))
+        return (out, bevs) if return_bevs else out
+
+    @torch.no_grad()
+    def logits(self, bevs: Sequence[VehicleBEV], features: Sequence[np.ndarray]) -> np.ndarray:
+        """Concatenated logits, per vehicle [none, candidate 1..K] (the order of ``VehicleBEV.images()``)."""
+        if not bevs:
+            return np.zeros(0)
+        f = torch.from_numpy(np.concatenate(features).astype(np.float32))
+        if self.mode == "incremental":
+            return self.net.head(self._encode_incremental(bevs), f).numpy().astype(float)
+        x = images_to_tensor(np.concatenate([b.images() for b in bevs]))
+        net = self.net if self.mode == "fused" else self.model
+        return net(x, f).numpy().astype(float)
+
+    def _encode_incremental(self, bevs: Sequence[VehicleBEV]) -> torch.Tensor:
+        """Conv features of [I_k,0, I_k,1..K] for every vehicle, recomputing only what a marking can change.
+
+        conv1 is affine, so conv1(I_k,i) = conv1(I_k,0) + conv1_linear(I_k,i - I_k,0), and the difference is
+        zero outside the marked spot's box: it is convolved over that box only. The rest of the stack is
+        recomputed on a patch of conv1's output that covers every output cell whose receptive field meets
+        the box (patches aligned to the 8 px grid so the pools line up), and those cells replace I_k,0's.
+        The bookkeeping runs on numpy views of the (channels-last) tensors.
+        """
+        net, field, stride = self.net, self.field, self.stride
+        n_out = net.out_size
+        m = net.kernel1 - 1  # conv1 shrinks by 6 px
+        u = net.used  # the output only depends on the first 94 of 100 rows / cols
+        a1 = net.conv1(images_to_tensor(np.stack([b.image[:u, :u] for b in bevs])))  # (V, 8, u - 6, u - 6)
+        base = net.after_conv1(a1).numpy()  # (V, 3, n, n)
+        counts = np.array([1 + len(b.candidate_boxes) for b in bevs])
+        full = np.repeat(base, counts, axis=0)
+        boxes = np.concatenate([b.candidate_boxes for b in bevs]).reshape(-1, 4).astype(np.int64)
+        veh = np.repeat(np.arange(len(bevs)), counts - 1)
+        cand = np.concatenate([np.arange(c - 1) for c in counts])
+        rows = np.concatenate([[0], np.cumsum(counts)[:-1]])[veh] + 1 + cand  # row of each candidate in ``full``
+        keep = boxes[:, 1] >= boxes[:, 0]  # an unchanged image keeps I_k,0's features
+        boxes, veh, cand, rows = boxes[keep], veh[keep], cand[keep], rows[keep]
+        if len(boxes) == 0:
+            return torch.from_numpy(full)
+
+        def cells(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            # output cells i whose input window [stride i, stride i + field - 1] meets pixels lo..hi
+            return np.maximum(0, -((field - 1 - lo) // stride)), np.minimum(n_out - 1, hi // stride)
+
+        ra, rb = cells(boxes[:, 0], boxes[:, 1])
+        ca, cb = cells(boxes[:, 2], boxes[:, 3])
+        nr, nc = int((rb - ra).max()) + 1, int((cb - ca).max()) + 1  # one patch size for the whole batch
+        py, px = np.minimum(ra, n_out - nr) * stride, np.minimum(ca, n_out - nc) * stride
+        hr, hc = stride * (nr - 1) + field - m, stride * (nc - 1) + field - m  # conv1-output patch size
+        bh = int((boxes[:, 1] - boxes[:, 0]).max()) + 1 + 2 * m  # difference window (input pixels)
+        bw = int((boxes[:, 3] - boxes[:, 2]).max()) + 1 + 2 * m
+        y0, x0 = boxes[:, 0] - m, boxes[:, 2] - m  # window origins (may stick out of the image)
+        size = bevs[0].image.shape[0]
+        diffs = np.zeros((len(boxes), bh, bw, 3), dtype=np.float32)
+        for p in range(len(boxes)):
+            ya, yb, xa, xb = max(y0[p], 0), min(y0[p] + bh, size), max(x0[p], 0), min(x0[p] + bw, size)
+            img, mk = bevs[veh[p]].image, bevs[veh[p]].candidate_images[cand[p]]
+            diffs[p, ya - y0[p]: yb - y0[p], xa - x0[p]: xb - x0[p]] = (
+                mk[ya:yb, xa:xb].astype(np.float32) - img[ya:yb, xa:xb])
+        # conv1 of the differences: rows y0 .. y0 + dh - 1, cols x0 .. of conv1's output
+        delta = net.conv1_linear(images_to_tensor(diffs)).permute(0, 2, 3, 1).numpy()  # (P, dh, dw, 8)
+        dh, dw = delta.shape[1], delta.shape[2]
+        a1_np = a1.permute(0, 2, 3, 1).numpy()  # (V, h1, w1, 8) view
+        patches = np.empty((len(boxes), hr, hc, a1_np.shape[3]), dtype=np.float32)
+        for p in range(len(boxes)):
+            patches[p] = a1_np[veh[p], py[p]: py[p] + hr, px[p]: px[p] + hc]
+            ya, yb = max(y0[p], py[p]), min(y0[p] + dh, py[p] + hr)
+            xa, xb = max(x0[p], px[p]), min(x0[p] + dw, px[p] + hc)
+            if ya < yb and xa < xb:
+                patches[p, ya - py[p]: yb - py[p], xa - px[p]: xb - px[p]] += (
+                    delta[p, ya - y0[p]: yb - y0[p], xa - x0[p]: xb - x0[p]])
+        sub = net.after_conv1(torch.from_numpy(patches).permute(0, 3, 1, 2)).numpy()  # (P, 3, nr, nc)
+        ar, ac = py // stride, px // stride
+        for p in range(len(boxes)):
+            full[rows[p], :, ar[p]: ar[p] + nr, ac[p]: ac[p] + nc] = sub[p]
+        return torch.from_numpy(full)

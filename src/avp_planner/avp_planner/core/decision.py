@@ -1,0 +1,578 @@
+"""The ego's decision of paper §V-D ("Final Trajectory Planning"): park, else explore, else idle (ROS-free).
+
+At each step t, :meth:`EgoPlanner.decide` receives the observation (§III-A), the belief map b_t (§V-B; or
+``None``) and the predicted trajectories (§V-C), and returns a :class:`Decision` with the command u_0,t.
+
+**Beliefs.** With ``beliefs=None`` the planner keeps "beliefs from observation only" (the first update of
+§V-B without the intention model): b = 0.5 initially; observed vacant -> 0, observed occupied -> 1,
+otherwise kept.
+
+**Static world** (:mod:`~avp_planner.core.collision`): lot boundary, spots with b >= β as full spot
+rectangles, observed static vehicles. **Dynamic obstacles**: the given predictions; an observed dynamic
+vehicle or pedestrian without any prediction gets a constant-velocity one (``fallback_prediction``; §V-C uses
+constant velocity for pedestrians), so that the planner stays safe when run without a prediction module.
+
+**Parking (§V-D-1).** Candidates I_can,0 = {i in I_vac,t : b_t,i <= δ}. Goals: the ego centred in the spot with
+the spot heading or its opposite (both seeds of one Hybrid A* search). Candidates are searched in order of
+a lower bound of c_park (from the exact obstacle-free Reeds-Shepp length and the 2-D obstacle-aware
+distance), and the loop stops when the next lower bound is not below the best feasible cost found
+(branch and bound: the result is the one of planning every candidate, at a fraction of the cost). A path is
+time-indexed with its speed profile (:mod:`~avp_planner.core.control`) and kept if its footprints avoid
+every predicted agent at the same time index; if not, starting it after a wait of up to ``max_wait`` is
+tried (wait-and-go, as in Nawaz et al.). The feasible plan of lowest c_park wins:
+
+    c_park = w_length L + w_reverse L_rev + w_switch n_switch + w_time (T + t_wait)
+             + w_static sum_k exp(-3 d_k) |Δs_k| + w_dynamic sum_k sum_agents exp(-2 g_k) Δt
+
+after Nawaz's evaluate_path (length, reversing, switch-backs, time incl. waiting, and exponential proximity to
+static obstacles (d_k: footprint clearance from the distance transform) and to predicted agents (g_k: gap
+of the footprints)). The chosen path is tracked into eq. (1) controls, verified (every state free with
+``verify_margin``, no predicted agent) and executed step by step across calls. It is **replanned** when the
+ego is not where the plan expects it, when the rest of the plan meets a static obstacle of the current
+step (newly observed occupied spot / static vehicle), when it meets a predicted agent, or when it is
+exhausted.
+
+**Exploration (§V-D-2).** Exploration points: the crossings of the road centre lines with the boundary of
+the sensing disc of radius ``sensing_radius`` around the ego, heading along the road away from the ego; the
+goal is moved ``explore_lane_offset`` to the right of that heading (drive on the right lane; 0 = the paper
+literally) and, if in collision, slid back along the road. Points in front of the ego
+([cos θ, sin θ] (p - p_ego) >= 0) are planned first (lowest c, same Hybrid A*); points behind only if no front
+point has a feasible plan. While exploring, parking is re-tried every step in which the candidate set, the
+static world or the ego's cell changed (or every ``park_retry_steps`` steps); an exploration plan is
+followed until less than ``explore_replan_distance`` of it is left.
+
+**Idling (§V-D-3).** Otherwise u = 0. If all plans were blocked only by predicted agents, the searches are
+repeated once with the agents' current footprints as static obstacles (``dynamic_as_static_fallback``),
+which lets the ego drive around a stopped car.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from avp_planner.core.collision import DynamicObstacles, StaticWorld
+from avp_planner.core.control import Trajectory, reference_trajectory, track
+from avp_planner.core.hybrid_astar import EgoHeuristic, HybridAStar, PlanResult
+from avp_planner.core.paths import Path, wrap
+from avp_planner.core.rs_scalar import rs_shortest
+from avp_planner.core.settings import PlannerSettings
+from avp_world.geometry import rect_corners, rect_inside_rect
+from avp_world.kinematics import step_vehicle
+from avp_world.lot import LotMap
+from avp_world.types import Observation, PredictedTrajectory
+
+PARK, EXPLORE, IDLE = "park", "explore", "idle"
+
+
+@dataclass
+class Decision:
+    """What the planner decided at one step.
+
+    mode: 'park' | 'explore' | 'idle'; spot_id: the target spot (-1 unless parking); goal: (3,) goal pose
+    (None when idle); poses: (K, 3) the planned states from now on (poses[0] = current pose); controls:
+    (K - 1, 2) the remaining controls; command: (v, ω) for this step; timings: seconds
+    (``spot_selection_time``: candidate selection, ordering, pricing and prediction checks;
+    ``path_planning_time``: Hybrid A* searches and tracking; ``total``); n_candidates: |I_can,0|;
+    reason: why this mode (or why a plan was dropped); cost: c of the plan; stats: details.
+    """
+
+    mode: str
+    spot_id: int = -1
+    goal: np.ndarray | None = None
+    poses: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    controls: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    command: tuple[float, float] = (0.0, 0.0)
+    timings: dict = field(default_factory=dict)
+    n_candidates: int = 0
+    reason: str = ""
+    cost: float = math.nan
+    replanned: bool = False
+    stats: dict = field(default_factory=dict)
+
+
+@dataclass
+class _Plan:
+    mode: str
+    spot_id: int
+    goal: np.ndarray
+    traj: Trajectory
+    cost: float
+    margins: np.ndarray  # static clearance each state keeps (0 near the start, verify_margin after)
+    index: int = 0  # next control to send
+    path_length: float = 0.0
+
+
+@dataclass
+class _Candidate:
+    """One evaluated plan (before tracking)."""
+
+    mode: str
+    spot_id: int
+    goal: np.ndarray
+    path: Path
+    cost: float
+    wait_steps: int
+    front: bool = True
+
+
+class EgoPlanner:
+    """§V-D decision logic; see the module docstring. One instance per episode (or call :meth:`reset`).
+
+    Args:
+        lot: the lot map (§II-A).
+        settings: planner settings (validated).
+    """
+
+    def __init__(self, lot: LotMap, settings: PlannerSettings = PlannerSettings()):
+        self.lot = lot
+        self.settings = settings.validate()
+        from avp_planner.core.hybrid_astar import rs_length_table
+
+        s = settings.search
+        rs_length_table(round(settings.plan_radius, 9), s.rs_table_resolution, s.rs_table_extent, s.heading_bins)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the internal beliefs and the plan being executed."""
+        self.beliefs = np.full(self.lot.n_spots, 0.5)
+        self._plan: _Plan | None = None
+        self._world_cache: tuple | None = None
+        self._last_park_attempt: tuple | None = None
+        self._park_attempt_step = -(10**9)
+
+    # ------------------------------------------------------------------------------------------ inputs
+    def _check_inputs(self, obs: Observation, beliefs, predictions) -> str:
+        pose = np.asarray(obs.ego_pose, dtype=float)
+        if pose.shape != (3,) or not np.isfinite(pose).all():
+            return "invalid input: NaN in ego pose"
+        if not (math.isfinite(obs.ego_speed) and math.isfinite(obs.ego_length) and math.isfinite(obs.ego_width)):
+            return "invalid input: NaN in ego speed or size"
+        if obs.ego_length <= 0 or obs.ego_width <= 0:
+            return "invalid input: ego size must be > 0"
+        for v in obs.vehicles:
+            if not (np.isfinite(v.history).all() and math.isfinite(v.length) and math.isfinite(v.width)):
+                return f"invalid input: NaN in observed vehicle {v.id}"
+        for p in obs.pedestrians:
+            if not (np.isfinite(p.position).all() and np.isfinite(p.previous_position).all()
+                    and math.isfinite(p.radius)):
+                return f"invalid input: NaN in observed pedestrian {p.id}"
+        for sid in (*np.asarray(obs.vacant_spot_ids).tolist(), *np.asarray(obs.occupied_spot_ids).tolist()):
+            if not self.lot.has_spot(sid):
+                return f"invalid input: unknown spot id {sid}"
+        if beliefs is not None:
+            b = np.asarray(beliefs, dtype=float)
+            if b.shape != (self.lot.n_spots,):
+                return f"invalid input: beliefs must have shape ({self.lot.n_spots},), got {b.shape}"
+            if not np.isfinite(b).all():
+                return "invalid input: NaN in beliefs"
+            if b.min() < 0 or b.max() > 1:
+                return "invalid input: beliefs must lie in [0, 1]"
+        for p in predictions:
+            if not np.isfinite(np.asarray(p.poses, dtype=float)).all() or not math.isfinite(p.dt) or p.dt <= 0:
+                return f"invalid input: NaN in prediction of agent {p.agent_id}"
+        return ""
+
+    def update_beliefs(self, obs: Observation) -> np.ndarray:
+        """§V-B first update without intentions: observed vacant -> 0, observed occupied -> 1, else kept."""
+        for sid in np.asarray(obs.vacant_spot_ids).tolist():
+            self.beliefs[self.lot.spot_index(sid)] = 0.0
+        for sid in np.asarray(obs.occupied_spot_ids).tolist():
+            self.beliefs[self.lot.spot_index(sid)] = 1.0
+        return self.beliefs
+
+    # --------------------------------------------------------------------------------------- worlds
+    def _static_world(self, obs: Observation, beliefs: np.ndarray, extra: np.ndarray | None = None) -> StaticWorld:
+        d = self.settings.decision
+        occ = np.nonzero(beliefs >= d.belief_threshold)[0]
+        poses = [self.lot.spot_poses[occ]]
+        dims = [self.lot.spot_dims[occ]]
+        stat = [v for v in obs.vehicles if v.is_static]
+        if stat:
+            poses.append(np.array([v.pose for v in stat], dtype=float))
+            dims.append(np.array([[v.length, v.width] for v in stat], dtype=float))
+        if extra is not None and len(extra):
+            poses.append(extra[:, :3])
+            dims.append(extra[:, 3:5])
+        poses_a, dims_a = np.concatenate(poses), np.concatenate(dims)
+        key = (float(obs.ego_length), float(obs.ego_width), np.round(poses_a, 6).tobytes(),
+               np.round(dims_a, 6).tobytes())
+        if extra is None and self._world_cache is not None and self._world_cache[0] == key:
+            return self._world_cache[1]
+        world = StaticWorld(self.lot, poses_a, dims_a, obs.ego_length, obs.ego_width, self.settings.collision)
+        world.key = key
+        if extra is None:
+            self._world_cache = (key, world)
+        return world
+
+    def _dynamic(self, obs: Observation, predictions: Sequence[PredictedTrajectory]) -> DynamicObstacles:
+        dt = self.settings.control.dt
+        d = self.settings.decision
+        preds = [self._resample(p, dt) for p in predictions]
+        covered = {(bool(p.is_pedestrian), int(p.agent_id)) for p in preds}
+        if d.fallback_prediction != "none":
+            n = max(1, int(round(d.fallback_horizon / dt)))
+            for v in obs.vehicles:
+                if v.is_static or (False, int(v.id)) in covered:
+                    continue
+                preds.append(self._fallback_vehicle(v, obs.dt, dt, n, d.fallback_prediction))
+            for p in obs.pedestrians:
+                if (True, int(p.id)) in covered:
+                    continue
+                vel = (np.asarray(p.position) - np.asarray(p.previous_position)) / obs.dt
+                if d.fallback_prediction == "static":
+                    vel = vel * 0.0
+                k = np.arange(1, n + 1)[:, None] * dt
+                pos = np.asarray(p.position, dtype=float)[None, :] + k * vel[None, :]
+                preds.append(PredictedTrajectory(agent_id=int(p.id), poses=np.column_stack([pos, np.zeros(n)]),
+                                                 dt=dt, is_pedestrian=True, radius=float(p.radius)))
+        c = self.settings.collision
+        return DynamicObstacles(preds, obs.ego_length, obs.ego_width, c.vehicle_margin, c.pedestrian_margin)
+
+    @staticmethod
+    def _resample(p: PredictedTrajectory, dt: float) -> PredictedTrajectory:
+        if abs(p.dt - dt) < 1e-9 or len(p.poses) == 0:
+            return p
+        poses = np.asarray(p.poses, dtype=float).reshape(-1, 3)
+        t_src = p.dt * np.arange(1, len(poses) + 1)
+        n = max(1, int(math.floor(t_src[-1] / dt + 1e-9)))
+        t = dt * np.arange(1, n + 1)
+        th = np.unwrap(poses[:, 2])
+        out = np.column_stack([np.interp(t, t_src, poses[:, 0]), np.interp(t, t_src, poses[:, 1]),
+                               wrap(np.interp(t, t_src, th))])
+        return PredictedTrajectory(agent_id=p.agent_id, poses=out, dt=dt, probability=p.probability,
+                                   is_pedestrian=p.is_pedestrian, length=p.length, width=p.width, radius=p.radius,
+                                   spot_id=p.spot_id)
+
+    @staticmethod
+    def _fallback_vehicle(v, obs_dt: float, dt: float, n: int, kind: str) -> PredictedTrajectory:
+        """Constant (signed) speed and yaw rate from the last two history states, rolled out with eq. (1)."""
+        hist = np.asarray(v.history, dtype=float).reshape(-1, 3)
+        cur = hist[-1]
+        speed, omega = 0.0, 0.0
+        if kind == "constant_velocity" and len(hist) >= 2:
+            prev = hist[-2]
+            dxy = cur[:2] - prev[:2]
+            speed = float(np.dot(dxy, [math.cos(prev[2]), math.sin(prev[2])])) / obs_dt
+            omega = float(wrap(cur[2] - prev[2])) / obs_dt
+        poses = np.empty((n, 3))
+        s = cur.copy()
+        u = np.array([speed, omega])
+        for k in range(n):
+            s = step_vehicle(s, u, dt)
+            poses[k] = s
+        return PredictedTrajectory(agent_id=int(v.id), poses=poses, dt=dt, length=float(v.length),
+                                   width=float(v.width))
+
+    def _agents_as_rects(self, obs: Observation) -> np.ndarray:
+        rows = [[*v.pose, v.length, v.width] for v in obs.vehicles if not v.is_static]
+        rows += [[*p.position, 0.0, 2 * p.radius, 2 * p.radius] for p in obs.pedestrians]
+        return np.array(rows, dtype=float).reshape(-1, 5)
+
+    # ------------------------------------------------------------------------------------ candidates
+    def candidate_spots(self, obs: Observation, beliefs: np.ndarray) -> np.ndarray:
+        """Indices (into ``lot.spots``) of I_can,0 = {i in I_vac,t : b_t,i <= δ} (§V-D-1)."""
+        idx = [self.lot.spot_index(s) for s in np.asarray(obs.vacant_spot_ids).tolist()]
+        idx = sorted(i for i in idx if beliefs[i] <= self.settings.decision.candidate_threshold)
+        return np.asarray(idx, dtype=np.int64)
+
+    def spot_goals(self, k: int) -> np.ndarray:
+        """The two goal poses of spot row ``k``: centred, spot heading and spot heading + π."""
+        x, y, th = self.lot.spot_poses[k]
+        return np.array([[x, y, th], [x, y, float(wrap(th + math.pi))]])
+
+    def exploration_points(self, ego: np.ndarray) -> list[tuple[np.ndarray, bool, int]]:
+        """§V-D-2: crossings of the road centre lines with the sensing circle, heading away from the ego.
+
+        Returns [(pose (3,), in_front, road id)], front points first, each group sorted by road id and angle.
+        """
+        r = self.settings.decision.sensing_radius
+        p = np.asarray(ego[:2], dtype=float)
+        head = np.array([math.cos(ego[2]), math.sin(ego[2])])
+        out = []
+        for road in self.lot.roads:
+            a, b = np.asarray(road.start, dtype=float), np.asarray(road.end, dtype=float)
+            dvec = b - a
+            aa = float(dvec @ dvec)
+            f = a - p
+            bb = 2.0 * float(f @ dvec)
+            cc = float(f @ f) - r * r
+            disc = bb * bb - 4 * aa * cc
+            if disc < 0:
+                continue
+            sq = math.sqrt(disc)
+            for t in sorted({(-bb - sq) / (2 * aa), (-bb + sq) / (2 * aa)}):
+                if not (-1e-9 <= t <= 1 + 1e-9):
+                    continue
+                q = a + t * dvec
+                u = dvec / math.sqrt(aa)
+                th = road.heading if float(u @ (q - p)) >= 0 else road.heading + math.pi
+                front = float(head @ (q - p)) >= 0
+                out.append((np.array([q[0], q[1], float(wrap(th))]), front, road.id))
+        out.sort(key=lambda e: (not e[1], e[2], e[0][0], e[0][1]))
+        return out
+
+    def _explore_goal(self, point: np.ndarray, world: StaticWorld) -> np.ndarray | None:
+        d = self.settings.decision
+        th = float(point[2])
+        c, s = math.cos(th), math.sin(th)
+        base = point[:2] + d.explore_lane_offset * np.array([s, -c])  # right of the heading
+        for slide in d.explore_goal_slide:
+            g = np.array([base[0] + slide * c, base[1] + slide * s, th])
+            if world.free(g[None], self.settings.collision.footprint_margin)[0]:
+                return g
+        return None
+
+    # --------------------------------------------------------------------------------------- pricing
+    def _lower_bound(self, ego: np.ndarray, goals: np.ndarray, heur: EgoHeuristic) -> float:
+        """Lower bound of c for any plan to ``goals`` (exact Reeds-Shepp length, slackened 2-D distance)."""
+        cs, ctl = self.settings.cost, self.settings.control
+        lb = math.inf
+        d2 = heur.dist2d(goals[:, :2]) - 2.0 * math.sqrt(2.0) * heur.h_res
+        for g, dd in zip(goals, d2, strict=True):
+            length, _ = rs_shortest(tuple(g), tuple(ego), self.settings.plan_radius)
+            lb = min(lb, max(length, float(dd)))
+        return (cs.w_length + cs.w_time / ctl.v_max) * lb
+
+    def _price(self, path: Path, world: StaticWorld, dyn: DynamicObstacles, v0: float):
+        """(cost, wait_steps) of the path started after the first feasible wait, or (inf, -1)."""
+        cs, ctl, d = self.settings.cost, self.settings.control, self.settings.decision
+        dt = ctl.dt
+        poses, speeds = reference_trajectory(path, ctl, v0)
+        ds = np.abs(speeds) * dt
+        clr = world.footprint_clearance(poses[1:])
+        base = (cs.w_length * path.length + cs.w_reverse * path.reverse_length + cs.w_switch * path.n_switches
+                + cs.w_static * float(np.sum(np.exp(-3.0 * np.maximum(clr, 0.0)) * ds)))
+        n_wait = int(round(d.max_wait / dt))
+        step = max(1, int(round(d.wait_step / dt)))
+        for w in range(0, n_wait + 1, step):
+            ego = np.concatenate([np.repeat(poses[:1], w, axis=0), poses]) if w else poses
+            if dyn.first_collision(ego) >= 0:
+                continue
+            t_total = (len(speeds) + w) * dt
+            cost = base + cs.w_time * t_total + cs.w_dynamic * dyn.proximity_cost(ego, dt)
+            return cost, w
+        return math.inf, -1
+
+    # ------------------------------------------------------------------------------------- planning
+    def _search_set(self, mode: str, items, ego, world, dyn, heur, astar, v0, t_end, stats, timing):
+        """Plan to each item (spot row index or exploration point) with branch and bound on c.
+
+        Returns the feasible candidates sorted by cost, and whether some static path existed but every
+        one was blocked by predicted agents.
+        """
+        entries = []
+        for it in items:
+            goals = self.spot_goals(it) if mode == PARK else it[0][None]
+            entries.append((self._lower_bound(ego, goals, heur), it, goals))
+        entries.sort(key=lambda e: e[0])
+        found: list[_Candidate] = []
+        blocked_by_agents = False
+        best = math.inf
+        for lb, it, goals in entries[: self.settings.decision.max_candidates_planned]:
+            if lb >= best or time.perf_counter() > t_end:
+                break
+            t0 = time.perf_counter()
+            res: PlanResult = astar.plan(goals, time_cap=min(self.settings.search.time_cap, max(t_end - t0, 1e-3)))
+            dt_q = time.perf_counter() - t0
+            timing["path_planning_time"] += dt_q
+            stats.setdefault("queries", []).append({"mode": mode, "target": int(it) if mode == PARK else -1,
+                                                    "success": res.success, "reason": res.reason,
+                                                    "time_s": dt_q, "iterations": res.stats.get("iterations", 0)})
+            if not res.success:
+                continue
+            t1 = time.perf_counter()
+            cost, wait = self._price(res.path, world, dyn, v0)
+            timing["spot_selection_time"] += time.perf_counter() - t1
+            if wait < 0:
+                blocked_by_agents = True
+                continue
+            found.append(_Candidate(mode, int(self.lot.spot_ids[it]) if mode == PARK else -1, res.goal, res.path,
+                                    cost, wait, True if mode == PARK else bool(it[1])))
+            best = min(best, cost)
+        found.sort(key=lambda c: c.cost)
+        return found, blocked_by_agents
+
+    def _adopt(self, cands: list[_Candidate], world: StaticWorld, dyn: DynamicObstacles, obs: Observation,
+               timing: dict) -> _Plan | None:
+        """Track the cheapest candidate into controls and verify; fall back to the next one."""
+        c = self.settings.collision
+        for cand in cands:
+            t0 = time.perf_counter()
+            traj = track(cand.path, self.settings.control, self.settings.vehicle.max_curvature, obs.ego_speed)
+            timing["path_planning_time"] += time.perf_counter() - t0
+            if cand.wait_steps:
+                z = np.zeros((cand.wait_steps, 2))
+                st = np.repeat(traj.states[:1], cand.wait_steps, axis=0)
+                traj = Trajectory(np.concatenate([z, traj.controls]), np.concatenate([st, traj.states]), traj.dt)
+            relax = np.cumsum(np.r_[0.0, np.hypot(*np.diff(traj.states[:, :2], axis=0).T)]) < c.start_relax_distance
+            margins = np.where(relax, 0.0, c.verify_margin)
+            st = traj.states
+            ok = world.free_xyc(st[:, 0], st[:, 1], np.cos(st[:, 2]), np.sin(st[:, 2]), margins).all()
+            if ok and cand.mode == PARK:
+                ok = self._parked_in(traj.states[-1], cand.goal, cand.spot_id, obs)
+            if ok and dyn.first_collision(traj.states) < 0:
+                return _Plan(cand.mode, cand.spot_id, cand.goal, traj, cand.cost, margins, 0, cand.path.length)
+        return None
+
+    def _parked_in(self, final: np.ndarray, goal: np.ndarray, spot_id: int, obs: Observation) -> bool:
+        """The tracked end state is within the goal tolerance and its footprint inside the spot (V_0 ⊆ S_i)."""
+        s = self.settings.search
+        if math.hypot(final[0] - goal[0], final[1] - goal[1]) > s.goal_tolerance_xy:
+            return False
+        if abs(float(wrap(final[2] - goal[2]))) > s.goal_tolerance_heading:
+            return False
+        k = self.lot.spot_index(spot_id)
+        fp = rect_corners(final, obs.ego_length, obs.ego_width)
+        return bool(rect_inside_rect(fp[None], self.lot.spot_corners[k][None])[0])
+
+    # ------------------------------------------------------------------------------------------ main
+    def decide(self, obs: Observation, beliefs: np.ndarray | None = None,
+               predictions: Sequence[PredictedTrajectory] = ()) -> Decision:
+        """One decision step of §V-D (see the module docstring)."""
+        t_start = time.perf_counter()
+        timing = {"spot_selection_time": 0.0, "path_planning_time": 0.0, "total": 0.0}
+        stats: dict = {}
+        predictions = list(predictions or ())
+        bad = self._check_inputs(obs, beliefs, predictions)
+        if bad:
+            self._plan = None
+            return self._finish(Decision(IDLE, reason=bad), timing, t_start)
+        d = self.settings.decision
+        b = self.update_beliefs(obs).copy() if beliefs is None else np.asarray(beliefs, dtype=float)
+        ego = np.asarray(obs.ego_pose, dtype=float)
+        t0 = time.perf_counter()
+        world = self._static_world(obs, b)
+        dyn = self._dynamic(obs, predictions)
+        cands = self.candidate_spots(obs, b)
+        timing["spot_selection_time"] += time.perf_counter() - t0
+        why = ""
+
+        # ---- 1. the plan being executed
+        keep_explore: _Plan | None = None
+        p = self._plan
+        if p is not None and p.mode == PARK and p.index >= len(p.traj.controls):
+            if math.hypot(*(p.traj.states[-1][:2] - ego[:2])) <= d.replan_pose_tolerance:
+                return self._finish(Decision(IDLE, spot_id=p.spot_id, goal=p.goal.copy(), poses=ego[None].copy(),
+                                             n_candidates=len(cands), reason="parked"), timing, t_start)
+        if self._plan is not None:
+            ok, why = self._still_valid(self._plan, ego, world, dyn)
+            if ok and self._plan.mode == PARK:
+                return self._finish(self._execute(self._plan, len(cands), "executing"), timing, t_start)
+            if ok:
+                keep_explore = self._plan
+            else:
+                self._plan = None
+
+        # ---- 2. parking
+        t_end = t_start + d.decision_time_cap
+        heur = None
+        attempt_key = (world.key, tuple(cands.tolist()), tuple(np.floor(ego[:2]).astype(int).tolist()))
+        retry = (keep_explore is None or attempt_key != self._last_park_attempt
+                 or obs.step - self._park_attempt_step >= d.park_retry_steps)
+        blocked = False
+        if len(cands) and retry:
+            self._last_park_attempt, self._park_attempt_step = attempt_key, obs.step
+            heur, astar = self._searcher(world, ego, timing)
+            found, blocked = self._search_set(PARK, cands.tolist(), ego, world, dyn, heur, astar, obs.ego_speed,
+                                              t_end, stats, timing)
+            plan = self._adopt(found, world, dyn, obs, timing)
+            if plan is not None:
+                self._plan = plan
+                return self._finish(self._execute(plan, len(cands), "new parking plan", True), timing, t_start,
+                                    stats)
+
+        # ---- 3. exploration
+        if keep_explore is not None:
+            return self._finish(self._execute(keep_explore, len(cands), "exploring"), timing, t_start, stats)
+        if heur is None:
+            heur, astar = self._searcher(world, ego, timing)
+        plan, blocked_e = self._explore(ego, world, dyn, heur, astar, obs, t_end, stats, timing)
+        blocked |= blocked_e
+        if plan is None and blocked and d.dynamic_as_static_fallback:
+            extra = self._agents_as_rects(obs)
+            if len(extra):
+                world2 = self._static_world(obs, b, extra)
+                heur2, astar2 = self._searcher(world2, ego, timing)
+                if len(cands):
+                    found, _ = self._search_set(PARK, cands.tolist(), ego, world, dyn, heur2, astar2,
+                                                obs.ego_speed, t_end, stats, timing)
+                    plan = self._adopt(found, world, dyn, obs, timing)
+                if plan is None:
+                    plan, _ = self._explore(ego, world, dyn, heur2, astar2, obs, t_end, stats, timing)
+                if plan is not None:
+                    stats["around_agents"] = True
+        if plan is not None:
+            self._plan = plan
+            what = "new parking plan around agents" if plan.mode == PARK else "new exploration plan"
+            return self._finish(self._execute(plan, len(cands), what, True), timing, t_start, stats)
+
+        # ---- 4. idle
+        reason = "no safe parking or exploration plan" + (f" ({why})" if why else "")
+        return self._finish(Decision(IDLE, n_candidates=len(cands), reason=reason, poses=ego[None].copy()),
+                            timing, t_start, stats)
+
+    def _searcher(self, world: StaticWorld, ego: np.ndarray, timing: dict):
+        t0 = time.perf_counter()
+        heur = EgoHeuristic(world, ego, self.settings)
+        timing["path_planning_time"] += time.perf_counter() - t0
+        return heur, HybridAStar(world, ego, self.settings, heur)
+
+    def _explore(self, ego, world, dyn, heur, astar, obs, t_end, stats, timing):
+        pts = []
+        for pose, front, rid in self.exploration_points(ego):
+            g = self._explore_goal(pose, world)
+            if g is not None and math.hypot(g[0] - ego[0], g[1] - ego[1]) > 1.0:
+                pts.append((g, front, rid))
+        blocked_any = False
+        for group in (True, False):  # front points first; behind only if the front stays blocked
+            items = [p for p in pts if p[1] == group]
+            if not items:
+                continue
+            found, blocked = self._search_set(EXPLORE, items, ego, world, dyn, heur, astar, obs.ego_speed, t_end,
+                                              stats, timing)
+            blocked_any |= blocked
+            plan = self._adopt(found, world, dyn, obs, timing)
+            if plan is not None:
+                return plan, blocked_any
+        return None, blocked_any
+
+    def _still_valid(self, plan: _Plan, ego: np.ndarray, world: StaticWorld, dyn: DynamicObstacles) -> tuple[bool, str]:
+        d = self.settings.decision
+        k = plan.index
+        if k >= len(plan.traj.controls):
+            return False, "plan finished"
+        exp = plan.traj.states[k]
+        if math.hypot(*(exp[:2] - ego[:2])) > d.replan_pose_tolerance or abs(float(wrap(exp[2] - ego[2]))) > 0.02:
+            return False, "ego off the plan"
+        rest = plan.traj.states[k:]
+        r1 = rest[1:]
+        if not world.free_xyc(r1[:, 0], r1[:, 1], np.cos(r1[:, 2]), np.sin(r1[:, 2]), plan.margins[k + 1:]).all():
+            return False, "static obstacle on the plan"
+        if dyn.first_collision(rest) >= 0:
+            return False, "predicted agent on the plan"
+        if plan.mode == EXPLORE:
+            left = np.abs(plan.traj.controls[k:, 0]).sum() * plan.traj.dt
+            if left < d.explore_replan_distance:
+                return False, "exploration plan nearly done"
+        return True, ""
+
+    def _execute(self, plan: _Plan, n_cand: int, reason: str, new: bool = False) -> Decision:
+        k = plan.index
+        u = plan.traj.controls[k]
+        plan.index += 1
+        return Decision(plan.mode, spot_id=plan.spot_id, goal=plan.goal.copy(), poses=plan.traj.states[k:].copy(),
+                        controls=plan.traj.controls[k:].copy(), command=(float(u[0]), float(u[1])),
+                        n_candidates=n_cand, reason=reason, cost=plan.cost, replanned=new)
+
+    @staticmethod
+    def _finish(dec: Decision, timing: dict, t_start: float, stats: dict | None = None) -> Decision:
+        timing["total"] = time.perf_counter() - t_start
+        dec.timings = timing
+        if stats:
+            dec.stats.update(stats)
+        return dec

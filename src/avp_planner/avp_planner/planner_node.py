@@ -1,0 +1,180 @@
+"""avp_planner node: the thin ROS wrapper around :class:`avp_planner.core.decision.EgoPlanner` (§V-D).
+
+Subscribes lot_map (latched), observation, and — when enabled — beliefs and predictions; in lock-step
+it decides once all enabled inputs stamped like observation k have arrived. Publishes cmd
+(TwistStamped, stamped like the observation it answers), plan (nav_msgs/Path), decision
+(avp_msgs/PlannerDecision with timings). Never reads ground truth.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from nav_msgs.msg import Path
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+from avp_common.conversions import (
+    MessageError,
+    beliefs_from_msg,
+    lot_from_msg,
+    observation_from_msg,
+    predictions_from_msg,
+)
+from avp_common.params import (
+    ParameterError,
+    ParamSpec,
+    dataclass_from_values,
+    declare_and_validate,
+    specs_from_dataclass,
+)
+from avp_common.qos import LATCHED, STEP
+from avp_msgs.msg import LotMap, Observation, PlannerDecision, PredictedTrajectoryArray, SpotBeliefs
+from avp_planner.core.settings import DEFAULT_SETTINGS
+
+NODE_PARAMS = [
+    ParamSpec("use_beliefs", bool, "Wait for and use beliefs (from the belief node, #4); false = beliefs from "
+              "observation only.", "b_t", "§V-B", default=False),
+    ParamSpec("use_predictions", bool, "Wait for and use predicted trajectories (#4); false = none.", "",
+              "§V-C", default=False),
+]
+PLANNER_PARAMS = NODE_PARAMS + specs_from_dataclass(DEFAULT_SETTINGS)
+MODES = {"idle": PlannerDecision.MODE_IDLE, "park": PlannerDecision.MODE_PARK, "explore": PlannerDecision.MODE_EXPLORE}
+
+
+def _quat_z(theta: float):
+    return math.sin(theta / 2.0), math.cos(theta / 2.0)
+
+
+class PlannerNode(Node):
+    def __init__(self) -> None:
+        super().__init__("avp_planner")
+        p = declare_and_validate(self, PLANNER_PARAMS)
+        self.use_beliefs, self.use_predictions = p["use_beliefs"], p["use_predictions"]
+        self.settings = dataclass_from_values(DEFAULT_SETTINGS, p).validate()
+        self.planner = None
+        self.lot = None
+        self.obs: dict[int, Observation] = {}
+        self.beliefs: dict[int, SpotBeliefs] = {}
+        self.preds: dict[int, PredictedTrajectoryArray] = {}
+        self.pub_cmd = self.create_publisher(TwistStamped, "cmd", STEP)
+        self.pub_plan = self.create_publisher(Path, "plan", STEP)
+        self.pub_decision = self.create_publisher(PlannerDecision, "decision", STEP)
+        self.create_subscription(LotMap, "lot_map", self._on_lot, LATCHED)
+        self.sub_obs = self.create_subscription(Observation, "observation", self._on_obs, STEP)
+        if self.use_beliefs:
+            self.create_subscription(SpotBeliefs, "beliefs", self._on_beliefs, STEP)
+        if self.use_predictions:
+            self.create_subscription(PredictedTrajectoryArray, "predictions", self._on_preds, STEP)
+
+    def _on_lot(self, msg: LotMap) -> None:
+        from avp_planner.core.decision import EgoPlanner
+
+        try:
+            self.lot = lot_from_msg(msg)
+        except ValueError as exc:
+            self.get_logger().error(f"lot_map: {exc}")
+            return
+        self.planner = EgoPlanner(self.lot, self.settings)
+        for k in sorted(self.obs):
+            self._try(k)
+
+    def _on_obs(self, msg: Observation) -> None:
+        if msg.step in self.obs or (self.obs and msg.step < max(self.obs)):
+            return  # re-sent or out-of-order observation: already handled
+        self.obs[int(msg.step)] = msg
+        self._try(int(msg.step))
+
+    def _on_beliefs(self, msg: SpotBeliefs) -> None:
+        self.beliefs[int(msg.step)] = msg
+        self._try(int(msg.step))
+
+    def _on_preds(self, msg: PredictedTrajectoryArray) -> None:
+        self.preds[int(msg.step)] = msg
+        self._try(int(msg.step))
+
+    def _try(self, k: int) -> None:
+        if self.planner is None or k not in self.obs:
+            return
+        if (self.use_beliefs and k not in self.beliefs) or (self.use_predictions and k not in self.preds):
+            return
+        msg = self.obs.pop(k)
+        try:
+            obs = observation_from_msg(msg)
+            beliefs = beliefs_from_msg(self.beliefs.pop(k), self.lot) if self.use_beliefs else None
+            preds = predictions_from_msg(self.preds.pop(k)) if self.use_predictions else []
+        except MessageError as exc:
+            self.get_logger().error(f"{self.sub_obs.topic_name} step {k}: {exc}; holding still")
+            self._publish_cmd(msg.header.stamp, 0.0, 0.0)
+            return
+        for d in (self.obs, self.beliefs, self.preds):  # forget anything older
+            for old in [s for s in d if s < k]:
+                del d[old]
+        t0 = time.perf_counter()
+        decision = self.planner.decide(obs, beliefs, preds)
+        total = time.perf_counter() - t0
+        v, om = decision.command
+        self._publish_cmd(msg.header.stamp, float(v), float(om))
+        self._publish_decision(msg, decision, total)
+
+    def _publish_cmd(self, stamp, v: float, om: float) -> None:
+        cmd = TwistStamped()
+        cmd.header.stamp = stamp
+        cmd.header.frame_id = "ego"
+        cmd.twist.linear.x, cmd.twist.angular.z = v, om
+        self.pub_cmd.publish(cmd)
+
+    def _publish_decision(self, obs_msg: Observation, d, total: float) -> None:
+        path = Path()
+        path.header.stamp = obs_msg.header.stamp
+        path.header.frame_id = "map"
+        poses = np.asarray(getattr(d, "poses", np.zeros((0, 3))))
+        for q in poses[:: max(1, len(poses) // 200)] if len(poses) else []:
+            ps = PoseStamped()
+            ps.header = path.header
+            ps.pose.position.x, ps.pose.position.y = float(q[0]), float(q[1])
+            ps.pose.orientation.z, ps.pose.orientation.w = _quat_z(float(q[2]))
+            path.poses.append(ps)
+        self.pub_plan.publish(path)
+        msg = PlannerDecision()
+        msg.header = path.header
+        msg.step = obs_msg.step
+        msg.mode = MODES.get(d.mode, PlannerDecision.MODE_IDLE)
+        msg.spot_id = int(d.spot_id)
+        goal = getattr(d, "goal", None)
+        if goal is not None and len(goal) == 3:
+            msg.goal.x, msg.goal.y, msg.goal.theta = (float(x) for x in goal)
+        msg.plan = path
+        msg.n_candidates = int(getattr(d, "n_candidates", 0))
+        timings = getattr(d, "timings", {}) or {}
+        msg.spot_selection_time = float(timings.get("spot_selection_time", 0.0))
+        msg.path_planning_time = float(timings.get("path_planning_time", total))
+        msg.reason = str(getattr(d, "reason", ""))
+        self.pub_decision.publish(msg)
+
+
+def main(args=None) -> int:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = PlannerNode()
+        rclpy.spin(node)
+    except (ParameterError, ValueError) as exc:
+        print(f"[avp_planner] start-up failed: {exc}", file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,231 @@
+"""Intent model of §V-A (``avp_perception.core.intent_model``) with random weights (no training yet).
+
+Oracles: hand arithmetic (layer sizes, parameter count, features, sigmoid-then-normalise), the plain torch
+module (the fused and incremental inference paths must give its logits), and the probability axioms.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+
+from avp_perception.core.belief import BeliefMap
+from avp_perception.core.bev import BEVConfig
+from avp_perception.core.intent_model import (
+    FusedIntentNet,
+    IntentPredictor,
+    SmallRegularizedCNN,
+    conv_output_size,
+    images_to_tensor,
+    intent_features,
+    max_pool_2x2,
+    receptive_field,
+    sigmoid_normalise,
+)
+from avp_perception.core.pipeline import PerceptionCore
+from avp_sim.core.scenario import ScenarioParams, generate_paper_scenario
+from avp_sim.core.world import World
+from avp_world.lot import load_bundled_lot
+
+LOT = load_bundled_lot("paper_lot")
+
+
+def snapshots(n_dynamic: int, seed: int = 0, steps=(0, 25, 30)):
+    """World observations with the ego parked mid-lot (it then sees the dynamic vehicles)."""
+    params = replace(ScenarioParams(), ego_start=(21.5, 20.0, -math.pi / 2), n_dynamic=(n_dynamic, n_dynamic))
+    world = World(LOT, generate_paper_scenario(LOT, seed, True, params))
+    out = []
+    for k in range(max(steps) + 1):
+        if k in steps:
+            out.append(world.observe())
+        world.step(0.0, 0.0)
+    return out
+
+
+def two_vehicle_obs():
+    obs = snapshots(2, steps=(30,))[0]
+    assert sum(not v.is_static for v in obs.vehicles) == 2
+    return obs
+
+
+def test_layer_sizes_match_parkpredict():
+    # 400: 394 -> 197 -> 193 -> 96 -> 94 -> 47 (3 x 47^2 = 6627 as ParkPredict+); 100: 94-47-43-21-19-9
+    assert conv_output_size(400) == 47 and conv_output_size(100) == 9 and conv_output_size(80) == 7
+    assert receptive_field() == (30, 8)  # 7 + 1 -> 8 (x2) + 4*2 + 2 -> 18 (x4) + 2*4 + 4 -> 30, stride 8
+    m = SmallRegularizedCNN(400)
+    n_params = sum(p.numel() for p in m.parameters())
+    # conv 1184 + 1608 + 219, BN 16 + 16 + 6, fc1 6632*100 + 100, BN1d 200, fc2 101
+    assert n_params == 666650
+    assert m.fc[0].in_features == 6632
+    with torch.no_grad():
+        assert m.eval()(torch.zeros(2, 3, 400, 400), torch.zeros(2, 5)).shape == (2,)
+    assert SmallRegularizedCNN(100).fc[0].in_features == 243 + 5
+    with pytest.raises(ValueError):
+        conv_output_size(20)
+
+
+def test_sigmoid_then_normalise_not_softmax():
+    p = sigmoid_normalise(np.array([0.0, math.log(3.0)]))  # sigmoids 0.5 and 0.75
+    np.testing.assert_allclose(p, [0.4, 0.6])
+    assert p.sum() == pytest.approx(1.0)
+    q = sigmoid_normalise(np.array([-50.0, 3.0, 1.0, 0.0]))
+    assert q.sum() == pytest.approx(1.0) and np.all(q >= 0)
+
+
+def test_features_by_hand_and_entrance_distance_uses_true_position():
+    f = intent_features(np.array([0.0, 0.0, 0.0]), 2.0, np.array([[3.0, 4.0], [-5.0, 0.0]]),
+                        np.array([6.0, 8.0]), 0.5)
+    np.testing.assert_allclose(f, [[0, 0, 2, 10, 0.5], [0.6, 5, 2, 10, 0.5], [-1, 5, 2, 10, 0.5]], atol=1e-6)
+    assert f.dtype == np.float32
+    # heading north at (10, 20): spot due east is perpendicular; entrance distance from the true position
+    g = intent_features(np.array([10.0, 20.0, math.pi / 2]), 0.0, np.array([[13.0, 20.0]]), LOT.entrance, 0.0)
+    assert g[1, 0] == pytest.approx(0.0, abs=1e-6) and g[1, 1] == pytest.approx(3.0)
+    assert g[0, 3] == pytest.approx(math.hypot(10.0 - 21.5, 20.0 - 41.5), rel=1e-6)
+
+
+def test_max_pool_and_fused_net_are_the_same_function():
+    x = torch.randn(3, 8, 23, 18)
+    assert torch.equal(max_pool_2x2(x), torch.nn.functional.max_pool2d(x, 2))
+    torch.manual_seed(1)
+    m = SmallRegularizedCNN(100)
+    # non-trivial batch-norm statistics so that folding them matters
+    with torch.no_grad():
+        for mod in m.modules():
+            if isinstance(mod, torch.nn.BatchNorm2d | torch.nn.BatchNorm1d):
+                mod.running_mean.uniform_(-0.5, 0.5)
+                mod.running_var.uniform_(0.5, 2.0)
+                mod.weight.uniform_(0.5, 1.5)
+                mod.bias.uniform_(-0.2, 0.2)
+    m.eval()
+    imgs = torch.rand(4, 3, 100, 100)
+    feats = torch.rand(4, 5)
+    with torch.no_grad():
+        np.testing.assert_allclose(FusedIntentNet(m)(imgs, feats).numpy(), m(imgs, feats).numpy(), atol=1e-4)
+
+
+@pytest.mark.parametrize("cfg", [BEVConfig(), BEVConfig(size_px=80, m_per_px=0.5)], ids=["100px", "80px"])
+def test_incremental_and_fused_logits_equal_reference(cfg):
+    obs = two_vehicle_obs()
+    dyn = [v for v in obs.vehicles if not v.is_static]
+    bm = BeliefMap.from_lot(LOT)
+    bm.observe(obs.vacant_spot_ids, obs.occupied_spot_ids)
+    preds = {m: IntentPredictor(LOT, cfg, seed=3, mode=m) for m in ("reference", "fused", "incremental")}
+    _, bevs = preds["reference"].predict_all(obs, dyn, bm, return_bevs=True)
+    assert sum(len(b.candidate_spot_ids) for b in bevs) >= 4
+    feats = [intent_features(b.pose, b.speed, LOT.spot_poses[b.candidate_idx, :2], LOT.entrance, 0.1) for b in bevs]
+    ref = preds["reference"].logits(bevs, feats)
+    assert ref.shape == (sum(1 + len(b.candidate_spot_ids) for b in bevs),)
+    np.testing.assert_allclose(preds["fused"].logits(bevs, feats), ref, atol=1e-4)
+    np.testing.assert_allclose(preds["incremental"].logits(bevs, feats), ref, atol=1e-4)
+    # and the marking matters: candidates' logits are not all equal to the unmarked one
+    assert np.ptp(ref[: 1 + len(bevs[0].candidate_spot_ids)]) > 1e-6
+
+
+def test_predict_gives_a_distribution_over_candidates_and_exploration():
+    for obs in snapshots(1) + snapshots(2, seed=5):
+        dyn = [v for v in obs.vehicles if not v.is_static]
+        bm = BeliefMap.from_lot(LOT)
+        bt = bm.observe(obs.vacant_spot_ids, obs.occupied_spot_ids)
+        pred = IntentPredictor(LOT, seed=0)
+        for v in dyn:
+            it = pred.predict(obs, v, bt)
+            assert it.vehicle_id == v.id
+            assert len(it.spot_ids) == len(it.spot_probabilities)
+            assert set(it.spot_ids.tolist()) <= set(obs.vacant_spot_ids.tolist())  # b~ < beta only there
+            total = it.spot_probabilities.sum() + it.none_probability
+            assert total == pytest.approx(1.0, abs=1e-9)
+            assert np.all(it.spot_probabilities > 0) and it.none_probability > 0
+            if len(it.exploration_points):
+                assert it.exploration_probabilities.sum() == pytest.approx(it.none_probability)
+                assert len(it.exploration_points) <= 3
+            # the same as a BeliefMap argument
+            it2 = pred.predict(obs, v, bm)
+            np.testing.assert_allclose(it2.spot_probabilities, it.spot_probabilities)
+
+
+def test_seeded_random_weights_are_deterministic_and_do_not_touch_global_rng():
+    obs = two_vehicle_obs()
+    v = next(v for v in obs.vehicles if not v.is_static)
+    bt = BeliefMap.from_lot(LOT).observe(obs.vacant_spot_ids, obs.occupied_spot_ids)
+    torch.manual_seed(123)
+    before = torch.rand(1)
+    torch.manual_seed(123)
+    a = IntentPredictor(LOT, seed=7).predict(obs, v, bt)
+    assert torch.equal(torch.rand(1), before)
+    b = IntentPredictor(LOT, seed=7).predict(obs, v, bt)
+    c = IntentPredictor(LOT, seed=8).predict(obs, v, bt)
+    np.testing.assert_array_equal(a.spot_probabilities, b.spot_probabilities)
+    assert not np.allclose(a.spot_probabilities, c.spot_probabilities)
+
+
+def test_time_in_lot_counts_from_first_history_pose():
+    obs0, obs25, _ = snapshots(2)
+    v0 = next(v for v in obs0.vehicles if not v.is_static)
+    v25 = next(v for v in obs25.vehicles if v.id == v0.id)
+    pred = IntentPredictor(LOT)
+    span = (len(v0.history) - 1) * obs0.dt
+    assert pred.time_in_lot(obs0, v0) == pytest.approx(span / 60.0)
+    assert pred.time_in_lot(obs25, v25) == pytest.approx((span + 25 * obs0.dt) / 60.0)
+    assert pred.time_in_lot(obs0, v0) == pytest.approx(span / 60.0)  # time went back: new episode
+
+
+def test_weights_round_trip(tmp_path):
+    obs = two_vehicle_obs()
+    v = next(v for v in obs.vehicles if not v.is_static)
+    bt = BeliefMap.from_lot(LOT).observe(obs.vacant_spot_ids, obs.occupied_spot_ids)
+    a = IntentPredictor(LOT, seed=11)
+    torch.save(a.model.state_dict(), tmp_path / "w.pt")
+    b = IntentPredictor(LOT, seed=12)
+    b.load_weights(tmp_path / "w.pt")
+    np.testing.assert_allclose(b.predict(obs, v, bt).spot_probabilities, a.predict(obs, v, bt).spot_probabilities)
+
+
+def test_images_to_tensor_layout():
+    img = np.zeros((1, 4, 5, 3), dtype=np.uint8)
+    img[0, 1, 2] = (255, 0, 51)  # row 1, col 2
+    t = images_to_tensor(img)
+    assert t.shape == (1, 3, 4, 5)
+    assert t[0, 0, 1, 2] == 1.0 and t[0, 2, 1, 2] == pytest.approx(0.2) and t.sum() == pytest.approx(1.2)
+
+
+def test_pipeline_step_applies_eq8_with_its_own_intentions():
+    obs_list = snapshots(2, steps=tuple(range(0, 40, 3)))
+    core = PerceptionCore(LOT, keep_bevs=True)
+    prev = np.full(LOT.n_spots, 0.5)
+    for obs in obs_list:
+        out = core.step(obs)
+        vac = np.array([LOT.spot_index(s) for s in obs.vacant_spot_ids], dtype=int)
+        occ = np.array([LOT.spot_index(s) for s in obs.occupied_spot_ids], dtype=int)
+        # eq. (7) oracle
+        exp_tilde = prev.copy()
+        exp_tilde[vac], exp_tilde[occ] = 0.0, 1.0
+        np.testing.assert_array_equal(out.b_tilde, exp_tilde)
+        # eq. (8) oracle from the returned intentions
+        exp = exp_tilde.copy()
+        for i in vac:
+            sid = LOT.spot_ids[i]
+            exp[i] = 1.0 - np.prod([1.0 - it.spot_probability(sid) for it in out.intentions])
+        np.testing.assert_allclose(out.beliefs, exp, atol=1e-12)
+        assert {it.vehicle_id for it in out.intentions} == {v.id for v in obs.vehicles if not v.is_static}
+        assert len(out.bevs) == len(out.intentions)
+        ids = {t.agent_id for t in out.trajectories}
+        assert ids == {it.vehicle_id for it in out.intentions}
+        prev = out.beliefs
+    # the ego's trail is kept over t_hist
+    assert core.ego_history(obs_list[-1]).shape[1] == 3
+
+
+def test_vehicle_without_candidates_keeps_all_mass_on_none():
+    obs = two_vehicle_obs()
+    dyn = [v for v in obs.vehicles if not v.is_static]
+    b = np.full(LOT.n_spots, 0.9)  # nothing believed vacant
+    for mode in ("incremental", "reference"):
+        its = IntentPredictor(LOT, mode=mode).predict_all(obs, dyn, b)
+        for it in its:
+            assert len(it.spot_ids) == 0 and it.none_probability == pytest.approx(1.0)
+            assert it.exploration_probabilities.sum() == pytest.approx(1.0)
+    assert IntentPredictor(LOT).predict_all(obs, [], b) == []

@@ -1,0 +1,223 @@
+"""The §V-D decision logic (park / explore / idle) on hand-built observations, and closed loop in the simulator."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path as FsPath
+
+import numpy as np
+import pytest
+from shapely import affinity
+from shapely.geometry import Polygon, box
+from shapely.ops import unary_union
+
+from avp_planner.core.decision import EgoPlanner
+from avp_planner.core.settings import PlannerSettings
+from avp_world.kinematics import rollout_vehicle
+from avp_world.types import Observation, ObservedVehicle, PredictedTrajectory
+
+L, W = 4.6, 1.85
+ROOT = FsPath(__file__).resolve().parents[1]
+
+
+def footprint(x, y, th, length=L, width=W):
+    b = box(-length / 2, -width / 2, length / 2, width / 2)
+    return affinity.translate(affinity.rotate(b, th, origin=(0, 0), use_radians=True), x, y)
+
+
+def make_obs(lot, ego, vacant=(), occupied=None, vehicles=(), step=0, speed=0.0):
+    if occupied is None:
+        occupied = [s.id for s in lot.spots if s.id not in set(vacant)]
+    return Observation(step=step, dt=0.1, ego_pose=np.asarray(ego, float), ego_length=L, ego_width=W,
+                       ego_speed=speed, vacant_spot_ids=np.asarray(vacant, np.int64),
+                       occupied_spot_ids=np.asarray(occupied, np.int64), vehicles=tuple(vehicles))
+
+
+def static_car(vid, x, y, th, length=L, width=W):
+    return ObservedVehicle(id=vid, length=length, width=width, is_static=True, history=np.array([[x, y, th]]))
+
+
+@pytest.fixture()
+def planner(paper_lot):
+    return EgoPlanner(paper_lot, PlannerSettings())
+
+
+def test_beliefs_from_observation_only(paper_lot, planner):
+    assert np.all(planner.beliefs == 0.5)
+    planner.decide(make_obs(paper_lot, (21.5, 30, -math.pi / 2), vacant=[22], occupied=[21, 23]))
+    b = planner.beliefs
+    k = paper_lot.spot_index
+    assert b[k(22)] == 0.0 and b[k(21)] == 1.0 and b[k(23)] == 1.0 and b[k(5)] == 0.5
+    # not observed any more: kept; re-observed: overwritten
+    planner.decide(make_obs(paper_lot, (21.5, 30, -math.pi / 2), vacant=[23], occupied=[5]))
+    assert b[k(22)] == 0.0 and b[k(23)] == 0.0 and b[k(5)] == 1.0 and b[k(21)] == 1.0
+
+
+def test_parks_in_an_observed_vacant_spot_and_reaches_it(paper_lot, planner):
+    ego = np.array([21.5, 30.0, -math.pi / 2])
+    obs = make_obs(paper_lot, ego, vacant=[22])
+    d = planner.decide(obs)
+    assert d.mode == "park" and d.spot_id == 22 and d.n_candidates == 1
+    assert d.command == tuple(d.controls[0])
+    states = rollout_vehicle(ego, d.controls, 0.1)
+    k = paper_lot.spot_index(22)
+    spot = Polygon(paper_lot.spot_corners[k])
+    assert footprint(*states[-1]).within(spot)
+    occupied = unary_union([Polygon(paper_lot.spot_corners[i]) for i in range(paper_lot.n_spots) if i != k])
+    lot_poly = Polygon(paper_lot.boundary)
+    for s in states:
+        fp = footprint(*s)
+        assert fp.within(lot_poly) and not fp.intersects(occupied)
+    assert {"spot_selection_time", "path_planning_time", "total"} <= set(d.timings)
+
+
+def test_candidate_threshold_delta(paper_lot, planner):
+    """Only observed vacant spots with b <= δ are candidates; b > δ makes the planner look elsewhere."""
+    ego = (21.5, 30.0, -math.pi / 2)
+    b = np.ones(paper_lot.n_spots)
+    b[paper_lot.spot_index(22)] = 0.31  # > δ = 0.3
+    b[paper_lot.spot_index(24)] = 0.0  # <= δ but not observed vacant now
+    d = planner.decide(make_obs(paper_lot, ego, vacant=[22]), beliefs=b)
+    assert d.n_candidates == 0 and d.mode != "park"
+    b[paper_lot.spot_index(22)] = 0.3
+    planner.reset()
+    d = planner.decide(make_obs(paper_lot, ego, vacant=[22]), beliefs=b)
+    assert d.n_candidates == 1 and d.mode == "park" and d.spot_id == 22
+
+
+def test_exploration_points_geometry_and_order(paper_lot, planner):
+    ego = np.array([21.5, 30.0, -math.pi / 2])
+    pts = planner.exploration_points(ego)
+    head = np.array([math.cos(ego[2]), math.sin(ego[2])])
+    assert len(pts) == 3
+    for pose, front, _ in pts:
+        assert abs(math.hypot(pose[0] - ego[0], pose[1] - ego[1]) - 11.5) < 1e-9  # on the sensing circle
+        assert front == (float(head @ (pose[:2] - ego[:2])) >= 0)
+        away = np.array([math.cos(pose[2]), math.sin(pose[2])]) @ (pose[:2] - ego[:2])
+        assert away > 0  # heading along the road, away from the ego
+    fronts = [f for _, f, _ in pts]
+    assert fronts == sorted(fronts, reverse=True)  # front points first
+    assert fronts.count(True) == 1  # ahead on the middle road; the top road's crossings lie behind
+    assert np.allclose(pts[0][0], [21.5, 18.5, -math.pi / 2])
+
+
+def test_explores_ahead_first_and_backwards_only_when_blocked(paper_lot, planner):
+    ego = (21.5, 30.0, -math.pi / 2)
+    d = planner.decide(make_obs(paper_lot, ego))  # nothing vacant: explore
+    assert d.mode == "explore" and d.n_candidates == 0
+    assert d.goal[1] < 30.0 and abs(d.goal[2] + math.pi / 2) < 1e-9  # ahead, down the middle road
+    assert abs(d.goal[0] - (21.5 - 1.75)) < 1e-9  # on the right-hand lane
+    # a car across the aisle ahead: the ego must explore backwards (a top-road point behind it)
+    planner.reset()
+    blocker = static_car(500, 21.5, 22.0, 0.0, length=5.0)
+    d = planner.decide(make_obs(paper_lot, ego, vehicles=[blocker]))
+    assert d.mode == "explore"
+    assert d.goal[1] > 35.0, d.goal  # on the top road
+    assert float(np.array([0.0, -1.0]) @ (d.goal[:2] - np.array(ego[:2]))) < 0  # behind the ego
+
+
+def test_idle_when_boxed_in(paper_lot, planner):
+    """Cars across the aisle ahead and behind, every spot occupied: nowhere to go (both exploration points on
+    the middle road lie beyond the cars, the other roads are out of sensing range)."""
+    ego = (21.5, 20.0, -math.pi / 2)
+    ahead = static_car(500, 21.5, 10.0, 0.0, length=5.0)
+    behind = static_car(501, 21.5, 29.0, 0.0, length=5.0)
+    d = planner.decide(make_obs(paper_lot, ego, vehicles=[ahead, behind]))
+    assert d.mode == "idle" and d.command == (0.0, 0.0)
+    assert "no safe" in d.reason
+    # vacant spot beside the ego: it parks instead of idling
+    planner.reset()
+    d = planner.decide(make_obs(paper_lot, ego, vacant=[13], vehicles=[ahead, behind]))
+    assert d.mode == "park" and d.spot_id == 13
+
+
+def test_nan_inputs_give_idle_with_a_reason(paper_lot, planner):
+    d = planner.decide(make_obs(paper_lot, (np.nan, 30.0, 0.0)))
+    assert d.mode == "idle" and d.command == (0.0, 0.0) and "NaN" in d.reason
+    b = np.zeros(paper_lot.n_spots)
+    b[3] = np.nan
+    d = planner.decide(make_obs(paper_lot, (21.5, 30.0, 0.0)), beliefs=b)
+    assert d.mode == "idle" and "NaN in beliefs" in d.reason
+    bad = PredictedTrajectory(agent_id=7, poses=np.array([[1.0, np.nan, 0.0]]), dt=0.1, length=L, width=W)
+    d = planner.decide(make_obs(paper_lot, (21.5, 30.0, 0.0)), predictions=[bad])
+    assert d.mode == "idle" and "prediction of agent 7" in d.reason
+    d = planner.decide(make_obs(paper_lot, (21.5, 30.0, -math.pi / 2), vacant=[22]))
+    assert d.mode == "park"  # recovers on the next valid input
+
+
+def test_determinism(paper_lot):
+    seq = [make_obs(paper_lot, (21.5, 30.0, -math.pi / 2), vacant=[22, 14], step=0)]
+    outs = []
+    for _ in range(2):
+        p = EgoPlanner(paper_lot, PlannerSettings())
+        d = p.decide(seq[0])
+        outs.append((d.mode, d.spot_id, d.command, d.controls.tobytes(), d.poses.tobytes(), d.cost))
+    assert outs[0] == outs[1]
+
+
+def test_predicted_vehicle_takes_the_best_spot(paper_lot, planner):
+    """A vehicle predicted to park in the spot the ego would choose makes it pick another one."""
+    ego = (21.5, 24.0, -math.pi / 2)
+    obs = make_obs(paper_lot, ego, vacant=[22, 25])
+    first = planner.decide(obs)
+    assert first.mode == "park"
+    target = first.spot_id
+    k = paper_lot.spot_index(target)
+    sx, sy, sth = paper_lot.spot_poses[k]
+    # the other car, already at the spot's mouth, drives into it within 2 s and stays (a prediction holds
+    # its last pose)
+    n = 20
+    c, s = math.cos(sth), math.sin(sth)
+    along = np.linspace(-2.0, 0.0, n)
+    poses = np.column_stack([sx + along * c, sy + along * s, np.full(n, sth)])
+    pred = PredictedTrajectory(agent_id=1001, poses=poses, dt=0.1, length=L, width=W, spot_id=target)
+    planner.reset()
+    second = planner.decide(obs, predictions=[pred])
+    assert second.mode == "park" and second.spot_id != target
+
+
+def test_replans_when_the_target_spot_turns_out_occupied(paper_lot, planner):
+    ego = np.array([21.5, 30.0, -math.pi / 2])
+    d = planner.decide(make_obs(paper_lot, ego, vacant=[22, 24]))
+    assert d.mode == "park"
+    target = d.spot_id
+    other = 24 if target == 22 else 22
+    # execute a few steps
+    pose = ego
+    for step in range(1, 4):
+        pose = rollout_vehicle(pose, np.array([d.command]), 0.1)[-1]
+        d = planner.decide(make_obs(paper_lot, pose, vacant=[22, 24], step=step, speed=d.command[0]))
+        assert d.mode == "park" and d.spot_id == target and not d.replanned
+    # now the target spot is observed occupied: the rest of the plan is obstructed -> new plan to the other
+    occ = [s.id for s in paper_lot.spots if s.id != other]
+    d = planner.decide(make_obs(paper_lot, pose, vacant=[other], occupied=occ, step=4, speed=d.command[0]))
+    assert d.mode == "park" and d.spot_id == other and d.replanned
+
+
+# ------------------------------------------------------------------------------------------------ closed loop
+
+
+def _run_episode(lot, seed, reactive):
+    import avp_sim.params
+    from avp_common.params import load_yaml_params
+    from avp_sim.core.factory import make_world
+
+    p = load_yaml_params(ROOT / "src/avp_sim/config/sim.param.yaml", "avp_sim", avp_sim.params.SIM_PARAMS)
+    world = make_world(lot, p, seed, reactive)
+    planner = EgoPlanner(lot, PlannerSettings())
+    while not world.done:
+        d = planner.decide(world.observe(), None, [])
+        world.step(*d.command)
+    return world
+
+
+@pytest.mark.parametrize("reactive", [True, False])
+def test_closed_loop_in_the_simulator(paper_lot, reactive):
+    seeds = [0, 4, 7, 9, 12]
+    results = [_run_episode(paper_lot, s, reactive) for s in seeds]
+    assert not any(w.metrics.collision for w in results), [w.metrics.collision_with for w in results]
+    n_ok = sum(w.metrics.success for w in results)
+    assert n_ok >= len(seeds) - 1, [w.status for w in results]
+    for w in results:
+        if w.metrics.success:
+            assert w.metrics.parking_time < 60.0
