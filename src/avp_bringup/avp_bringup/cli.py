@@ -8,6 +8,7 @@
   avp replay BAG [--rate R] [--start S] [--topics T ...]
                                                    republish a bag with its sim clock
   avp metrics BAG                                  recompute an episode's metrics from a bag
+  avp bench sensing|planner|perception [ARGS...]   run a benchmark script of bench/ (figures in docs/benchmarks.md)
   avp params [NODE]                                print the parameter tables (Markdown)
 """
 
@@ -189,6 +190,16 @@ def cmd_metrics(args: argparse.Namespace) -> int:
     return 0 if same else 1
 
 
+def cmd_bench(args: argparse.Namespace) -> int:
+    import subprocess
+
+    script = _root() / "bench" / f"bench_{args.which}.py"
+    if not script.is_file():
+        print(f"[avp bench] no benchmark script {script}", file=sys.stderr)
+        return 2
+    return subprocess.call([sys.executable, str(script), *args.rest])
+
+
 def cmd_params(args: argparse.Namespace) -> int:
     from avp_common.params import markdown_table
     from avp_planner.planner_node import PLANNER_PARAMS
@@ -238,6 +249,10 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("metrics", help="recompute an episode's metrics from a bag")
     p.add_argument("bag")
     p.set_defaults(func=cmd_metrics)
+    p = sub.add_parser("bench", help="run a benchmark script of bench/")
+    p.add_argument("which", choices=("sensing", "planner", "perception"))
+    p.add_argument("rest", nargs=argparse.REMAINDER)
+    p.set_defaults(func=cmd_bench)
     p = sub.add_parser("params", help="print parameter tables")
     p.add_argument("node", nargs="?")
     p.set_defaults(func=cmd_params)
