@@ -152,6 +152,7 @@ def test_dynamic_matches_shapely_oracle():
     dyn = DynamicObstacles([*veh, ped], L, W, vehicle_margin=vm, pedestrian_margin=pm)
     for trial in range(20):
         ego = np.column_stack([rng.uniform(0, 20, t + 1), rng.uniform(0, 20, t + 1), rng.uniform(-3, 3, t + 1)])
+        ego[0] = (100.0, 100.0, 0.0)  # start far away: nominal margins (see the next test for the relaxation)
         hits = set(dyn.collision_steps(ego).tolist())
         for k in range(1, t + 1):
             fp = footprint(*ego[k])
@@ -163,3 +164,18 @@ def test_dynamic_matches_shapely_oracle():
                 gaps = [fp.distance(footprint(*v.poses[k - 1])) for v in veh]
                 assert min(gaps) <= vm * math.sqrt(2) + 1e-9 or fp.distance(Point(ped.poses[k - 1, :2])) <= (
                     ped.radius + pm + 1e-9)
+
+
+def test_margin_relaxed_for_an_agent_already_that_close():
+    """A stopped car 0.2 m from the ego (nominal margin 0.3): standing still or moving away is allowed,
+    closing in (or any overlap) is not; a car that is far at first keeps the nominal margin."""
+    stopped = _pred_vehicle(1, [[0.0, W + 0.2, 0.0]] * 10)  # parallel, 0.2 m to the ego's left
+    dyn = DynamicObstacles([stopped], L, W, vehicle_margin=0.3)
+    ego0 = np.array([0.0, 0.0, 0.0])
+    assert dyn.first_collision(np.array([ego0] * 5)) == -1
+    away = np.array([[0.0, -0.1 * k, 0.0] for k in range(6)])
+    assert dyn.first_collision(away) == -1
+    closer = np.array([[0.0, 0.1 * k, 0.0] for k in range(6)])
+    assert dyn.first_collision(closer) == 1
+    far_start = np.array([[0.0, -5.0, 0.0]] + [[0.0, 0.0, 0.0]] * 5)
+    assert dyn.first_collision(far_start) == 1  # 0.2 m < 0.3 m nominal: a collision when arriving there

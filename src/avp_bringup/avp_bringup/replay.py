@@ -69,7 +69,14 @@ class BagReplayer(Node):
             self.published += 1
             if spin is not None:
                 spin()
+        self.wait_for_acks()
         return self.published
+
+    def wait_for_acks(self, timeout: float = 5.0) -> bool:
+        """Reliable delivery needs the publisher alive until subscribers acknowledged every message."""
+        from rclpy.duration import Duration
+
+        return all(pub.wait_for_all_acked(Duration(seconds=timeout)) for pub in self.pubs.values())
 
     def close(self) -> None:
         self.reader.close()

@@ -418,22 +418,41 @@ class DynamicObstacles:
         aa, kk = np.nonzero(near)
         return kk + k0, aa
 
+    def _margins(self, ego0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per-agent margins: the nominal one, or, for an agent already closer than that to the ego's current
+        pose (say a reactive car that stopped next to it), its current gap less 5 cm (never below 0), so
+        that the ego may still move away instead of being frozen next to it."""
+        pair = np.stack([ego0, ego0])
+        vm = np.full(len(self.veh_poses), self.vm)
+        pm = np.full(len(self.ped_pos), self.pm)
+        if len(vm):
+            a = np.arange(len(vm))
+            g = self._vehicle_gaps(pair, np.ones(len(vm), dtype=np.int64), a)
+            vm = np.where(g < self.vm, np.maximum(g - 0.05, 0.0), self.vm)
+        if len(pm):
+            a = np.arange(len(pm))
+            g = self._ped_gaps(pair, np.ones(len(pm), dtype=np.int64), a)
+            pm = np.where(g < self.pm, np.maximum(g - 0.05, 0.0), self.pm)
+        return vm, pm
+
     def collision_steps(self, ego_poses: np.ndarray, k0: int = 1) -> np.ndarray:
-        """Sorted time indices k >= k0 at which the ego (holding its last pose) meets a predicted agent."""
+        """Sorted time indices k >= k0 at which the ego (holding its last pose) meets a predicted agent,
+        i.e. comes within the margin of it (see :meth:`_margins` for agents already that close at k = 0)."""
         if self.empty:
             return np.zeros(0, dtype=np.int64)
         ego = self._extend(ego_poses)
+        vm, pm = self._margins(ego[0])
         hits = []
         if len(self.veh_poses):
             reach = self.circum + np.hypot(self.veh_half[:, 0], self.veh_half[:, 1]) + self.vm
             k, a = self._pairs(ego, self.veh_poses[..., :2], reach, k0)
             if len(k):
-                hits.append(k[self._vehicle_gaps(ego, k, a) <= self.vm])
+                hits.append(k[self._vehicle_gaps(ego, k, a) <= vm[a]])
         if len(self.ped_pos):
             reach = self.circum + self.ped_radius + self.pm
             k, a = self._pairs(ego, self.ped_pos, reach, k0)
             if len(k):
-                hits.append(k[self._ped_gaps(ego, k, a) <= self.pm])
+                hits.append(k[self._ped_gaps(ego, k, a) <= pm[a]])
         if not hits:
             return np.zeros(0, dtype=np.int64)
         return np.unique(np.concatenate(hits))

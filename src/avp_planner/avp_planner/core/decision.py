@@ -118,6 +118,7 @@ class _Candidate:
     cost: float
     wait_steps: int
     front: bool = True
+    first_hit: int = -1  # blocked plans: first time index at which a predicted agent meets it (no wait)
 
 
 class EgoPlanner:
@@ -339,7 +340,8 @@ class EgoPlanner:
         return (cs.w_length + cs.w_time / ctl.v_max) * lb
 
     def _price(self, path: Path, world: StaticWorld, dyn: DynamicObstacles, v0: float):
-        """(cost, wait_steps) of the path started after the first feasible wait, or (inf, -1)."""
+        """(cost, wait_steps, first_hit) of the path started after the first feasible wait; (inf, -1, k) when
+        every wait meets a predicted agent, k being the first such time index without waiting."""
         cs, ctl, d = self.settings.cost, self.settings.control, self.settings.decision
         dt = ctl.dt
         poses, speeds = reference_trajectory(path, ctl, v0)
@@ -349,21 +351,25 @@ class EgoPlanner:
                 + cs.w_static * float(np.sum(np.exp(-3.0 * np.maximum(clr, 0.0)) * ds)))
         n_wait = int(round(d.max_wait / dt))
         step = max(1, int(round(d.wait_step / dt)))
+        first_hit = -1
         for w in range(0, n_wait + 1, step):
             ego = np.concatenate([np.repeat(poses[:1], w, axis=0), poses]) if w else poses
-            if dyn.first_collision(ego) >= 0:
+            hit = dyn.first_collision(ego)
+            if w == 0:
+                first_hit = hit
+            if hit >= 0:
                 continue
             t_total = (len(speeds) + w) * dt
             cost = base + cs.w_time * t_total + cs.w_dynamic * dyn.proximity_cost(ego, dt)
-            return cost, w
-        return math.inf, -1
+            return cost, w, -1
+        return math.inf, -1, first_hit
 
     # ------------------------------------------------------------------------------------- planning
-    def _search_set(self, mode: str, items, ego, world, dyn, heur, astar, v0, t_end, stats, timing):
+    def _search_set(self, mode: str, items, ego, world, dyn, heur, astar, v0, t_end, stats, timing, blocked_out):
         """Plan to each item (spot row index or exploration point) with branch and bound on c.
 
         Returns the feasible candidates sorted by cost, and whether some static path existed but every
-        one was blocked by predicted agents.
+        one was blocked by predicted agents (those are appended to ``blocked_out``).
         """
         entries = []
         for it in items:
@@ -386,10 +392,12 @@ class EgoPlanner:
             if not res.success:
                 continue
             t1 = time.perf_counter()
-            cost, wait = self._price(res.path, world, dyn, v0)
+            cost, wait, hit = self._price(res.path, world, dyn, v0)
             timing["spot_selection_time"] += time.perf_counter() - t1
             if wait < 0:
                 blocked_by_agents = True
+                blocked_out.append(_Candidate(mode, int(self.lot.spot_ids[it]) if mode == PARK else -1, res.goal,
+                                              res.path, math.inf, 0, True, hit))
                 continue
             found.append(_Candidate(mode, int(self.lot.spot_ids[it]) if mode == PARK else -1, res.goal, res.path,
                                     cost, wait, True if mode == PARK else bool(it[1])))
@@ -398,7 +406,7 @@ class EgoPlanner:
         return found, blocked_by_agents
 
     def _adopt(self, cands: list[_Candidate], world: StaticWorld, dyn: DynamicObstacles, obs: Observation,
-               timing: dict) -> _Plan | None:
+               timing: dict, require_dynamic: bool = True) -> _Plan | None:
         """Track the cheapest candidate into controls and verify; fall back to the next one."""
         c = self.settings.collision
         for cand in cands:
@@ -415,7 +423,7 @@ class EgoPlanner:
             ok = world.free_xyc(st[:, 0], st[:, 1], np.cos(st[:, 2]), np.sin(st[:, 2]), margins).all()
             if ok and cand.mode == PARK:
                 ok = self._parked_in(traj.states[-1], cand.goal, cand.spot_id, obs)
-            if ok and dyn.first_collision(traj.states) < 0:
+            if ok and (not require_dynamic or dyn.first_collision(traj.states) < 0):
                 return _Plan(cand.mode, cand.spot_id, cand.goal, traj, cand.cost, margins, 0, cand.path.length)
         return None
 
@@ -475,11 +483,12 @@ class EgoPlanner:
         retry = (keep_explore is None or attempt_key != self._last_park_attempt
                  or obs.step - self._park_attempt_step >= d.park_retry_steps)
         blocked = False
+        blocked_plans: list[_Candidate] = []
         if len(cands) and retry:
             self._last_park_attempt, self._park_attempt_step = attempt_key, obs.step
             heur, astar = self._searcher(world, ego, timing)
             found, blocked = self._search_set(PARK, cands.tolist(), ego, world, dyn, heur, astar, obs.ego_speed,
-                                              t_end, stats, timing)
+                                              t_end, stats, timing, blocked_plans)
             plan = self._adopt(found, world, dyn, obs, timing)
             if plan is not None:
                 self._plan = plan
@@ -491,7 +500,7 @@ class EgoPlanner:
             return self._finish(self._execute(keep_explore, len(cands), "exploring"), timing, t_start, stats)
         if heur is None:
             heur, astar = self._searcher(world, ego, timing)
-        plan, blocked_e = self._explore(ego, world, dyn, heur, astar, obs, t_end, stats, timing)
+        plan, blocked_e = self._explore(ego, world, dyn, heur, astar, obs, t_end, stats, timing, blocked_plans)
         blocked |= blocked_e
         if plan is None and blocked and d.dynamic_as_static_fallback:
             extra = self._agents_as_rects(obs)
@@ -500,10 +509,11 @@ class EgoPlanner:
                 heur2, astar2 = self._searcher(world2, ego, timing)
                 if len(cands):
                     found, _ = self._search_set(PARK, cands.tolist(), ego, world, dyn, heur2, astar2,
-                                                obs.ego_speed, t_end, stats, timing)
+                                                obs.ego_speed, t_end, stats, timing, blocked_plans)
                     plan = self._adopt(found, world, dyn, obs, timing)
                 if plan is None:
-                    plan, _ = self._explore(ego, world, dyn, heur2, astar2, obs, t_end, stats, timing)
+                    plan, _ = self._explore(ego, world, dyn, heur2, astar2, obs, t_end, stats, timing,
+                                            blocked_plans)
                 if plan is not None:
                     stats["around_agents"] = True
         if plan is not None:
@@ -511,7 +521,20 @@ class EgoPlanner:
             what = "new parking plan around agents" if plan.mode == PARK else "new exploration plan"
             return self._finish(self._execute(plan, len(cands), what, True), timing, t_start, stats)
 
-        # ---- 4. idle
+        # ---- 4. idle, unless standing still is itself predicted to be hit: then the blocked plan that meets
+        # the predicted agents latest (later than standing still) is driven, re-checked every step
+        if blocked_plans and d.evasive:
+            horizon = np.repeat(ego[None], dyn.horizon + 2, axis=0)
+            standing = dyn.first_collision(horizon)
+            if standing >= 0:
+                order = sorted((c for c in blocked_plans if c.first_hit < 0 or c.first_hit > standing),
+                               key=lambda c: (-(c.first_hit if c.first_hit >= 0 else 10**9), c.path.length))
+                plan = self._adopt(order[:3], world, dyn, obs, timing, require_dynamic=False)
+                if plan is not None:
+                    self._plan = plan
+                    stats["evasive"] = True
+                    return self._finish(self._execute(plan, len(cands), f"evasive: standing still is hit at "
+                                                      f"step {standing}", True), timing, t_start, stats)
         reason = "no safe parking or exploration plan" + (f" ({why})" if why else "")
         return self._finish(Decision(IDLE, n_candidates=len(cands), reason=reason, poses=ego[None].copy()),
                             timing, t_start, stats)
@@ -522,7 +545,7 @@ class EgoPlanner:
         timing["path_planning_time"] += time.perf_counter() - t0
         return heur, HybridAStar(world, ego, self.settings, heur)
 
-    def _explore(self, ego, world, dyn, heur, astar, obs, t_end, stats, timing):
+    def _explore(self, ego, world, dyn, heur, astar, obs, t_end, stats, timing, blocked_out):
         pts = []
         for pose, front, rid in self.exploration_points(ego):
             g = self._explore_goal(pose, world)
@@ -534,7 +557,7 @@ class EgoPlanner:
             if not items:
                 continue
             found, blocked = self._search_set(EXPLORE, items, ego, world, dyn, heur, astar, obs.ego_speed, t_end,
-                                              stats, timing)
+                                              stats, timing, blocked_out)
             blocked_any |= blocked
             plan = self._adopt(found, world, dyn, obs, timing)
             if plan is not None:
