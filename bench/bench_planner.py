@@ -9,10 +9,11 @@ map used at that step) in ``bench/data/planner_queries.json``.
 Without ``--capture`` the stored queries are replayed: each one is decided **from scratch** by a fresh
 :class:`EgoPlanner` (no plan being executed, no caches; every candidate spot considered, with branch and
 bound) with the stored beliefs and no predictions (observed dynamic agents get the planner's
-constant-velocity fallback). Printed: median / p95 / max time per decision step, time per Hybrid A* spot
-query, how often a plan is found among the queries for which one exists (existence decided by the same
-planner with generous limits: 30 000 iterations and 5 s per search, 60 s per step), and peak memory
-(``ru_maxrss`` of the process, and the tracemalloc peak of one decision step).
+constant-velocity fallback); a second pass turns branch and bound off, so that every candidate spot is
+searched. Printed: median / p95 / max time per decision step, time per Hybrid A* spot query, how often a
+plan is found among the queries for which one exists (existence decided by the same planner with generous
+limits: 30 000 iterations and 5 s per search, 60 s per step), and peak memory (``ru_maxrss`` of the
+process, and the tracemalloc peak of one decision step).
 
 Usage:
     python bench/bench_planner.py --capture [--seeds 0-19] [--every 10]
@@ -154,6 +155,17 @@ def replay(args) -> None:
                        f"/{e['iterations']}it/{1e3 * e['time_s']:.0f}ms" for e in d.stats.get("queries", []))
         print(f"  slow: {1e3 * t:.0f} ms seed {q['seed']} step {q['obs']['step']} ego {q['obs']['ego_pose']} -> "
               f"{d.mode} {d.spot_id} ({d.n_candidates} candidates) [{qs}]")
+    exhaustive = replace(settings, decision=replace(settings.decision, branch_and_bound=False))
+    ex_times, ex_q = [], []
+    for q in queries:
+        t, d = _decide(lot, exhaustive, q)
+        ex_times.append(t)
+        ex_q += [e["time_s"] for e in d.stats.get("queries", []) if e["mode"] == "park"]
+    ex = np.array(ex_times) * 1e3
+    print(f"without branch and bound (every candidate spot searched, {len(ex_q) / len(queries):.2f} spot queries "
+          f"per step): median {np.median(ex):.1f} ms, p95 {np.percentile(ex, 95):.1f} ms, max {ex.max():.1f} ms "
+          f"per decision step; spot query median {1e3 * np.median(ex_q):.2f} ms, "
+          f"p95 {1e3 * np.percentile(ex_q, 95):.2f} ms")
     if not args.no_reference:
         big = replace(settings, search=replace(settings.search, max_iterations=30000, time_cap=5.0),
                       decision=replace(settings.decision, decision_time_cap=60.0))

@@ -43,12 +43,12 @@ class SearchSettings:
     steer_penalty: float = 0.2  # extra cost per metre times |kappa| / kappa_plan
     steer_change_penalty: float = 0.3  # cost per change of curvature, times |d kappa| / kappa_plan
     switch_penalty: float = 4.0  # cost per change of driving direction (cusp)
-    heuristic_weight: float = 1.2  # weighted A*: f = g + w h
+    heuristic_weight: float = 2.5  # weighted A*: f = g + w h (w > 1 trades optimality for speed)
     heuristic_resolution: float = 1.0  # cell of the obstacle-aware 2-D Dijkstra heuristic
     rs_table_resolution: float = 0.5  # xy cell of the Reeds-Shepp length look-up table
     rs_table_extent: float = 15.0  # |x|, |y| covered by the table (Euclidean distance beyond)
     analytic_every: int = 3  # try a Reeds-Shepp shot every N pops (and on every pop when near)
-    analytic_near: float = 12.0  # "near": heuristic below this distance
+    analytic_near: float = 8.0  # "near": heuristic below this distance
     analytic_detour: float = 1.3  # no shot when the 2-D distance exceeds this times the straight line
     analytic_candidates: int = 1  # Reeds-Shepp words tried per shot, shortest (cusps charged) first
     analytic_slack: float = 8.0  # ... only words at most this much longer than the shortest
@@ -92,6 +92,7 @@ class DecisionSettings:
     explore_goal_slide: tuple[float, ...] = (0.0, -1.5, -3.0)  # try the point moved back along the road
     explore_replan_distance: float = 4.0  # replan exploration when less than this is left of the plan
     max_candidates_planned: int = 40  # cap on spots searched per step (branch and bound prunes first)
+    branch_and_bound: bool = True  # skip candidates whose lower bound of c is not below the best plan found
     max_wait: float = 3.0  # wait-and-go: plans may start after waiting up to this long (Nawaz)
     wait_step: float = 0.5
     replan_pose_tolerance: float = 0.05  # ego further than this from the plan's state => replan
