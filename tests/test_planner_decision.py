@@ -221,3 +221,22 @@ def test_closed_loop_in_the_simulator(paper_lot, reactive):
     for w in results:
         if w.metrics.success:
             assert w.metrics.parking_time < 60.0
+
+
+def test_evasive_when_standing_still_is_hit(paper_lot, planner):
+    """A car rushing up the aisle at the ego (and stopping where the ego could go) makes every plan unsafe;
+    standing still is hit first, so the ego backs away (the plan that is hit latest) instead of idling."""
+    ego = np.array([21.5, 25.0, -math.pi / 2])
+    n = 40
+    ys = 12.0 + 0.5 * np.arange(1, n + 1)  # 5 m/s northwards, then holds y = 32
+    pred = PredictedTrajectory(agent_id=1, poses=np.column_stack([np.full(n, 21.5), ys, np.full(n, math.pi / 2)]),
+                               dt=0.1, length=L, width=W)
+    d = planner.decide(make_obs(paper_lot, ego), predictions=[pred])
+    assert d.mode != "idle" and d.reason.startswith("evasive"), d.reason
+    assert d.command[0] < 0  # reversing, away from the car
+    settings = PlannerSettings()
+    from dataclasses import replace
+
+    calm = EgoPlanner(paper_lot, replace(settings, decision=replace(settings.decision, evasive=False)))
+    d = calm.decide(make_obs(paper_lot, ego), predictions=[pred])
+    assert d.mode == "idle"

@@ -203,3 +203,18 @@ def test_tracker_follows_reference_and_profile():
     assert np.abs(np.diff(np.r_[0.0, v])).max() / SETTINGS.control.dt <= SETTINGS.control.a_max + 0.5
     assert abs(len(speeds) - len(v)) <= 2
     assert abs(np.sum(np.abs(speeds)) * 0.1 - path.length) < 1e-6
+
+
+def test_length_limit(paper_lot, world):
+    """Spot 35 lies ~40 m away by road: refused early under a 20 m limit, found under a 60 m one."""
+    w, occupied = world
+    ego = np.array([21.5, 30.0, -math.pi / 2])
+    goals = spot_goals(paper_lot, paper_lot.spot_index(35))
+    r = HybridAStar(w, ego, SETTINGS).plan(goals, max_length=20.0)
+    assert not r.success and r.reason == "goal beyond the length limit"
+    r = HybridAStar(w, ego, SETTINGS).plan(goals, max_length=60.0, time_cap=5.0, max_iterations=20000)
+    assert r.success and r.path.length <= 60.0
+    near = spot_goals(paper_lot, paper_lot.spot_index(22))
+    r = HybridAStar(w, ego, SETTINGS).plan(near, max_length=17.0, time_cap=5.0, max_iterations=20000)
+    assert not r.success  # ~17 m as the crow flies plus the turn into the slot
+    assert r.reason in ("no path within the length limit", "goal beyond the length limit")

@@ -37,13 +37,19 @@ the sensing disc of radius ``sensing_radius`` around the ego, heading along the 
 goal is moved ``explore_lane_offset`` to the right of that heading (drive on the right lane; 0 = the paper
 literally) and, if in collision, slid back along the road. Points in front of the ego
 ([cos θ, sin θ] (p - p_ego) >= 0) are planned first (lowest c, same Hybrid A*); points behind only if no front
-point has a feasible plan. While exploring, parking is re-tried every step in which the candidate set, the
-static world or the ego's cell changed (or every ``park_retry_steps`` steps); an exploration plan is
-followed until less than ``explore_replan_distance`` of it is left.
+point has a feasible plan. A front point that can only be reached by a path longer than
+``explore_max_length`` (e.g. all the way round a block because the road ahead is blocked) counts as
+blocked. While exploring, parking is re-tried every step in which the candidate set, the static world or
+the ego's cell changed (or every ``park_retry_steps`` steps); an exploration plan is followed until less
+than ``explore_replan_distance`` of it is left.
 
 **Idling (§V-D-3).** Otherwise u = 0. If all plans were blocked only by predicted agents, the searches are
 repeated once with the agents' current footprints as static obstacles (``dynamic_as_static_fallback``),
-which lets the ego drive around a stopped car.
+which lets the ego drive around a stopped car. Two safety additions to the paper's rule: an agent that is
+already closer than the margin to the ego (a reactive car that stopped next to it) only has to keep its
+current gap (:class:`~avp_planner.core.collision.DynamicObstacles`), so the ego is not frozen next to it;
+and if standing still is itself predicted to be hit (``evasive``), the ego drives the candidate that is hit
+latest or never: a blocked plan of this step or a short escape arc (forward/reverse, 2-8 m).
 """
 
 from __future__ import annotations
@@ -105,6 +111,7 @@ class _Plan:
     margins: np.ndarray  # static clearance each state keeps (0 near the start, verify_margin after)
     index: int = 0  # next control to send
     path_length: float = 0.0
+    note: str = ""
 
 
 @dataclass
@@ -385,7 +392,9 @@ class EgoPlanner:
             if (lb >= best and self.settings.decision.branch_and_bound) or time.perf_counter() > t_end:
                 break
             t0 = time.perf_counter()
-            res: PlanResult = astar.plan(goals, time_cap=min(self.settings.search.time_cap, max(t_end - t0, 1e-3)))
+            res: PlanResult = astar.plan(goals, time_cap=min(self.settings.search.time_cap, max(t_end - t0, 1e-3)),
+                                         max_length=self.settings.decision.explore_max_length if mode == EXPLORE
+                                         else None)
             dt_q = time.perf_counter() - t0
             timing["path_planning_time"] += dt_q
             stats.setdefault("queries", []).append({"mode": mode, "target": int(it) if mode == PARK else -1,
@@ -525,21 +534,48 @@ class EgoPlanner:
 
         # ---- 4. idle, unless standing still is itself predicted to be hit: then the blocked plan that meets
         # the predicted agents latest (later than standing still) is driven, re-checked every step
-        if blocked_plans and d.evasive:
-            horizon = np.repeat(ego[None], dyn.horizon + 2, axis=0)
-            standing = dyn.first_collision(horizon)
-            if standing >= 0:
-                order = sorted((c for c in blocked_plans if c.first_hit < 0 or c.first_hit > standing),
-                               key=lambda c: (-(c.first_hit if c.first_hit >= 0 else 10**9), c.path.length))
-                plan = self._adopt(order[:3], world, dyn, obs, timing, require_dynamic=False)
-                if plan is not None:
-                    self._plan = plan
-                    stats["evasive"] = True
-                    return self._finish(self._execute(plan, len(cands), f"evasive: standing still is hit at "
-                                                      f"step {standing}", True), timing, t_start, stats)
+        if d.evasive:
+            plan = self._evade(ego, world, dyn, obs, blocked_plans, timing)
+            if plan is not None:
+                self._plan = plan
+                stats["evasive"] = True
+                return self._finish(self._execute(plan, len(cands), plan.note, True), timing, t_start, stats)
         reason = "no safe parking or exploration plan" + (f" ({why})" if why else "")
         return self._finish(Decision(IDLE, n_candidates=len(cands), reason=reason, poses=ego[None].copy()),
                             timing, t_start, stats)
+
+    def _evade(self, ego, world, dyn, obs, blocked_plans, timing) -> _Plan | None:
+        """If standing still is predicted to be hit, drive whatever is hit latest (or never): the blocked
+        plans of this step and short escape arcs (every curvature of the steering set, forward and reverse,
+        2 to 8 m). Returns None when standing still is safe or nothing does better."""
+        if dyn.empty:
+            return None
+        standing = dyn.first_collision(np.repeat(ego[None], dyn.horizon + 2, axis=0))
+        if standing < 0:
+            return None
+        t0 = time.perf_counter()
+        kap = 1.0 / self.settings.plan_radius
+        cands = list(blocked_plans)
+        start = (float(ego[0]), float(ego[1]), float(ego[2]))
+        for direction in (-1.0, 1.0):
+            for f in self.settings.search.steering_fractions:
+                for length in (2.0, 4.0, 6.0, 8.0):
+                    path = Path(start, ((f * kap, direction * length),))
+                    poses, _ = reference_trajectory(path, self.settings.control, obs.ego_speed)
+                    if not world.free(poses[1:], self.settings.collision.verify_margin).all():
+                        continue
+                    cands.append(_Candidate(EXPLORE, -1, path.end(), path, math.inf, 0, False,
+                                            dyn.first_collision(poses)))
+        timing["spot_selection_time"] += time.perf_counter() - t0
+
+        def later(c: _Candidate) -> tuple:
+            return (-(c.first_hit if c.first_hit >= 0 else 10**9), c.path.length)
+
+        order = sorted((c for c in cands if c.first_hit < 0 or c.first_hit > standing), key=later)
+        plan = self._adopt(order[:3], world, dyn, obs, timing, require_dynamic=False)
+        if plan is not None:
+            plan.note = f"evasive: standing still is hit at step {standing}"
+        return plan
 
     def _searcher(self, world: StaticWorld, ego: np.ndarray, timing: dict):
         t0 = time.perf_counter()

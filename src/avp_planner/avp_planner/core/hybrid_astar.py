@@ -27,8 +27,8 @@ ends the search when collision-free (samples within ``start_relax_distance`` of 
 smaller ``verify_margin``, since the ego already stands there).
 
 Failures return a :class:`PlanResult` with ``success = False`` and a reason: "invalid input: NaN",
-"start in collision", "goal in collision", "goal unreachable (2-D)", "no path within N iterations",
-"time cap (T s)", "search space exhausted".
+"start in collision", "goal in collision", "goal unreachable (2-D)", "goal beyond the length limit",
+"no path within N iterations", "time cap (T s)", "no path within the length limit", "search space exhausted".
 """
 
 from __future__ import annotations
@@ -257,8 +257,10 @@ class HybridAStar:
         return bool(self.world.free_xyc(x, y, cs, sn, margin).all())
 
     # ---------------------------------------------------------------------------------------------- query
-    def plan(self, goals: np.ndarray, max_iterations: int | None = None, time_cap: float | None = None) -> PlanResult:
-        """Search a path from the ego to any of ``goals`` (G, 3)."""
+    def plan(self, goals: np.ndarray, max_iterations: int | None = None, time_cap: float | None = None,
+             max_length: float | None = None) -> PlanResult:
+        """Search a path from the ego to any of ``goals`` (G, 3), optionally no longer than ``max_length`` m
+        (branches that cannot stay within it by the 2-D lower bound are pruned)."""
         t0 = time.perf_counter()
         s, c = self.settings.search, self.settings.collision
         max_it = s.max_iterations if max_iterations is None else int(max_iterations)
@@ -285,6 +287,11 @@ class HybridAStar:
         heur = self.heuristic
         if not any(heur.reachable_at(g) for g in goals[gfree]):
             return fail("goal unreachable (2-D)")
+        lmax = math.inf if max_length is None else float(max_length)
+        slack2d = math.sqrt(2.0) * heur.h_res
+        if lmax < math.inf and float(np.min(heur.dist2d(goals[gfree, :2]))) / 1.0824 - slack2d > lmax:
+            return fail("goal beyond the length limit")
+        pruned = False
 
         ego_t = (float(self.ego[0]), float(self.ego[1]), float(self.ego[2]))
         w = s.heuristic_weight
@@ -295,6 +302,7 @@ class HybridAStar:
         ng: list[float] = []
         nh: list[float] = []
         nd: list[float] = []  # 2-D obstacle-aware distance to the ego
+        nl: list[float] = []  # path length from the goal
         npar: list[int] = []
         nprim: list[int] = []
         ndir: list[float] = []  # actual driving direction of the edge into the node (0: seed)
@@ -310,6 +318,7 @@ class HybridAStar:
             ng.append(0.0)
             nh.append(float(hg[gi]))
             nd.append(float(dg[gi]))
+            nl.append(0.0)
             npar.append(-int(gi) - 1)  # seeds store -(goal index) - 1
             nprim.append(-1)
             ndir.append(0.0)
@@ -340,6 +349,9 @@ class HybridAStar:
                     for _, rs in rs_candidates((x, y, th), ego_t, self.radius, s.switch_penalty, s.analytic_candidates,
                                                s.analytic_slack):
                         segs = tuple((CURVATURE_SIGN[k] / self.radius, ln) for k, ln in rs)
+                        if nl[nid] + sum(abs(ln) for _, ln in segs) > lmax:
+                            pruned = True
+                            continue
                         if self._shot_free(segs, (x, y, th)):
                             return self._finish(nid, segs, nx, ny, nth, ng, npar, nprim, ndir, goals, stats, t0)
                 batch.append(nid)
@@ -371,6 +383,10 @@ class HybridAStar:
                     continue
                 nid = batch[bi[m]]
                 p = int(pi[m])
+                length = nl[nid] + s.primitive_length
+                if length + float(ds[m]) / 1.0824 - slack2d > lmax:
+                    pruned = True
+                    continue
                 adir = -self.prim_dir[p]
                 cost = ng[nid] + self.prim_cost[p]
                 pprim, pdir = nprim[nid], ndir[nid]
@@ -387,12 +403,13 @@ class HybridAStar:
                 ng.append(cost)
                 nh.append(float(hs[m]))
                 nd.append(float(ds[m]))
+                nl.append(length)
                 npar.append(nid)
                 nprim.append(p)
                 ndir.append(float(adir))
                 heapq.heappush(heap, (cost + w * float(hs[m]), len(nx) - 1))
             stats["nodes"] = len(nx)
-        return fail("search space exhausted")
+        return fail("no path within the length limit" if pruned else "search space exhausted")
 
     def _finish(self, nid, shot, nx, ny, nth, ng, npar, nprim, ndir, goals, stats, t0) -> PlanResult:
         s = self.settings.search

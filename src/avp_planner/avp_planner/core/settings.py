@@ -90,6 +90,7 @@ class DecisionSettings:
     sensing_radius: float = 11.5  # radius of the disc Q_0 (§VI-A); exploration points lie on its boundary
     explore_lane_offset: float = 1.75  # exploration goal shifted right of the centre line (0 = paper literal)
     explore_goal_slide: tuple[float, ...] = (0.0, -1.5, -3.0)  # try the point moved back along the road
+    explore_max_length: float = 30.0  # longer exploration paths do not count: that way is "blocked" (§V-D-2)
     explore_replan_distance: float = 4.0  # replan exploration when less than this is left of the plan
     max_candidates_planned: int = 40  # cap on spots searched per step (branch and bound prunes first)
     branch_and_bound: bool = True  # skip candidates whose lower bound of c is not below the best plan found
