@@ -13,10 +13,8 @@ import sys
 import time
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from nav_msgs.msg import Path
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from avp_common.conversions import (
@@ -26,8 +24,8 @@ from avp_common.conversions import (
     observation_from_msg,
     predictions_from_msg,
 )
+from avp_common.node_main import run_node
 from avp_common.params import (
-    ParameterError,
     ParamSpec,
     dataclass_from_values,
     declare_and_validate,
@@ -159,21 +157,7 @@ class PlannerNode(Node):
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = PlannerNode()
-        rclpy.spin(node)
-    except (ParameterError, ValueError) as exc:
-        print(f"[avp_planner] start-up failed: {exc}", file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(PlannerNode, "avp_planner", args)
 
 
 if __name__ == "__main__":

@@ -8,13 +8,12 @@ from __future__ import annotations
 
 import sys
 
-import rclpy
 from geometry_msgs.msg import TwistStamped
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from avp_common.conversions import MessageError, lot_from_msg, observation_from_msg
-from avp_common.params import ParameterError, ParamSpec, declare_and_validate
+from avp_common.node_main import run_node
+from avp_common.params import ParamSpec, declare_and_validate
 from avp_common.qos import LATCHED, STEP
 from avp_msgs.msg import LotMap, Observation
 from avp_planner.scripted_driver import ScriptedDriver, ScriptedDriverConfig
@@ -68,21 +67,7 @@ class ScriptedDriverNode(Node):
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = ScriptedDriverNode()
-        rclpy.spin(node)
-    except ParameterError as exc:
-        print(f"[scripted_driver] start-up failed: {exc}", file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(ScriptedDriverNode, "scripted_driver", args)
 
 
 if __name__ == "__main__":

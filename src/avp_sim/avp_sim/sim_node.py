@@ -18,16 +18,15 @@ import sys
 import time
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import Pose2D, TwistStamped
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
 from avp_common.conversions import lot_to_msg, observation_to_msg, step_to_ns, step_to_time, time_to_ns
-from avp_common.params import ParameterError, declare_and_validate
+from avp_common.node_main import run_node
+from avp_common.params import declare_and_validate
 from avp_common.qos import DEBUG, LATCHED, STATUS, STEP
 from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation
 from avp_msgs.srv import ResetEpisode
@@ -231,21 +230,7 @@ class SimNode(Node):
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = SimNode()
-        rclpy.spin(node)
-    except (ParameterError, ValueError) as exc:
-        print(f"[avp_sim] start-up failed: {exc}", file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(SimNode, "avp_sim", args)
 
 
 if __name__ == "__main__":

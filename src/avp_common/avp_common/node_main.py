@@ -1,0 +1,31 @@
+"""The shared ``main()`` of every AVP node: init, spin, one-line start-up errors, clean shutdown."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+
+from avp_common.params import ParameterError
+
+
+def run_node(factory: Callable[[], object], label: str, args=None) -> int:
+    """Build the node with ``factory`` and spin it. A bad parameter/map at start-up prints one line
+    (``[label] start-up failed: ...``) and returns 2; Ctrl-C / external shutdown return 0."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = factory()
+        rclpy.spin(node)
+    except (ParameterError, ValueError) as exc:
+        print(f"[{label}] start-up failed: {exc}", file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
