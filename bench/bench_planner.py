@@ -4,7 +4,10 @@
 ``--capture`` drives seeded episodes of the paper lot (§VI-A; reactive and non-reactive) with the planner
 itself (beliefs from observation only, no predictions) and stores every ``--every``-th decision-step
 query (the observation, with the last two history states of each vehicle, and the planner-internal belief
-map used at that step) in ``bench/data/planner_queries.json``.
+map used at that step) in ``bench/data/planner_queries.json``. Two ego starts: the paper's (top of the
+middle road, "paper") and, to include steps with many candidate spots and dynamic vehicles close by, the
+middle of the contested stretch of the middle road (21.5, 22, -π/2; "mid"); identical queries are stored
+once.
 
 Without ``--capture`` the stored queries are replayed: each one is decided **from scratch** by a fresh
 :class:`EgoPlanner` (no plan being executed, no caches; every candidate spot considered, with branch and
@@ -24,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import platform
 import resource
@@ -41,6 +45,7 @@ from avp_world.types import Observation, ObservedPedestrian, ObservedVehicle
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "bench" / "data" / "planner_queries.json"
+STARTS = {"paper": None, "mid": (21.5, 22.0, -math.pi / 2)}
 
 
 def _round(a, nd=6):
@@ -81,35 +86,46 @@ def _seeds(text: str) -> list[int]:
 def capture(args) -> None:
     import avp_sim.params
     from avp_common.params import load_yaml_params
-    from avp_sim.core.factory import make_world
+    from avp_sim.core.factory import make_world, scenario_params, world_config
+    from avp_sim.core.scenario import ScenarioError, generate_paper_scenario
+    from avp_sim.core.world import World
 
     p = load_yaml_params(ROOT / "src/avp_sim/config/sim.param.yaml", "avp_sim", avp_sim.params.SIM_PARAMS)
     lot = load_bundled_lot("paper_lot")
     queries, episodes, seen = [], [], set()
     n_dup = 0
-    for reactive in (True, False):
-        for seed in _seeds(args.seeds):
+    for start, reactive, seed in [(s, r, k) for s in args.starts.split(",") for r in (True, False)
+                                  for k in _seeds(args.seeds)]:
+        if start == "paper":
             world = make_world(lot, p, seed, reactive)
-            planner = EgoPlanner(lot, PlannerSettings())
-            while not world.done:
-                obs = world.observe()
-                beliefs = planner.update_beliefs(obs).copy()  # what decide(obs, None) works with
-                d = planner.decide(obs, None, [])
-                if obs.step % args.every == 0 or d.replanned:
-                    q = {"seed": seed, "reactive": reactive, "obs": obs_to_dict(obs), "beliefs": _round(beliefs, 3),
-                         "closed_loop_mode": d.mode}
-                    key = json.dumps([q["obs"] | {"step": 0}, q["beliefs"]], sort_keys=True)
-                    if key in seen:  # e.g. a reactive episode in which no agent ever had to brake
-                        n_dup += 1
-                    else:
-                        seen.add(key)
-                        queries.append(q)
-                world.step(*d.command)
-            m = world.metrics
-            episodes.append({"seed": seed, "reactive": reactive, "status": world.status, "spot": m.parked_spot_id,
-                             "parking_time": m.parking_time, "steps": m.steps})
-            print(f"seed {seed:2d} {'reactive' if reactive else 'non-reactive':12s} {world.status:9s} "
-                  f"spot {m.parked_spot_id:3d} t_park {m.parking_time:5.1f} s; {len(queries)} queries so far")
+        else:
+            try:
+                sc = generate_paper_scenario(lot, seed, reactive,
+                                             replace(scenario_params(p), ego_start=STARTS[start]))
+            except ScenarioError:
+                continue
+            world = World(lot, sc, world_config(p))
+        planner = EgoPlanner(lot, PlannerSettings())
+        while not world.done:
+            obs = world.observe()
+            beliefs = planner.update_beliefs(obs).copy()  # what decide(obs, None) works with
+            d = planner.decide(obs, None, [])
+            if obs.step % args.every == 0 or d.replanned:
+                q = {"start": start, "seed": seed, "reactive": reactive, "obs": obs_to_dict(obs),
+                     "beliefs": _round(beliefs, 3), "closed_loop_mode": d.mode}
+                key = json.dumps([q["obs"] | {"step": 0}, q["beliefs"]], sort_keys=True)
+                if key in seen:  # e.g. a reactive episode in which no agent ever had to brake
+                    n_dup += 1
+                else:
+                    seen.add(key)
+                    queries.append(q)
+            world.step(*d.command)
+        m = world.metrics
+        episodes.append({"start": start, "seed": seed, "reactive": reactive, "status": world.status,
+                         "spot": m.parked_spot_id, "parking_time": m.parking_time, "steps": m.steps})
+        print(f"{start:5s} seed {seed:2d} {'reactive' if reactive else 'non-reactive':12s} {world.status:9s} "
+              f"{m.collision_with:12s} spot {m.parked_spot_id:3d} t_park {m.parking_time:5.1f} s; "
+              f"{len(queries)} queries so far")
     DATA.parent.mkdir(parents=True, exist_ok=True)
     DATA.write_text(json.dumps({"lot": lot.name, "every": args.every, "episodes": episodes, "queries": queries},
                                separators=(",", ":")))
@@ -142,18 +158,25 @@ def replay(args) -> None:
         details.append((t, q, d))
     ms = np.array(times) * 1e3
     sq = np.array(spot_q) * 1e3
-    print(f"queries: {len(queries)} decision steps from {len({(q['seed'], q['reactive']) for q in queries})} "
+    n_ep = len({(q.get("start"), q["seed"], q["reactive"]) for q in queries})
+    print(f"queries: {len(queries)} decision steps from {n_ep} "
           f"episodes ({data['lot']}); modes: park {modes.count('park')}, explore {modes.count('explore')}, "
           f"idle {modes.count('idle')}")
     print(f"time per decision step: median {np.median(ms):.1f} ms, p95 {np.percentile(ms, 95):.1f} ms, "
           f"mean {ms.mean():.1f} ms, max {ms.max():.1f} ms")
+    for start in sorted({q.get("start", "paper") for q in queries}):
+        sel = np.array([q.get("start", "paper") == start for q in queries])
+        ncand = np.mean([len(q["obs"]["vacant"]) for q, m in zip(queries, sel, strict=True) if m])
+        print(f"  start '{start}': {sel.sum()} steps (mean {ncand:.1f} observed vacant spots), median "
+              f"{np.median(ms[sel]):.1f} ms, p95 {np.percentile(ms[sel], 95):.1f} ms")
     if len(sq):
         print(f"time per Hybrid A* spot query: median {np.median(sq):.2f} ms, p95 {np.percentile(sq, 95):.2f} ms "
               f"({len(sq)} queries, {len(sq) / len(queries):.2f} per decision step)")
     for t, q, d in sorted(details, key=lambda e: -e[0])[: args.worst]:
         qs = ", ".join(f"{e['mode'][0]}{e['target']}:{'ok' if e['success'] else e['reason']}"
                        f"/{e['iterations']}it/{1e3 * e['time_s']:.0f}ms" for e in d.stats.get("queries", []))
-        print(f"  slow: {1e3 * t:.0f} ms seed {q['seed']} step {q['obs']['step']} ego {q['obs']['ego_pose']} -> "
+        print(f"  slow: {1e3 * t:.0f} ms {q.get('start', 'paper')} seed {q['seed']} step {q['obs']['step']} "
+              f"ego {q['obs']['ego_pose']} -> "
               f"{d.mode} {d.spot_id} ({d.n_candidates} candidates) [{qs}]")
     exhaustive = replace(settings, decision=replace(settings.decision, branch_and_bound=False))
     ex_times, ex_q = [], []
@@ -199,6 +222,7 @@ def main() -> None:
     ap.add_argument("--capture", action="store_true", help="run episodes and store the queries")
     ap.add_argument("--seeds", default="0-19", help="capture: seeds, e.g. 0-19 or 1,4,7 (default 0-19)")
     ap.add_argument("--every", type=int, default=10, help="capture: every N-th step (and every replanning step)")
+    ap.add_argument("--starts", default="paper,mid", help="capture: ego starts, of " + ", ".join(STARTS))
     ap.add_argument("--limit", type=int, default=0, help="replay: only the first N queries")
     ap.add_argument("--no-reference", action="store_true", help="replay: skip the generous-limits reference run")
     ap.add_argument("--worst", type=int, default=0, help="replay: list the N slowest decision steps")

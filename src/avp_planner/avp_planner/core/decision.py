@@ -277,8 +277,13 @@ class EgoPlanner:
                                    width=float(v.width))
 
     def _agents_as_rects(self, obs: Observation) -> np.ndarray:
-        rows = [[*v.pose, v.length, v.width] for v in obs.vehicles if not v.is_static]
-        rows += [[*p.position, 0.0, 2 * p.radius, 2 * p.radius] for p in obs.pedestrians]
+        """Current footprints of the observed dynamic agents as (x, y, θ, length, width) rows, grown so that a
+        path keeping ``footprint_margin`` to them also keeps the dynamic margins."""
+        c = self.settings.collision
+        gv = 2.0 * max(c.vehicle_margin - c.footprint_margin, 0.0) + 0.04
+        gp = 2.0 * max(c.pedestrian_margin - c.footprint_margin, 0.0) + 0.04
+        rows = [[*v.pose, v.length + gv, v.width + gv] for v in obs.vehicles if not v.is_static]
+        rows += [[*p.position, 0.0, 2 * p.radius + gp, 2 * p.radius + gp] for p in obs.pedestrians]
         return np.array(rows, dtype=float).reshape(-1, 5)
 
     # ------------------------------------------------------------------------------------ candidates
