@@ -37,16 +37,19 @@ the sensing disc of radius ``sensing_radius`` around the ego, heading along the 
 goal is moved ``explore_lane_offset`` to the right of that heading (drive on the right lane; 0 = the paper
 literally) and, if in collision, slid back along the road. Points in front of the ego
 ([cos θ, sin θ] (p - p_ego) >= 0) are planned first (lowest c, same Hybrid A*); points behind only if no front
-point has a feasible plan. A front point that can only be reached by a path longer than
+point has a feasible plan, and, when the front points are blocked by predicted agents only (not by static
+obstacles), only after that has lasted ``EXPLORE_BACK_AFTER`` = 3 s ("only if the road ahead of it stays
+blocked for the foreseeable future"). A front point that can only be reached by a path longer than
 ``explore_max_length`` (e.g. all the way round a block because the road ahead is blocked) counts as
 blocked. While exploring, parking is re-tried every step in which the candidate set, the static world or
 the ego's cell changed (or every ``park_retry_steps`` steps); an exploration plan is followed until less
 than ``explore_replan_distance`` of it is left.
 
 **Idling (§V-D-3).** Otherwise u = 0. If all plans were blocked only by predicted agents, the searches are
-repeated once with the agents' current footprints as static obstacles (``dynamic_as_static_fallback``),
-which lets the ego drive around a stopped car. Two safety additions to the paper's rule: an agent that is
-already closer than the margin to the ego (a reactive car that stopped next to it) only has to keep its
+repeated once (small budget) with the current footprints of the agents that stand still as static
+obstacles (``dynamic_as_static_fallback``), which lets the ego drive around a stopped car. Two safety
+additions to the paper's rule: an agent that is already closer than the margin to the ego (a reactive car
+that stopped next to it) only has to keep its
 current gap (:class:`~avp_planner.core.collision.DynamicObstacles`), so the ego is not frozen next to it;
 and if standing still is itself predicted to be hit (``evasive``), the ego drives the candidate that is hit
 latest or never: a blocked plan of this step or a short escape arc (forward/reverse, 2-8 m).
@@ -73,6 +76,8 @@ from avp_world.lot import LotMap
 from avp_world.types import Observation, PredictedTrajectory
 
 PARK, EXPLORE, IDLE = "park", "explore", "idle"
+STILL_SPEED = 0.3  # m/s: an agent slower than this counts as standing still (detour instead of waiting)
+EXPLORE_BACK_AFTER = 3.0  # s the road ahead must stay blocked by agents only before turning back (§V-D-2)
 
 
 @dataclass
@@ -152,6 +157,7 @@ class EgoPlanner:
         self._world_cache: tuple | None = None
         self._last_park_attempt: tuple | None = None
         self._park_attempt_step = -(10**9)
+        self._front_blocked_step: int | None = None  # since when the road ahead is blocked by agents only
 
     # ------------------------------------------------------------------------------------------ inputs
     def _check_inputs(self, obs: Observation, beliefs, predictions) -> str:
@@ -277,13 +283,20 @@ class EgoPlanner:
                                    width=float(v.width))
 
     def _agents_as_rects(self, obs: Observation) -> np.ndarray:
-        """Current footprints of the observed dynamic agents as (x, y, θ, length, width) rows, grown so that a
-        path keeping ``footprint_margin`` to them also keeps the dynamic margins."""
+        """Current footprints of the observed dynamic agents that stand (nearly) still, as (x, y, θ, length,
+        width) rows, grown so that a path keeping ``footprint_margin`` to them also keeps the dynamic margins.
+        Moving agents are left out: for them waiting is the answer, not a detour."""
         c = self.settings.collision
         gv = 2.0 * max(c.vehicle_margin - c.footprint_margin, 0.0) + 0.04
         gp = 2.0 * max(c.pedestrian_margin - c.footprint_margin, 0.0) + 0.04
-        rows = [[*v.pose, v.length + gv, v.width + gv] for v in obs.vehicles if not v.is_static]
-        rows += [[*p.position, 0.0, 2 * p.radius + gp, 2 * p.radius + gp] for p in obs.pedestrians]
+        rows = []
+        for v in obs.vehicles:
+            h = np.asarray(v.history, dtype=float).reshape(-1, 3)
+            if not v.is_static and (len(h) < 2 or np.hypot(*(h[-1, :2] - h[-2, :2])) / obs.dt < STILL_SPEED):
+                rows.append([*v.pose, v.length + gv, v.width + gv])
+        for p in obs.pedestrians:
+            if np.hypot(*(np.asarray(p.position) - np.asarray(p.previous_position))) / obs.dt < STILL_SPEED:
+                rows.append([*p.position, 0.0, 2 * p.radius + gp, 2 * p.radius + gp])
         return np.array(rows, dtype=float).reshape(-1, 5)
 
     # ------------------------------------------------------------------------------------ candidates
@@ -379,7 +392,8 @@ class EgoPlanner:
         return math.inf, -1, first_hit
 
     # ------------------------------------------------------------------------------------- planning
-    def _search_set(self, mode: str, items, ego, world, dyn, heur, astar, v0, t_end, stats, timing, blocked_out):
+    def _search_set(self, mode: str, items, ego, world, dyn, heur, astar, v0, t_end, stats, timing, blocked_out,
+                    max_iterations: int | None = None):
         """Plan to each item (spot row index or exploration point) with branch and bound on c.
 
         Returns the feasible candidates sorted by cost, and whether some static path existed but every
@@ -397,7 +411,8 @@ class EgoPlanner:
             if (lb >= best and self.settings.decision.branch_and_bound) or time.perf_counter() > t_end:
                 break
             t0 = time.perf_counter()
-            res: PlanResult = astar.plan(goals, time_cap=min(self.settings.search.time_cap, max(t_end - t0, 1e-3)),
+            res: PlanResult = astar.plan(goals, max_iterations=max_iterations,
+                                         time_cap=min(self.settings.search.time_cap, max(t_end - t0, 1e-3)),
                                          max_length=self.settings.decision.explore_max_length if mode == EXPLORE
                                          else None)
             dt_q = time.perf_counter() - t0
@@ -516,20 +531,31 @@ class EgoPlanner:
             return self._finish(self._execute(keep_explore, len(cands), "exploring"), timing, t_start, stats)
         if heur is None:
             heur, astar = self._searcher(world, ego, timing)
-        plan, blocked_e = self._explore(ego, world, dyn, heur, astar, obs, t_end, stats, timing, blocked_plans)
+        dt = self.settings.control.dt
+        back_ok = (self._front_blocked_step is not None
+                   and (obs.step - self._front_blocked_step) * dt >= EXPLORE_BACK_AFTER - 1e-9)
+        plan, blocked_e, front_waits = self._explore(ego, world, dyn, heur, astar, obs, t_end, stats, timing,
+                                                     blocked_plans, None, back_ok)
+        if front_waits:
+            if self._front_blocked_step is None:
+                self._front_blocked_step = obs.step
+        else:
+            self._front_blocked_step = None
         blocked |= blocked_e
         if plan is None and blocked and d.dynamic_as_static_fallback:
             extra = self._agents_as_rects(obs)
             if len(extra):
+                t_fb = min(t_end, time.perf_counter() + d.fallback_time_cap)
+                it_fb = d.fallback_max_iterations
                 world2 = self._static_world(obs, b, extra)
                 heur2, astar2 = self._searcher(world2, ego, timing)
                 if len(cands):
                     found, _ = self._search_set(PARK, cands.tolist(), ego, world, dyn, heur2, astar2,
-                                                obs.ego_speed, t_end, stats, timing, blocked_plans)
+                                                obs.ego_speed, t_fb, stats, timing, blocked_plans, it_fb)
                     plan = self._adopt(found, world, dyn, obs, timing)
                 if plan is None:
-                    plan, _ = self._explore(ego, world, dyn, heur2, astar2, obs, t_end, stats, timing,
-                                            blocked_plans)
+                    plan, _, _ = self._explore(ego, world, dyn, heur2, astar2, obs, t_fb, stats, timing,
+                                               blocked_plans, it_fb, back_ok)
                 if plan is not None:
                     stats["around_agents"] = True
         if plan is not None:
@@ -588,24 +614,31 @@ class EgoPlanner:
         timing["path_planning_time"] += time.perf_counter() - t0
         return heur, HybridAStar(world, ego, self.settings, heur)
 
-    def _explore(self, ego, world, dyn, heur, astar, obs, t_end, stats, timing, blocked_out):
+    def _explore(self, ego, world, dyn, heur, astar, obs, t_end, stats, timing, blocked_out,
+                 max_iterations: int | None = None, back_allowed: bool = True):
+        """Front exploration points, then (if allowed) those behind. Returns (plan or None, some path blocked by
+        predicted agents, the front had paths but all were blocked by predicted agents)."""
         pts = []
         for pose, front, rid in self.exploration_points(ego):
             g = self._explore_goal(pose, world)
             if g is not None and math.hypot(g[0] - ego[0], g[1] - ego[1]) > 1.0:
                 pts.append((g, front, rid))
-        blocked_any = False
+        blocked_any = front_waits = False
         for group in (True, False):  # front points first; behind only if the front stays blocked
             items = [p for p in pts if p[1] == group]
+            if group is False and front_waits and not back_allowed:
+                break  # the road ahead is blocked by agents only: wait before turning back
             if not items:
                 continue
             found, blocked = self._search_set(EXPLORE, items, ego, world, dyn, heur, astar, obs.ego_speed, t_end,
-                                              stats, timing, blocked_out)
+                                              stats, timing, blocked_out, max_iterations)
             blocked_any |= blocked
             plan = self._adopt(found, world, dyn, obs, timing)
             if plan is not None:
-                return plan, blocked_any
-        return None, blocked_any
+                return plan, blocked_any, False
+            if group:
+                front_waits = blocked
+        return None, blocked_any, front_waits
 
     def _still_valid(self, plan: _Plan, ego: np.ndarray, world: StaticWorld, dyn: DynamicObstacles) -> tuple[bool, str]:
         d = self.settings.decision

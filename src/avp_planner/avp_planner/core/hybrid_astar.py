@@ -49,6 +49,7 @@ from avp_planner.core.settings import PlannerSettings
 from avp_world.reeds_shepp import reeds_shepp_batch
 
 _BIG = 1e9
+BATCH_F_SLACK = 1.0  # only open nodes whose f is within this of the best one share an expansion batch
 
 
 # -------------------------------------------------------------------------------------------- heuristics
@@ -332,18 +333,22 @@ class HybridAStar:
         while heap:
             # pop up to batch_size open nodes; each may end the search with a Reeds-Shepp shot
             batch: list[int] = []
+            f_first = math.inf
             while heap and len(batch) < batch_size:
                 if stats["iterations"] >= max_it:
                     return fail(f"no path within {max_it} iterations")
                 if time.perf_counter() - t0 > cap:
                     return fail(f"time cap ({cap:.3f} s)")
-                _, nid = heapq.heappop(heap)
+                if batch and heap[0][0] > f_first + BATCH_F_SLACK:
+                    break  # only nodes (nearly) as good as the best one share a batch
+                f_top, nid = heapq.heappop(heap)
                 x, y, th = nx[nid], ny[nid], nth[nid]
                 key = self._key(x, y, th)
                 if key in closed or ng[nid] > best_g.get(key, math.inf) + 1e-9:
                     continue
                 closed.add(key)
                 stats["iterations"] += 1
+                f_first = min(f_first, f_top)
                 if self._want_shot(nh[nid], nd[nid], x, y, stats["iterations"]):
                     stats["analytic"] += 1
                     for _, rs in rs_candidates((x, y, th), ego_t, self.radius, s.switch_penalty, s.analytic_candidates,

@@ -100,6 +100,8 @@ class DecisionSettings:
     fallback_prediction: str = "constant_velocity"  # for observed agents without a prediction: | "static" | "none"
     fallback_horizon: float = 3.0  # seconds of the fallback constant-velocity prediction
     dynamic_as_static_fallback: bool = True  # replan around current agent footprints if all plans are blocked
+    fallback_time_cap: float = 0.05  # seconds for that second round of searches
+    fallback_max_iterations: int = 300  # node pops per search in that round
     evasive: bool = True  # if standing still is predicted to be hit, drive the plan that is hit latest
     decision_time_cap: float = 0.4  # seconds of searching per decision step (remaining candidates skipped)
     park_retry_steps: int = 5  # while exploring, parking is re-tried at least this often (and on any change)
