@@ -36,6 +36,12 @@ def test_demo_writes_results_and_a_readable_bag(ros_env, tmp_path):
                reader.messages(connections=[topics["/avp/debug/ground_truth"]])]
         lots = [reader.deserialize(raw, c.msgtype) for c, _, raw in
                 reader.messages(connections=[topics["/avp/lot_map"]])]
+        decisions = [reader.deserialize(raw, c.msgtype) for c, _, raw in
+                     reader.messages(connections=[topics["/avp/decision"]])]
+    # the planner node answered every step with a decision carrying its timings and plan
+    assert [d.step for d in decisions] == list(range(metrics["steps"]))
+    assert all(d.mode in (0, 1, 2) and d.path_planning_time >= 0.0 for d in decisions)
+    assert any(d.mode != 0 and len(d.plan.poses) >= 2 for d in decisions)
     assert [g.step for g in gts] == list(range(metrics["steps"] + 1))  # every step recorded, in order
     assert len(lots) == 1 and len(lots[0].spots) == 40
     assert topics["/avp/lot_map"].ext.offered_qos_profiles[0].durability.name == "TRANSIENT_LOCAL"

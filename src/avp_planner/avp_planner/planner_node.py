@@ -16,6 +16,8 @@ import numpy as np
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from nav_msgs.msg import Path
 from rclpy.node import Node
+from std_msgs.msg import ColorRGBA
+from visualization_msgs.msg import Marker, MarkerArray
 
 from avp_common.conversions import (
     MessageError,
@@ -63,6 +65,7 @@ class PlannerNode(Node):
         self.pub_cmd = self.create_publisher(TwistStamped, "cmd", STEP)
         self.pub_plan = self.create_publisher(Path, "plan", STEP)
         self.pub_decision = self.create_publisher(PlannerDecision, "decision", STEP)
+        self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", STEP)
         self.create_subscription(LotMap, "lot_map", self._on_lot, LATCHED)
         self.sub_obs = self.create_subscription(Observation, "observation", self._on_obs, STEP)
         if self.use_beliefs:
@@ -154,6 +157,29 @@ class PlannerNode(Node):
         msg.path_planning_time = float(timings.get("path_planning_time", total))
         msg.reason = str(getattr(d, "reason", ""))
         self.pub_decision.publish(msg)
+        self.pub_markers.publish(self._markers(path, msg))
+
+    def _markers(self, path: Path, d: PlannerDecision) -> MarkerArray:
+        """The plan (line strip, green when parking, blue when exploring) and its goal (arrow)."""
+        arr = MarkerArray()
+        clear = Marker()
+        clear.action = Marker.DELETEALL
+        arr.markers.append(clear)
+        color = ColorRGBA(r=0.1, g=0.8, b=0.2, a=0.9) if d.mode == PlannerDecision.MODE_PARK else ColorRGBA(
+            r=0.2, g=0.4, b=1.0, a=0.9)
+        line = Marker(ns="plan", id=0, type=Marker.LINE_STRIP, action=Marker.ADD, color=color)
+        line.header = path.header
+        line.scale.x = 0.15
+        line.points = [ps.pose.position for ps in path.poses]
+        arr.markers.append(line)
+        if d.mode != PlannerDecision.MODE_IDLE:
+            goal = Marker(ns="goal", id=0, type=Marker.ARROW, action=Marker.ADD, color=color)
+            goal.header = path.header
+            goal.pose.position.x, goal.pose.position.y = d.goal.x, d.goal.y
+            goal.pose.orientation.z, goal.pose.orientation.w = _quat_z(d.goal.theta)
+            goal.scale.x, goal.scale.y, goal.scale.z = 2.0, 0.4, 0.4
+            arr.markers.append(goal)
+        return arr
 
 
 def main(args=None) -> int:
