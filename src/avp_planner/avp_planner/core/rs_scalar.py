@@ -250,41 +250,9 @@ def rs_shortest(
     Returns:
         (length in metres, ((kind, signed length in metres), ...)) with zero-length segments dropped.
     """
-    sx0, sy0, sth = float(start[0]), float(start[1]), float(start[2])
-    dx, dy = float(goal[0]) - sx0, float(goal[1]) - sy0
-    c, s = math.cos(sth), math.sin(sth)
-    x = (c * dx + s * dy) / radius
-    y = (-s * dx + c * dy) / radius
-    phi = _mod2pi(float(goal[2]) - sth)
-    cphi, sphi_ = math.cos(phi), math.sin(phi)
-    xb, yb = x * cphi + y * sphi_, x * sphi_ - y * cphi
-    pen = cusp_penalty / radius
-    best_score = math.inf
-    best = None
-    for f, word, back, flip, refl in _INSTANCES:
-        bx, by = (xb, yb) if back else (x, y)
-        if flip:
-            bx = -bx
-        if refl:
-            by = -by
-        r = f(bx, by, -phi if flip != refl else phi)
-        if r is None:
-            continue
-        if back:
-            r = r[::-1]
-        if flip:
-            r = tuple(-v for v in r)
-        total = 0.0
-        for v in r:
-            total += abs(v)
-        if not math.isfinite(total):
-            continue
-        score = total + pen * _cusps(r) if pen > 0 else total
-        if score < best_score:
-            best_score = score
-            best = (total, word, r)
-    if best is None:  # pragma: no cover - a Reeds-Shepp word always exists
+    found = _evaluate(start, goal, radius, cusp_penalty)
+    if not found:  # pragma: no cover - a Reeds-Shepp word always exists
         raise RuntimeError("no Reeds-Shepp word found")
-    total, word, r = best
+    _, total, word, r = min(found, key=lambda e: e[0])  # first minimum in instance order
     segs = tuple((k, v * radius) for k, v in zip(word, r, strict=True) if abs(v) > 1e-10)
     return total * radius, segs
