@@ -9,8 +9,6 @@ from geometry_msgs.msg import Point
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
-from avp_sim.core.observation import classify_world
-
 
 def _color(r: float, g: float, b: float, a: float = 1.0) -> ColorRGBA:
     return ColorRGBA(r=r, g=g, b=b, a=a)
@@ -33,7 +31,7 @@ def world_markers(lot, world, obs, stamp) -> MarkerArray:
     clear = Marker()
     clear.action = Marker.DELETEALL
     arr.markers.append(clear)
-    occupied, _ = classify_world(lot, world.vehicle_corners())
+    occupied, _ = world.occupancy()
     for k, s in enumerate(lot.spots):
         c = _color(0.9, 0.3, 0.3, 0.35) if occupied[k] else _color(0.2, 0.8, 0.2, 0.35)
         arr.markers.append(_box("spots", s.id, (s.x, s.y, s.heading), s.length, s.width, 0.02, c, stamp))

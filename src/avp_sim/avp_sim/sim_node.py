@@ -210,9 +210,7 @@ class SimNode(Node):
             a.pose = Pose2D(x=float(w.ped_pos[i, 0]), y=float(w.ped_pos[i, 1]), theta=0.0)
             agents.append(a)
         msg.agents = agents
-        from avp_sim.core.observation import classify_world
-
-        occupied, _ = classify_world(self.lot, w.vehicle_corners())
+        occupied, _ = w.occupancy()
         msg.occupied_spot_ids = [int(i) for i in self.lot.spot_ids[occupied]]
         return msg
 

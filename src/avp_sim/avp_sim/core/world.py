@@ -76,6 +76,7 @@ class World:
             self._advance_agents(np.zeros(n, dtype=bool), np.zeros(p, dtype=bool))
             self.history[:, k + 1] = self.states
         self.step_index = 0
+        self._occupancy_step = -1  # occupancy() cache: state changes only in step()
         self.ego = np.array(sc.ego_start, dtype=float)
         self.ego_speed = 0.0
         self.status = RUNNING
@@ -182,11 +183,18 @@ class World:
         return self.status != RUNNING
 
     # ------------------------------------------------------------------ observation (§III-A)
+    def occupancy(self) -> tuple[np.ndarray, np.ndarray]:
+        """(spot_occupied, vehicle_spot) of the current step (:func:`classify_world`), computed once per step."""
+        if self._occupancy_step != self.step_index:
+            self._occupancy = classify_world(self.lot, self.vehicle_corners())
+            self._occupancy_step = self.step_index
+        return self._occupancy
+
     def observe(self) -> Observation:
         """What the ego senses now: rays stop at the lot boundary, other vehicles or dQ (no ground truth)."""
         corners = self.vehicle_corners()
         scan = self.caster.cast(self.ego, corners, self.ped_pos, self.ped_radii)
-        occupied, vehicle_spot = classify_world(self.lot, corners)
+        occupied, vehicle_spot = self.occupancy()
         seen_spots = scan.seen_spots
         vac = self.lot.spot_ids[seen_spots & ~occupied]
         occ = self.lot.spot_ids[seen_spots & occupied]
