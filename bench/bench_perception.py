@@ -9,7 +9,12 @@ dynamic vehicles is kept. Timed per snapshot:
 * step = belief update eq. (7) + BEV reconstruction of every observed dynamic vehicle (all candidate
   images) + intent CNN on all candidates of all vehicles in one batch (random weights, torch.no_grad)
   + eq. (8); targets: median <= 5 ms; reported per thread count of ``torch.set_num_threads``;
-* Bezier prediction (§V-C) of the 2-vehicle snapshots with 2 intentions >= mu per vehicle; target <= 1 ms.
+* Bezier prediction (§V-C) of the 2-vehicle snapshots with 2 intentions >= mu per vehicle; target <= 1 ms;
+* Hybrid A* prediction (issue #4, ``make_predictor("hybrid_astar")``) of the same snapshots: with the Bezier
+  bench's intentions (the first two vacant spots of the observation, often across the lot) and with the two
+  vacant spots nearest to each vehicle; per step, plus searches, paths found, iterations and static worlds
+  built; also on consecutive steps (stride 1) of the same episodes, where the static-world cache works as in
+  the node (the strided snapshots jump between episodes and goal sets).
 
 Usage: python bench/bench_perception.py [--snapshots 150] [--repeats 3] [--threads 1 2] [--sweep]
 ``--sweep`` also times the other input resolutions (400 px at 0.1 m/px as ParkPredict+, 200 @ 0.2, 80 @ 0.5)
@@ -120,6 +125,19 @@ def bezier_intentions(obs, lot):
     return out
 
 
+def nearest_intentions(obs, lot):
+    """The two vacant spots nearest to each dynamic vehicle at 0.5 and 0.35, 'none' 0.15."""
+    vacant = np.asarray(obs.vacant_spot_ids, dtype=np.int64)
+    out = []
+    for v in obs.vehicles:
+        if v.is_static or len(vacant) < 2:
+            continue
+        d = np.hypot(*(lot.spot_poses[[lot.spot_index(s) for s in vacant], :2] - v.pose[:2]).T)
+        out.append(Intention(int(v.id), vacant[np.argsort(d, kind="stable")[:2]], np.array([0.5, 0.35]),
+                             none_probability=0.15))
+    return out
+
+
 def stats(ms: np.ndarray) -> str:
     return (f"median {np.median(ms):.2f} ms, p90 {np.percentile(ms, 90):.2f} ms, mean {ms.mean():.2f} ms "
             f"(n = {len(ms)})")
@@ -181,6 +199,33 @@ def main() -> None:
     verdict = "OK" if np.median(ms) <= 1.0 else "over"
     print(f"[2 dyn] Bezier prediction ({n_curves} trajectories x {len(trajs[0].poses)} poses): {stats(ms)} "
           f"(target <= 1 ms: {verdict})")
+
+    # Hybrid A* prediction: the same snapshots, with those intentions and with the nearest spots
+    from avp_perception.core.prediction import make_predictor
+
+    consecutive = snapshots(lot, 2, args.snapshots, 1)  # stride 1: the static-world cache works as in an episode
+    for label, make, obs_set in (("Bezier bench's intentions", bezier_intentions, sets[2]),
+                                 ("two nearest vacant spots", nearest_intentions, sets[2]),
+                                 ("two nearest vacant spots, consecutive steps", nearest_intentions, consecutive)):
+        t0 = time.perf_counter()
+        pred = make_predictor("hybrid_astar", lot)
+        t_init = time.perf_counter() - t0
+        work = [(obs, make(obs, lot)) for obs in obs_set]
+        times, totals = [], {"queries": 0, "paths": 0, "iterations": 0, "worlds_built": 0}
+        for _ in range(args.repeats):
+            pred = make_predictor("hybrid_astar", lot)  # fresh caches each pass (a pass replays the same steps)
+            for obs, its in work:
+                t0 = time.perf_counter()
+                pred.predict(obs, its)
+                times.append(time.perf_counter() - t0)
+                for key in totals:
+                    totals[key] += pred.last_stats.get(key, 0)
+        ms = np.array(times) * 1e3
+        q = max(totals["queries"], 1)
+        print(f"[2 dyn] Hybrid A* prediction ({label}): {stats(ms)}, max {ms.max():.2f} ms; {totals['queries']} "
+              f"searches, {100.0 * totals['paths'] / q:.1f} % found a path, {totals['iterations'] / q:.0f} iterations "
+              f"per search, {totals['worlds_built']} static worlds built in {len(ms)} steps; predictor set-up "
+              f"{t_init * 1e3:.0f} ms (Reeds-Shepp table, once per process)")
 
     if args.sweep:
         th = best[2][1]

@@ -13,6 +13,7 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", glob("config/*.yaml")),
+        ("share/" + package_name + "/config/methods", glob("config/methods/*.yaml")),
         ("share/" + package_name + "/launch", glob("launch/*.launch.py")),
     ],
     install_requires=["setuptools"],
@@ -21,5 +22,7 @@ setup(
     maintainer_email="maintainers@avp-stack.org",
     description="Launch files, parameter files, the avp command line (launch, demo) and rendering.",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={"console_scripts": [
+        "method_ego = avp_bringup.method_node:main",
+    ]},
 )

@@ -21,5 +21,8 @@ setup(
     maintainer_email="maintainers@avp-stack.org",
     description="Belief map, BEV reconstruction, intent CNN and trajectory prediction (paper §V-A..C).",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={"console_scripts": [
+        "belief_node = avp_perception.belief_node:main",
+        "prediction_node = avp_perception.prediction_node:main",
+    ]},
 )

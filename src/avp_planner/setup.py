@@ -13,6 +13,7 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", glob("config/*.yaml")),
+        ("share/" + package_name + "/config/profiles", glob("config/profiles/*.yaml")),
         ("share/" + package_name + "/launch", glob("launch/*.launch.py")),
     ],
     install_requires=["setuptools"],
@@ -24,5 +25,6 @@ setup(
     entry_points={"console_scripts": [
         "planner = avp_planner.planner_node:main",
         "scripted_driver = avp_planner.scripted_driver_node:main",
+        "minimal_planner = avp_planner.examples.minimal_planner:main",
     ]},
 )

@@ -2,9 +2,10 @@
 
 rosbag2/ros2 bag are not on PyPI here; `rosbags` writes standard rosbag2 directories (metadata.yaml +
 storage file) with the message definitions embedded, so Foxglove/Lichtblick and rosbags readers decode
-the custom avp_msgs types. The writer is opened and closed explicitly (never inside `with`): Ctrl-C /
-SIGTERM close it cleanly; MCAP chunks are flushed as they fill, so a killed recorder loses at most the
-open chunk.
+the custom avp_msgs types. The writer (:class:`avp_bringup.bagwriter.SplitBagWriter`) is opened and
+closed explicitly (never inside `with`): Ctrl-C / SIGTERM close it cleanly, and it finishes a storage file
+("split": summary, index, footer, metadata.yaml rewritten atomically) every ``split_period`` wall seconds,
+so a SIGKILLed recorder leaves a bag that reads back up to its last finished split.
 """
 
 from __future__ import annotations
@@ -17,9 +18,9 @@ from ament_index_python.packages import get_package_share_directory
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
-from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from avp_bringup.bagwriter import SplitBagWriter
 from avp_common.conversions import time_to_ns
 
 #: topic -> (type, latched). The default recording set of the graph (markers/scan are left out: derivable).
@@ -39,6 +40,8 @@ GRAPH_TOPICS: dict[str, tuple[str, bool]] = {
 OPTIONAL_TOPICS = {
     "/avp/debug/markers": ("visualization_msgs/msg/MarkerArray", False),
     "/avp/debug/scan": ("sensor_msgs/msg/LaserScan", False),
+    "/avp/debug/occupancy": ("nav_msgs/msg/OccupancyGrid", False),  # belief map b_t (derivable from beliefs)
+    "/avp/debug/bev": ("sensor_msgs/msg/Image", False),  # the belief node's BEVs (large)
 }
 
 
@@ -69,14 +72,15 @@ class BagRecorder(Node):
     """Raw (CDR) subscriptions written straight into a rosbag2; log time = latest /clock (sim time)."""
 
     def __init__(self, out: Path, topics: dict[str, tuple[str, bool]] | None = None, storage: str = "mcap",
-                 node_name: str = "avp_recorder") -> None:
+                 node_name: str = "avp_recorder", split_period: float = 1.0) -> None:
         super().__init__(node_name)
         self.out = Path(out)
         topics = dict(GRAPH_TOPICS if topics is None else topics)
         self.ts = make_typestore()
-        plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
-        self.writer = Writer(self.out, version=9, storage_plugin=plugin)
+        self.writer = SplitBagWriter(self.out, storage, split_period)
         self.writer.open()
+        # finish the open split also when no message arrives (e.g. after the episode ended)
+        self._rotate_timer = self.create_timer(min(0.25, split_period / 2), self._rotate)
         self.closed = False
         self.clock_ns = 0
         self.counts: dict[str, int] = {}
@@ -102,6 +106,10 @@ class BagRecorder(Node):
             self.counts[topic] = self.counts.get(topic, 0) + 1
 
         return cb
+
+    def _rotate(self) -> None:
+        if not self.closed:
+            self.writer.maybe_rotate()
 
     def close(self) -> None:
         if not self.closed:

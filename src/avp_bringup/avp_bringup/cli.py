@@ -3,12 +3,16 @@
   avp launch [--params FILE] [--log-dir DIR]       start the node graph; Ctrl-C stops it
   avp demo   [--seed N] [--non-reactive] [--out DIR] [--params FILE]
                                                    one seeded episode over DDS -> metrics.json, episode.png
-  avp record OUT [--topics T ...] [--storage mcap|sqlite3]
-                                                   record the graph to a rosbag2 until Ctrl-C
+  avp record OUT [--topics T ...] [--storage mcap|sqlite3] [--split-period S]
+                                                   record the graph to a rosbag2 until Ctrl-C (crash-safe splits)
   avp replay BAG [--rate R] [--start S] [--topics T ...]
                                                    republish a bag with its sim clock
   avp metrics BAG                                  recompute an episode's metrics from a bag
-  avp bench sensing|planner|perception [ARGS...]   run a benchmark script of bench/ (figures in docs/benchmarks.md)
+  avp swap-planner PROFILE|--node NODE [--keep-old] replace the running planner (lifecycle) while the sim steps
+  avp experiment [--scenarios N] [--seed-base S] [--mode reactive|non-reactive|both] [--methods M,...|all]
+                 [--workers W] [--out DIR] [--transport inproc|ros]
+                                                   the Table I runner (docs/experiment.md); resumable
+  avp bench sensing|planner|perception|soak [ARGS...]  run a benchmark script of bench/ (figures in docs/benchmarks.md)
   avp params [NODE]                                print the parameter tables (Markdown)
 """
 
@@ -30,11 +34,34 @@ def _log_dir(arg: str | None) -> Path:
     return Path(arg) if arg else _root() / "out" / "logs" / time.strftime("%Y%m%d-%H%M%S")
 
 
+def _ego_graph(args: argparse.Namespace):
+    """The graph of ``--method NAME`` (simulator + method_ego running a Table I method profile), else of ``--ego``."""
+    from avp_bringup.graph import default_graph, method_graph
+
+    return method_graph(args.method, autostart=True) if args.method else default_graph(args.ego)
+
+
+def cmd_experiment(args: argparse.Namespace) -> int:
+    from avp_bringup.experiment.profiles import ProfileError
+    from avp_bringup.experiment.runner import run_experiment
+
+    try:
+        run_experiment(args)
+    except (ValueError, ProfileError, RuntimeError) as exc:
+        print(f"[avp experiment] {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"[avp experiment] interrupted; the finished episodes are in {args.out}/episodes.jsonl: run the same "
+              "command to continue", file=sys.stderr)
+        return 130
+    return 0
+
+
 def cmd_launch(args: argparse.Namespace) -> int:
-    from avp_bringup.graph import Graph, default_graph
+    from avp_bringup.graph import Graph
 
     log_dir = _log_dir(args.log_dir)
-    graph = Graph(default_graph(args.ego), log_dir, args.params)
+    graph = Graph(_ego_graph(args), log_dir, args.params)
     graph.start()
     print(f"[avp] started {len(graph.procs)} nodes in namespace /avp; logs in {log_dir}/")
     for name, p in graph.procs.items():
@@ -52,26 +79,31 @@ def cmd_launch(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         pass
     finally:
+        from avp_bringup.lifecycle import shutdown_lifecycle_nodes
+
+        others = shutdown_lifecycle_nodes()  # planners swapped in by `avp swap-planner` (own processes)
         graph.stop()
-        print("[avp] graph stopped")
+        print(f"[avp] graph stopped{'; shut down ' + ', '.join(others) if others else ''}")
     return 0
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
     import rclpy
 
-    from avp_bringup.graph import Graph, default_graph
+    from avp_bringup.graph import Graph, with_params
     from avp_bringup.monitor import EpisodeMonitor
     from avp_world.lot import load_bundled_lot, load_lot
 
     out = Path(args.out)
     log_dir = out / "logs"
-    nodes = default_graph(args.ego)
+    nodes = _ego_graph(args)
     sim = nodes[0]
-    extra = {"seed": args.seed, "reactive": not args.non_reactive, "min_subscribers": 3, "min_debug_subscribers": 2}
+    # step 0 waits for the graph's observation subscribers plus our monitor and recorder
+    extra = {"seed": args.seed, "reactive": not args.non_reactive,
+             "min_subscribers": sim.extra_params.get("min_subscribers", 1) + 2, "min_debug_subscribers": 2}
     if args.t_final is not None:
         extra["t_final"] = args.t_final
-    nodes[0] = type(sim)(sim.name, sim.package, sim.executable, sim.param_file, extra)
+    nodes[0] = with_params(sim, **extra)
     lot = load_lot(args.lot) if args.lot else load_bundled_lot()
     from rclpy.executors import SingleThreadedExecutor
 
@@ -103,7 +135,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         for _ in range(10):  # drain the last ground-truth messages
             executor.spin_once(timeout_sec=0.05)
         wall = time.monotonic() - t0
-        metrics = monitor.write(lot, out, {"wall_time_s": round(wall, 2), "ego_node": nodes[1].name})
+        metrics = monitor.write(lot, out, {"wall_time_s": round(wall, 2), "ego_node": nodes[-1].name})
     finally:
         graph.stop()
         recorder.close()
@@ -130,7 +162,14 @@ def cmd_record(args: argparse.Namespace) -> int:
             return 2
         topics = {t: known[t] for t in args.topics}
     rclpy.init()
-    rec = BagRecorder(Path(args.out), topics, storage=args.storage)
+    from avp_bringup.bagwriter import BagWriteError
+
+    try:
+        rec = BagRecorder(Path(args.out), topics, storage=args.storage, split_period=args.split_period)
+    except BagWriteError as exc:
+        print(f"[avp record] {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
     print(f"[avp record] recording {len(topics)} topics to {args.out} ({args.storage}); Ctrl-C stops")
     stop = {"flag": False}
     signal.signal(signal.SIGTERM, lambda *_: stop.update(flag=True))
@@ -190,6 +229,29 @@ def cmd_metrics(args: argparse.Namespace) -> int:
     return 0 if same else 1
 
 
+def cmd_swap_planner(args: argparse.Namespace) -> int:
+    import rclpy
+
+    from avp_bringup.lifecycle import LifecycleClient, SwapError, swap_planner
+
+    rclpy.init()
+    node = rclpy.create_node("avp_swap_planner")
+    try:
+        report = swap_planner(LifecycleClient(node), args.namespace, profile=args.profile, node=args.node,
+                              name=args.name, log_dir=Path(args.log_dir) if args.log_dir else None,
+                              user_params=args.params, keep_old=args.keep_old, timeout=args.timeout)
+    except SwapError as exc:
+        print(f"[avp swap-planner] {exc}", file=sys.stderr)
+        return 2
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    started = f" (pid {report.pid}, log {report.log})" if report.pid else ""
+    print(f"[avp swap-planner] active planner: {report.new}{started}; deactivated {report.deactivated or 'none'}"
+          f" ({report.gap_s * 1000:.0f} ms without a planner); shut down {report.shut_down or 'none'}")
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     import subprocess
 
@@ -201,12 +263,17 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_params(args: argparse.Namespace) -> int:
+    from avp_bringup.method_node import METHOD_NODE_PARAMS
     from avp_common.params import markdown_table
+    from avp_perception.params import BELIEF_PARAMS, PREDICTION_PARAMS
+    from avp_planner.examples.minimal_planner import MINIMAL_PARAMS
     from avp_planner.planner_node import PLANNER_PARAMS
     from avp_planner.scripted_driver_node import DRIVER_PARAMS
     from avp_sim.params import SIM_PARAMS
 
-    tables = {"avp_sim": SIM_PARAMS, "avp_planner": PLANNER_PARAMS, "scripted_driver": DRIVER_PARAMS}
+    tables = {"avp_sim": SIM_PARAMS, "avp_belief": BELIEF_PARAMS, "avp_prediction": PREDICTION_PARAMS,
+              "avp_planner": PLANNER_PARAMS, "scripted_driver": DRIVER_PARAMS, "minimal_planner": MINIMAL_PARAMS,
+              "method_ego": METHOD_NODE_PARAMS}
     for name, specs in tables.items():
         if args.node and args.node != name:
             continue
@@ -221,11 +288,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--params", help="extra ROS 2 parameter file applied after the defaults")
     p.add_argument("--log-dir")
     p.add_argument("--ego", choices=("planner", "scripted"), default="planner", help="the ego's node")
+    p.add_argument("--method", help="run a Table I method profile instead (bezier, constant_velocity, hybrid_astar, "
+                   "implicit, nawaz or a profile file): simulator + method_ego node")
     p.set_defaults(func=cmd_launch)
     p = sub.add_parser("demo", help="run one seeded episode through the live graph")
     p.add_argument("--seed", type=int, default=3)
     p.add_argument("--non-reactive", action="store_true")
     p.add_argument("--ego", choices=("planner", "scripted"), default="planner", help="the ego's node")
+    p.add_argument("--method", help="run a Table I method profile instead (bezier, constant_velocity, hybrid_astar, "
+                   "implicit, nawaz or a profile file): simulator + method_ego node")
     p.add_argument("--t-final", type=float, default=None)
     p.add_argument("--out", default=str(_root() / "out" / "demo"))
     p.add_argument("--params")
@@ -238,6 +309,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--topics", nargs="+")
     p.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
     p.add_argument("--duration", type=float, default=None, help="stop after this many wall seconds")
+    p.add_argument("--split-period", type=float, default=1.0,
+                   help="finish a storage file every this many wall seconds (a crash loses at most the open one)")
     p.set_defaults(func=cmd_record)
     p = sub.add_parser("replay", help="republish a bag with its sim clock")
     p.add_argument("bag")
@@ -249,8 +322,25 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("metrics", help="recompute an episode's metrics from a bag")
     p.add_argument("bag")
     p.set_defaults(func=cmd_metrics)
+    p = sub.add_parser("swap-planner", help="replace the running planner while the simulator keeps stepping")
+    p.add_argument("profile", nargs="?", help="planner profile: a name of avp_planner/config/profiles/ or a "
+                   "parameter YAML; starts a new planner process with it")
+    p.add_argument("--node", help="bring up this running lifecycle node instead (e.g. /avp/my_planner)")
+    p.add_argument("--name", help="node name of the new planner (default avp_planner_<profile>)")
+    p.add_argument("--params", help="extra parameter file for the new planner (as given to avp launch)")
+    p.add_argument("--log-dir", help="where the new planner's log goes (default out/logs/swap-<time>/)")
+    p.add_argument("--namespace", default="/avp")
+    p.add_argument("--keep-old", action="store_true", help="leave the old planner inactive instead of shutting "
+                   "it down")
+    p.add_argument("--timeout", type=float, default=30.0, help="per lifecycle call / start-up [s]")
+    p.set_defaults(func=cmd_swap_planner)
+    p = sub.add_parser("experiment", help="the Table I runner (episodes x methods x modes, resumable)")
+    from avp_bringup.experiment.runner import add_arguments
+
+    add_arguments(p)
+    p.set_defaults(func=cmd_experiment)
     p = sub.add_parser("bench", help="run a benchmark script of bench/")
-    p.add_argument("which", choices=("sensing", "planner", "perception"))
+    p.add_argument("which", choices=("sensing", "planner", "perception", "soak"))
     p.add_argument("rest", nargs=argparse.REMAINDER)
     p.set_defaults(func=cmd_bench)
     p = sub.add_parser("params", help="print parameter tables")

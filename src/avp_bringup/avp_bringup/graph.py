@@ -39,13 +39,48 @@ EGO_NODES = {
 }
 
 
-def default_graph(ego: str = "planner") -> list[NodeSpec]:
-    """The live graph: simulator + the ego's Hybrid A* planner (§V-D) — or the scripted stand-in driver.
+PERCEPTION_NODES = [
+    NodeSpec("avp_belief", "avp_perception", "belief_node", "config/belief.param.yaml"),
+    NodeSpec("avp_prediction", "avp_perception", "prediction_node", "config/prediction.param.yaml"),
+]
+#: what the planner is told in the full graph: wait for the perception nodes' beliefs and predictions
+PLANNER_WITH_PERCEPTION = {"use_beliefs": True, "use_predictions": True}
 
-    Until the perception nodes (#4) land, the planner runs with beliefs from observation only and no
-    predictions (its `use_beliefs` / `use_predictions` parameters are false).
+
+def default_graph(ego: str = "planner") -> list[NodeSpec]:
+    """The live graph, the simulator first and the ego's node last.
+
+    ``planner``: simulator, belief node (eq. 7, intent CNN, eq. 8), prediction node (§V-C), Hybrid A* planner
+    (§V-D) with ``use_beliefs`` / ``use_predictions`` true, i.e. in lock-step it answers observation k once the
+    beliefs and predictions stamped t_k have arrived. ``scripted``: simulator + the scripted stand-in driver.
+    The simulator's step 0 waits until every node that subscribes to observation (all but itself) is there.
     """
-    return [NodeSpec("avp_sim", "avp_sim", "sim_node", "config/sim.param.yaml"), EGO_NODES[ego]]
+    if ego == "planner":
+        ego_spec = EGO_NODES["planner"]
+        nodes = [*PERCEPTION_NODES, NodeSpec(ego_spec.name, ego_spec.package, ego_spec.executable,
+                                             ego_spec.param_file, dict(PLANNER_WITH_PERCEPTION))]
+    else:
+        nodes = [EGO_NODES[ego]]
+    sim = NodeSpec("avp_sim", "avp_sim", "sim_node", "config/sim.param.yaml", {"min_subscribers": len(nodes)})
+    return [sim, *nodes]
+
+
+def with_params(spec: NodeSpec, **extra) -> NodeSpec:
+    """``spec`` with ``extra`` parameters added to (or replacing) its ``extra_params``."""
+    return NodeSpec(spec.name, spec.package, spec.executable, spec.param_file, {**spec.extra_params, **extra})
+
+
+def method_graph(method: str, sim_extra: dict | None = None, ego_extra: dict | None = None,
+                 min_debug_subscribers: int = 0, autostart: bool = False) -> list[NodeSpec]:
+    """The live graph of one Table I method (issue #6): the simulator + the ``method_ego`` node running the
+    method profile ``method`` (avp_bringup/config/methods/, a name or a file). With ``autostart`` false the
+    simulator waits for the ``reset_episode`` service (``avp experiment --transport ros``)."""
+    sim = NodeSpec("avp_sim", "avp_sim", "sim_node", "config/sim.param.yaml",
+                   {"autostart": autostart, "publish_markers": False, "min_subscribers": 1,
+                    "min_debug_subscribers": min_debug_subscribers, **(sim_extra or {})})
+    ego = NodeSpec("method_ego", "avp_bringup", "method_ego", "config/method_ego.param.yaml",
+                   {"method": method, **(ego_extra or {})})
+    return [sim, ego]
 
 
 def _ros_value(v) -> str:
@@ -65,6 +100,10 @@ class Graph:
         self.log_dir = Path(log_dir)
         self.user_params = user_params
         self.env = dict(os.environ if env is None else env)
+        # Fast DDS's shared-memory transport can block a publisher for seconds after a subscriber process was
+        # SIGKILLed (its port is never drained): the graph's processes talk over UDPv4 loopback instead
+        # (docs/architecture.md, "Faults"); FASTDDS_BUILTIN_TRANSPORTS=DEFAULT brings shared memory back.
+        self.env.setdefault("FASTDDS_BUILTIN_TRANSPORTS", "UDPv4")
         self.procs: dict[str, subprocess.Popen] = {}
 
     def command(self, spec: NodeSpec) -> list[str]:

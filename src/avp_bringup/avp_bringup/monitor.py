@@ -8,10 +8,14 @@ from pathlib import Path
 
 import numpy as np
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from avp_common.conversions import observation_from_msg
-from avp_common.qos import DEBUG, STATUS, STEP
+from avp_common.qos import DEBUG, STATUS
 from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation
+
+GROUND_TRUTH_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
+                              durability=DurabilityPolicy.VOLATILE)
 
 STATE_NAMES = {EpisodeStatus.STATE_IDLE: "idle", EpisodeStatus.STATE_RUNNING: "running",
                EpisodeStatus.STATE_SUCCESS: "success", EpisodeStatus.STATE_COLLISION: "collision",
@@ -23,10 +27,12 @@ class EpisodeMonitor(Node):
         super().__init__("avp_monitor", namespace=namespace)
         self.gt: dict[int, GroundTruth] = {}
         self.status: EpisodeStatus | None = None
-        self.last_obs: Observation | None = None
-        self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, STEP)
+        self._last_obs_raw: bytes | None = None
+        # every ground-truth step matters (metrics, the DDS tests): a deep reader queue rides out a busy CPU
+        self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, GROUND_TRUTH_QOS)
         self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
-        self.create_subscription(Observation, "observation", self._on_obs, DEBUG)
+        # only the last observation is used (rays in the picture): kept as CDR bytes, decoded once at the end
+        self.create_subscription(Observation, "observation", self._on_obs, DEBUG, raw=True)
 
     def _on_gt(self, msg: GroundTruth) -> None:
         self.gt[int(msg.step)] = msg
@@ -34,8 +40,16 @@ class EpisodeMonitor(Node):
     def _on_status(self, msg: EpisodeStatus) -> None:
         self.status = msg
 
-    def _on_obs(self, msg: Observation) -> None:
-        self.last_obs = msg
+    def _on_obs(self, raw: bytes) -> None:
+        self._last_obs_raw = raw
+
+    @property
+    def last_obs(self) -> Observation | None:
+        if self._last_obs_raw is None:
+            return None
+        from rclpy.serialization import deserialize_message
+
+        return deserialize_message(self._last_obs_raw, Observation)
 
     @property
     def finished(self) -> bool:
@@ -83,7 +97,8 @@ class EpisodeMonitor(Node):
         (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
         last_gt = self.gt[max(self.gt)] if self.gt else None
         occupied = set(int(i) for i in last_gt.occupied_spot_ids) if last_gt else set()
-        rays = observation_from_msg(self.last_obs).ray_endpoints() if self.last_obs is not None else None
+        last_obs = self.last_obs
+        rays = observation_from_msg(last_obs).ray_endpoints() if last_obs is not None else None
         ego = next(a for a in last_gt.agents if a.kind == AgentState.KIND_EGO) if last_gt else None
         title = (f"seed {metrics['seed']} {'reactive' if metrics['reactive'] else 'non-reactive'}: "
                  f"{metrics['state']} at t={metrics['sim_time']:.1f}s")

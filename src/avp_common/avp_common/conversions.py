@@ -197,12 +197,16 @@ def predictions_to_msg(step: int, dt: float, predictions):
     msg.header.stamp = step_to_time(step, dt)
     msg.step = int(step)
     for p in predictions:
+        goal = getattr(p, "goal", None)
+        kind = (PredMsg.INTENT_SPOT if p.spot_id >= 0 else PredMsg.INTENT_EXPLORE if goal is not None
+                else PredMsg.INTENT_NONE)
         m = PredMsg(agent_id=int(p.agent_id), agent_type=PredMsg.AGENT_PEDESTRIAN if p.is_pedestrian
                     else PredMsg.AGENT_VEHICLE, length=float(p.length), width=float(p.width), radius=float(p.radius),
-                    intention_kind=PredMsg.INTENT_SPOT if p.spot_id >= 0 else PredMsg.INTENT_NONE,
-                    spot_id=int(p.spot_id), probability=float(p.probability), dt=float(p.dt))
+                    intention_kind=kind, spot_id=int(p.spot_id), probability=float(p.probability), dt=float(p.dt))
         m.poses = [Pose2D(x=float(q[0]), y=float(q[1]), theta=float(q[2])) for q in p.poses]
-        if len(p.poses):
+        if goal is not None:  # the conditioning goal (spot pose or exploration point)
+            m.goal = Pose2D(x=float(goal[0]), y=float(goal[1]), theta=float(goal[2]))
+        elif len(p.poses):  # unconditioned: where the prediction ends
             m.goal = m.poses[-1]
         msg.trajectories.append(m)
     return msg
@@ -219,8 +223,37 @@ def predictions_from_msg(msg):
         _finite([m.probability, m.dt, m.length, m.width, m.radius], f"prediction of agent {m.agent_id}")
         if not (m.dt > 0):
             raise MessageError(f"prediction of agent {m.agent_id}: dt must be > 0")
+        goal = None
+        if m.intention_kind != PredMsg.INTENT_NONE:
+            goal = np.array([m.goal.x, m.goal.y, m.goal.theta])
+            _finite(goal, f"prediction of agent {m.agent_id} goal")
         out.append(PredictedTrajectory(agent_id=int(m.agent_id), poses=poses, dt=float(m.dt),
                                        probability=float(m.probability),
                                        is_pedestrian=m.agent_type == PredMsg.AGENT_PEDESTRIAN, length=float(m.length),
-                                       width=float(m.width), radius=float(m.radius), spot_id=int(m.spot_id)))
+                                       width=float(m.width), radius=float(m.radius), spot_id=int(m.spot_id),
+                                       goal=goal))
     return out
+
+
+# ------------------------------------------------------------------------------------------ validation
+
+
+def check_probabilities(values, what: str) -> np.ndarray:
+    """float64 copy of float32 message probabilities; MessageError for NaN/inf or values outside [0, 1]."""
+    p = np.asarray(values, dtype=np.float32).astype(float)
+    _finite(p, what)
+    if p.size and (p.min() < 0.0 or p.max() > 1.0):
+        raise MessageError(f"{what}: probabilities must lie in [0, 1]")
+    return p
+
+
+def check_finite(values, what: str) -> None:
+    """MessageError naming ``what`` if ``values`` contain NaN or inf."""
+    _finite(values, what)
+
+
+def check_stamp(header_stamp, step: int, dt: float) -> None:
+    """MessageError unless the header stamp is exactly t = step * dt (integer nanoseconds)."""
+    got, want = time_to_ns(header_stamp), step_to_ns(step, dt)
+    if got != want:
+        raise MessageError(f"header.stamp {got} ns does not match step {step} (expected {want} ns)")

@@ -132,7 +132,8 @@ def markdown_table(specs: list[ParamSpec]) -> str:
         if s.choices:
             rng = f" One of {', '.join(s.choices)}."
         paper = " ".join(x for x in (f"`{s.symbol}`" if s.symbol else "", s.section) if x)
-        rows.append(f"| `{s.name}` | {s.type.__name__} | `{s.default}` | {paper} | {s.description}{rng} |")
+        desc = s.description + ("." if rng and s.description and not s.description.endswith(".") else "")
+        rows.append(f"| `{s.name}` | {s.type.__name__} | `{s.default}` | {paper} | {desc}{rng} |")
     return "\n".join(rows)
 
 

@@ -4,6 +4,13 @@ Subscribes lot_map (latched), observation, and — when enabled — beliefs and 
 it decides once all enabled inputs stamped like observation k have arrived. Publishes cmd
 (TwistStamped, stamped like the observation it answers), plan (nav_msgs/Path), decision
 (avp_msgs/PlannerDecision with timings). Never reads ground truth.
+
+A lifecycle (managed) node, so that planners can be swapped while the simulator runs (`avp swap-planner`,
+docs/custom_planner.md): *configure* builds the planner core for the lot, *activate* starts answering
+observations (the newest one buffered while inactive first), *deactivate* stops it (no command is
+published while inactive: the simulator holds the ego still), *shutdown* ends the process. With
+``autostart`` (default) it configures and activates itself at start-up. An observation with step 0
+starts a new episode (the core is reset); one older than the newest seen is dropped with a warning.
 """
 
 from __future__ import annotations
@@ -13,9 +20,10 @@ import sys
 import time
 
 import numpy as np
+import rclpy
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from nav_msgs.msg import Path
-from rclpy.node import Node
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -26,6 +34,7 @@ from avp_common.conversions import (
     observation_from_msg,
     predictions_from_msg,
 )
+from avp_common.lifecycle import guard_lifecycle_services
 from avp_common.node_main import run_node
 from avp_common.params import (
     ParamSpec,
@@ -38,6 +47,8 @@ from avp_msgs.msg import LotMap, Observation, PlannerDecision, PredictedTrajecto
 from avp_planner.core.settings import DEFAULT_SETTINGS
 
 NODE_PARAMS = [
+    ParamSpec("autostart", bool, "Lifecycle: configure and activate at start-up; false = stay unconfigured until "
+              "`avp swap-planner` (or a lifecycle change_state call) brings the node up.", default=True),
     ParamSpec("use_beliefs", bool, "Wait for and use beliefs (from the belief node, #4); false = beliefs from "
               "observation only.", "b_t", "§V-B", default=False),
     ParamSpec("use_predictions", bool, "Wait for and use predicted trajectories (#4); false = none.", "",
@@ -51,14 +62,18 @@ def _quat_z(theta: float):
     return math.sin(theta / 2.0), math.cos(theta / 2.0)
 
 
-class PlannerNode(Node):
+class PlannerNode(LifecycleNode):
     def __init__(self) -> None:
         super().__init__("avp_planner")
+        guard_lifecycle_services(self)
         p = declare_and_validate(self, PLANNER_PARAMS)
         self.use_beliefs, self.use_predictions = p["use_beliefs"], p["use_predictions"]
         self.settings = dataclass_from_values(DEFAULT_SETTINGS, p).validate()
         self.planner = None
         self.lot = None
+        self.configured = False
+        self.active = False
+        self.last_step: int | None = None  # newest observation step seen
         self.obs: dict[int, Observation] = {}
         self.beliefs: dict[int, SpotBeliefs] = {}
         self.preds: dict[int, PredictedTrajectoryArray] = {}
@@ -72,24 +87,83 @@ class PlannerNode(Node):
             self.create_subscription(SpotBeliefs, "beliefs", self._on_beliefs, STEP)
         if self.use_predictions:
             self.create_subscription(PredictedTrajectoryArray, "predictions", self._on_preds, STEP)
+        if p["autostart"]:
+            self.trigger_configure()
+            self.trigger_activate()
 
-    def _on_lot(self, msg: LotMap) -> None:
+    # ---------------------------------------------------------------- lifecycle
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.configured = True
+        self._build()
+        self.get_logger().info(f"configured ({'lot known' if self.planner else 'waiting for lot_map'})")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.active = True
+        self.get_logger().info("activated: answering observations")
+        for k in sorted(self.obs):  # the newest observation buffered while inactive
+            self._try(k)
+        return super().on_activate(state)
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.active = False
+        self.get_logger().info("deactivated: no commands until activated again")
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.configured, self.planner = False, None
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.active = False
+        self.get_logger().info("shut down: exiting")
+        self._exit_timer = self.create_timer(0.2, lambda: rclpy.try_shutdown())  # after the service reply
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.active = False
+        return TransitionCallbackReturn.SUCCESS
+
+    def _build(self) -> None:
         from avp_planner.core.decision import EgoPlanner
 
+        if self.configured and self.lot is not None and self.planner is None:
+            self.planner = EgoPlanner(self.lot, self.settings)
+
+    # ---------------------------------------------------------------- inputs
+    def _on_lot(self, msg: LotMap) -> None:
         try:
             self.lot = lot_from_msg(msg)
         except ValueError as exc:
             self.get_logger().error(f"lot_map: {exc}")
             return
-        self.planner = EgoPlanner(self.lot, self.settings)
+        self.planner = None
+        self._build()
         for k in sorted(self.obs):
             self._try(k)
 
     def _on_obs(self, msg: Observation) -> None:
-        if msg.step in self.obs or (self.obs and msg.step < max(self.obs)):
-            return  # re-sent or out-of-order observation: already handled
-        self.obs[int(msg.step)] = msg
-        self._try(int(msg.step))
+        k = int(msg.step)
+        if k == 0 and self.last_step is not None:  # a new episode (reset): forget the old one
+            self.obs.clear()
+            for d in (self.beliefs, self.preds):
+                for old in [s for s in d if s > 0]:
+                    del d[old]
+            if self.planner is not None:
+                self.planner.reset()
+        elif self.last_step is not None and k < self.last_step:
+            self.get_logger().warning(
+                f"{self.sub_obs.topic_name}: step {k} is older than step {self.last_step} (out of order); dropped")
+            return
+        if k in self.obs:
+            return  # re-sent observation still pending
+        self.last_step = k
+        self.obs[k] = msg
+        if not self.active:  # keep only the newest inputs while inactive
+            for d in (self.obs, self.beliefs, self.preds):
+                for old in [s for s in d if s < k]:
+                    del d[old]
+        self._try(k)
 
     def _on_beliefs(self, msg: SpotBeliefs) -> None:
         self.beliefs[int(msg.step)] = msg
@@ -100,17 +174,20 @@ class PlannerNode(Node):
         self._try(int(msg.step))
 
     def _try(self, k: int) -> None:
-        if self.planner is None or k not in self.obs:
+        if not self.active or self.planner is None or k not in self.obs:
             return
         if (self.use_beliefs and k not in self.beliefs) or (self.use_predictions and k not in self.preds):
             return
         msg = self.obs.pop(k)
+        topic = self.sub_obs.topic_name
         try:
             obs = observation_from_msg(msg)
+            topic = self.sub_obs.topic_name.replace("observation", "beliefs")
             beliefs = beliefs_from_msg(self.beliefs.pop(k), self.lot) if self.use_beliefs else None
+            topic = self.sub_obs.topic_name.replace("observation", "predictions")
             preds = predictions_from_msg(self.preds.pop(k)) if self.use_predictions else []
         except MessageError as exc:
-            self.get_logger().error(f"{self.sub_obs.topic_name} step {k}: {exc}; holding still")
+            self.get_logger().error(f"{topic} step {k}: {exc}; holding still")
             self._publish_cmd(msg.header.stamp, 0.0, 0.0)
             return
         for d in (self.obs, self.beliefs, self.preds):  # forget anything older
@@ -120,6 +197,8 @@ class PlannerNode(Node):
         decision = self.planner.decide(obs, beliefs, preds)
         total = time.perf_counter() - t0
         v, om = decision.command
+        if decision.reason.startswith("invalid input"):
+            self.get_logger().error(f"{self.sub_obs.topic_name} step {k}: {decision.reason}; holding still")
         self._publish_cmd(msg.header.stamp, float(v), float(om))
         self._publish_decision(msg, decision, total)
 

@@ -47,6 +47,9 @@ SIM_PARAMS: list[ParamSpec] = [
               "observation is re-sent with a warning.", min=0.05, default=5.0),
     ParamSpec("command_watchdog", float, "Real-time: a command older than this (wall seconds) is ignored and "
               "the ego holds still.", min=0.0, default=0.3),
+    ParamSpec("command_max_lag", int, "Real-time: a command answering an observation more than this many steps "
+              "old is ignored and the ego holds still (0: only the current one; a dead pipeline node stops the ego "
+              "within one step).", min=0, max=1000, default=0),
     ParamSpec("wait_for_subscribers", bool, "Lock-step: hold step 0 until a subscriber to observation and a "
               "publisher on cmd exist.", default=True),
     ParamSpec("min_subscribers", int, "Lock-step: step 0 waits for this many observation subscribers (the ego "

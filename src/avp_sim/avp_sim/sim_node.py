@@ -8,7 +8,9 @@ Topics (relative; the launcher puts every node in namespace /avp):
 
 Lock-step: observation k is published, the command stamped t_k is awaited, then the world steps,
 so results do not depend on compute speed. Real-time: a wall timer steps every dt with the latest
-command; no fresh command (watchdog) ⇒ the ego holds still.
+command if it answers the current observation (stamp; or one at most ``command_max_lag`` steps older)
+and arrived less than ``command_watchdog`` wall seconds ago; else the ego holds still (v = ω = 0) — so
+when a pipeline node dies the ego stops within one step.
 """
 
 from __future__ import annotations
@@ -62,7 +64,7 @@ class SimNode(Node):
         self.reactive = self.p["reactive"]
         self.started = False  # step 0 published
         self.last_pub_wall = 0.0
-        self.latest_cmd: tuple[float, float, float] | None = None  # (v, omega, wall time)
+        self.latest_cmd: tuple[float, float, float, int] | None = None  # (v, omega, wall time, stamp ns)
         if self.p["autostart"]:
             self._new_episode(self.seed, self.reactive)
         if self.lockstep:
@@ -74,8 +76,9 @@ class SimNode(Node):
         )
 
     # ---------------------------------------------------------------- episodes
-    def _new_episode(self, seed: int, reactive: bool) -> World:
-        self.world = make_world(self.lot, self.p, seed, reactive)
+    def _new_episode(self, seed: int, reactive: bool, scenario_file: str = "") -> World:
+        self.world = make_world(self.lot, self.p, seed, reactive, scenario_file)
+        seed, reactive = self.world.scenario.seed, self.world.scenario.reactive
         self.seed, self.reactive = seed, reactive
         self.started = False
         self.latest_cmd = None
@@ -85,9 +88,7 @@ class SimNode(Node):
 
     def _on_reset(self, req: ResetEpisode.Request, resp: ResetEpisode.Response) -> ResetEpisode.Response:
         try:
-            if req.scenario_file:
-                raise ValueError("scenario files are not supported yet; give a seed")
-            w = self._new_episode(int(req.seed), bool(req.reactive))
+            w = self._new_episode(int(req.seed), bool(req.reactive), req.scenario_file)
             if not self.lockstep:
                 self._publish_step()
             resp.success, resp.message, resp.n_vehicles = True, "ok", len(w.scenario.vehicles)
@@ -141,8 +142,11 @@ class SimNode(Node):
             self._publish_step()
             return
         v, om = 0.0, 0.0
-        if self.latest_cmd is not None and time.monotonic() - self.latest_cmd[2] <= self.p["command_watchdog"]:
-            v, om = self.latest_cmd[0], self.latest_cmd[1]
+        if self.latest_cmd is not None:
+            cv, com, wall, stamp = self.latest_cmd
+            lag = (step_to_ns(w.step_index, self.dt) - stamp) / step_to_ns(1, self.dt)  # steps behind
+            if time.monotonic() - wall <= self.p["command_watchdog"] and 0 <= lag <= self.p["command_max_lag"]:
+                v, om = cv, com
         w.step(v, om)
         self._publish_step()
 
@@ -154,11 +158,16 @@ class SimNode(Node):
         w = self.world
         if w is None or w.done:
             return
-        if not self.lockstep:
-            self.latest_cmd = (v, om, time.monotonic())
-            return
         expected = step_to_ns(w.step_index, self.dt)
         got = time_to_ns(msg.header.stamp)
+        if not self.lockstep:
+            if got > expected:
+                self.get_logger().warning(
+                    f"{self.sub_cmd.topic_name}: command stamped {got} ns is ahead of step {w.step_index}; dropped")
+                return
+            if self.latest_cmd is None or got >= self.latest_cmd[3]:  # never replaced by an older answer
+                self.latest_cmd = (v, om, time.monotonic(), got)
+            return
         if not self.started or got != expected:
             if got > expected:
                 self.get_logger().warning(

@@ -82,3 +82,4 @@ class PredictedTrajectory:
     width: float = 0.0
     radius: float = 0.0  # pedestrians
     spot_id: int = -1  # the intended spot, -1 for exploration / unconditioned
+    goal: np.ndarray | None = None  # (3,) the conditioning goal (spot or exploration point); None: unconditioned

@@ -8,5 +8,7 @@ Modules (never import rclpy or message classes here):
 * :mod:`.intention` — the :class:`~.intention.Intention` record (eta_k,i and eta_hat_k,q, §V-A);
 * :mod:`.intent_model` — the ParkPredict+ intent CNN and its feature computation (§V-A);
 * :mod:`.prediction` — trajectory predictors (intention-conditioned cubic Bezier and constant velocity, §V-C);
+* :mod:`.prediction_astar` — the Hybrid A* predictor (paths to the intended goals with the planner's search);
+* :mod:`.debug_views` — the belief map as an occupancy grid and the BEVs tiled (the belief node's debug topics);
 * :mod:`.pipeline` — one perception step chaining the above (eq. 7 -> BEV -> CNN -> eq. 8 -> prediction).
 """

@@ -216,6 +216,13 @@ class FusedIntentNet:
 
 
 MODES = ("incremental", "fused", "reference")
+WEIGHTS_FILE = "intent_cnn.pt"  # the shipped state dict, under avp_perception/models/ (docs/intent_model.md)
+
+
+def default_weights_path() -> Path:
+    """Where the shipped intent CNN weights live: ``avp_perception/models/intent_cnn.pt`` (made by
+    ``avp train-intent``; a JSON card with the same stem records data, command and accuracy)."""
+    return Path(__file__).resolve().parents[1] / "models" / WEIGHTS_FILE
 
 
 class IntentPredictor:
@@ -272,6 +279,18 @@ class IntentPredictor:
         first = self._first_seen.setdefault(int(vehicle.id), obs.t - span)
         return max(0.0, obs.t - first) / 60.0
 
+    @classmethod
+    def pretrained(cls, lot: LotMap | None = None, bev_config: BEVConfig = BEVConfig(), mode: str = "incremental",
+                   path: str | Path | None = None) -> IntentPredictor:
+        """An intent model with trained weights: ``path`` or the shipped ones (:func:`default_weights_path`).
+        FileNotFoundError names a missing file."""
+        p = Path(path) if path is not None else default_weights_path()
+        if not p.is_file():
+            raise FileNotFoundError(f"intent weights {p}: no such file (run `avp train-intent`)")
+        pred = cls(lot, bev_config, mode=mode)
+        pred.load_weights(p)
+        return pred
+
     def load_weights(self, path: str | Path) -> None:
         """Load a state dict saved with ``torch.save(model.state_dict(), path)``."""
         state = torch.load(Path(path), map_location="cpu", weights_only=True)
@@ -293,14 +312,7 @@ class IntentPredictor:
         ``beliefs`` is b~_t (array in lot spot order) or a :class:`BeliefMap` after ``observe`` (its
         ``b_tilde`` and observed spots are used).
         """
-        r = self.renderer(lot)
-        if isinstance(beliefs, BeliefMap):
-            b_tilde, observed = beliefs.b_tilde, beliefs.observed_mask
-        else:
-            b_tilde, observed = np.asarray(beliefs, dtype=float), r.observed_mask(obs)
-        bevs = r.render_all(obs, list(vehicles), b_tilde, observed, ego_history)
-        feats = [intent_features(bev.pose, bev.speed, r.spot_centers[bev.candidate_idx], r.lot.entrance,
-                                 self.time_in_lot(obs, v)) for bev, v in zip(bevs, vehicles, strict=True)]
+        bevs, feats = self.inputs(obs, vehicles, beliefs, lot, ego_history=ego_history)
         logits = self.logits(bevs, feats)
         out = []
         start = 0
@@ -318,6 +330,22 @@ class IntentPredictor:
                 none_probability=p_none,
             ))
         return (out, bevs) if return_bevs else out
+
+    def inputs(self, obs: Observation, vehicles: Sequence[ObservedVehicle], beliefs: np.ndarray | BeliefMap,
+               lot: LotMap | None = None, *, ego_history: np.ndarray | None = None
+               ) -> tuple[list[VehicleBEV], list[np.ndarray]]:
+        """The network inputs of :meth:`predict_all`: per vehicle its BEV (I_k,0 and the marked I_k,i, §V-B)
+        and its (K + 1, 5) features (§V-A). The training data (:mod:`avp_perception.training`) is made
+        with this same call."""
+        r = self.renderer(lot)
+        if isinstance(beliefs, BeliefMap):
+            b_tilde, observed = beliefs.b_tilde, beliefs.observed_mask
+        else:
+            b_tilde, observed = np.asarray(beliefs, dtype=float), r.observed_mask(obs)
+        bevs = r.render_all(obs, list(vehicles), b_tilde, observed, ego_history)
+        feats = [intent_features(bev.pose, bev.speed, r.spot_centers[bev.candidate_idx], r.lot.entrance,
+                                 self.time_in_lot(obs, v)) for bev, v in zip(bevs, vehicles, strict=True)]
+        return bevs, feats
 
     @torch.no_grad()
     def logits(self, bevs: Sequence[VehicleBEV], features: Sequence[np.ndarray]) -> np.ndarray:

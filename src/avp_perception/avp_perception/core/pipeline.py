@@ -13,7 +13,8 @@ ego appears in the other vehicles' BEVs with a trail like every observed vehicle
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -24,6 +25,8 @@ from avp_perception.core.intention import Intention
 from avp_perception.core.prediction import PredictionConfig, make_predictor
 from avp_world.lot import LotMap
 from avp_world.types import Observation, PredictedTrajectory
+
+SHIPPED_WEIGHTS = "intent_cnn.pt"  # file name under avp_perception/models/
 
 
 @dataclass(frozen=True)
@@ -70,13 +73,67 @@ class PerceptionCore:
             self._ego.popleft()
         return np.array(self._ego)
 
-    def step(self, obs: Observation) -> PerceptionOutput:
+    def perceive(self, obs: Observation) -> PerceptionOutput:
+        """eq. (7) -> BEVs -> intent CNN -> eq. (8): what the belief node publishes (no trajectories)."""
         ego_hist = self.ego_history(obs)
         b_tilde = self.beliefs.observe(obs.vacant_spot_ids, obs.occupied_spot_ids)  # eq. (7)
         dynamic = [v for v in obs.vehicles if not v.is_static]
         intentions, bevs = self.intent.predict_all(obs, dynamic, self.beliefs, ego_history=ego_hist,
                                                    return_bevs=True)  # §V-B, §V-A
         beliefs = self.beliefs.apply_intentions(intentions)  # eq. (8)
-        trajectories = self.predictor.predict(obs, intentions)  # §V-C
         return PerceptionOutput(step=obs.step, b_tilde=b_tilde, beliefs=beliefs, intentions=intentions,
-                                trajectories=trajectories, bevs=bevs if self.keep_bevs else [])
+                                trajectories=[], bevs=bevs if self.keep_bevs else [])
+
+    def step(self, obs: Observation) -> PerceptionOutput:
+        """:meth:`perceive`, then the predicted trajectories of §V-C."""
+        out = self.perceive(obs)
+        trajectories = self.predictor.predict(obs, out.intentions)  # §V-C
+        return PerceptionOutput(step=out.step, b_tilde=out.b_tilde, beliefs=out.beliefs, intentions=out.intentions,
+                                trajectories=trajectories, bevs=out.bevs)
+
+
+# ------------------------------------------------------------------------------------ message precision
+
+
+def float32_intention(it: Intention) -> Intention:
+    """``it`` as it travels in avp_msgs/Intention: probabilities rounded to float32 (points stay float64)."""
+
+    def f32(x) -> np.ndarray:
+        return np.asarray(x, dtype=np.float32).astype(float)
+
+    return replace(it, spot_probabilities=f32(it.spot_probabilities),
+                   exploration_probabilities=f32(it.exploration_probabilities),
+                   none_probability=float(np.float32(it.none_probability)))
+
+
+def float32_beliefs(b: np.ndarray) -> np.ndarray:
+    """b_t as it travels in avp_msgs/SpotBeliefs (float32)."""
+    return np.asarray(b, dtype=np.float32).astype(float)
+
+
+# ------------------------------------------------------------------------------------------ intent weights
+
+
+def shipped_weights_path() -> Path | None:
+    """The intent CNN weights shipped with the package (``avp_perception/models/intent_cnn.pt``), if present."""
+    path = Path(__file__).resolve().parents[1] / "models" / SHIPPED_WEIGHTS
+    return path if path.is_file() else None
+
+
+def make_intent_predictor(lot: LotMap | None, bev_config: BEVConfig = BEVConfig(), weights: str = "", seed: int = 0,
+                          mode: str = "incremental") -> tuple[IntentPredictor, str]:
+    """The intent model of §V-A and a line saying which weights it runs with.
+
+    ``weights``: a state-dict file (``torch.save(model.state_dict(), path)``); empty = the shipped weights
+    (:func:`shipped_weights_path`) if present, else seeded random weights (valid but uninformative).
+    A file that cannot be loaded raises ValueError naming it.
+    """
+    intent = IntentPredictor(lot, bev_config, seed=seed, mode=mode)
+    path = Path(weights) if weights else shipped_weights_path()
+    if path is None:
+        return intent, f"intent CNN: untrained seeded random weights (seed {seed}); no shipped weights found"
+    try:
+        intent.load_weights(path)
+    except Exception as exc:  # noqa: BLE001 - any unreadable/mismatched file is one start-up error
+        raise ValueError(f"intent weights {path}: cannot load ({exc})") from None
+    return intent, f"intent CNN: weights from {path}" + ("" if weights else " (shipped)")

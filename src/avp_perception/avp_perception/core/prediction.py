@@ -25,6 +25,9 @@ Every predictor has ``predict(obs, intentions=(), horizon=None) -> list[Predicte
   so is the "none" mass >= mu when there is no exploration point to condition on.
 * ``"constant_velocity"`` (:class:`ConstantVelocityPredictor`): every dynamic vehicle keeps its last
   displacement per step (p_t - p_t-dt) and its heading.
+* ``"hybrid_astar"`` (:class:`~avp_perception.core.prediction_astar.HybridAStarPredictor`, issue #4): for
+  every intention >= mu a path from the vehicle to the goal planned with the ego planner's Hybrid A*
+  (§V-D), followed at v_hat; constant velocity when no path is found (see that module).
 
 Pedestrians are always predicted at constant velocity from their two positions, v_hat = |p_t - p_t-dt| / dt
 (§V-C), with theta = 0.
@@ -34,7 +37,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -48,6 +51,30 @@ START_TANGENTS = ("motion", "paper", "heading")
 
 
 @dataclass(frozen=True)
+class HybridAStarPredictionSettings:
+    """The ``"hybrid_astar"`` predictor (:mod:`.prediction_astar`): search caps and the followed speed."""
+
+    max_iterations: int = 200  # node pops per Hybrid A* query (the ego planner's search, §V-D)
+    time_cap: float = 1.0  # s per query, wall clock: a safety net only (the iteration cap ends searches first)
+    max_length: float = 40.0  # m: a longer path counts as no plan (constant velocity instead)
+    min_speed: float = 0.0  # m/s: the path is followed at max(v_hat, min_speed)
+    footprint_margin: float = 0.1  # m: clearance the searched path keeps to spots and static vehicles
+
+    def validate(self) -> HybridAStarPredictionSettings:
+        if int(self.max_iterations) != self.max_iterations or self.max_iterations < 1:
+            raise ValueError(f"hybrid_astar.max_iterations must be an integer >= 1, got {self.max_iterations!r}")
+        for name in ("time_cap", "max_length"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"hybrid_astar.{name} must be a finite number > 0, got {v!r}")
+        for name in ("min_speed", "footprint_margin"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"hybrid_astar.{name} must be a finite number >= 0, got {v!r}")
+        return self
+
+
+@dataclass(frozen=True)
 class PredictionConfig:
     """Parameters of §V-C (defaults: §VI-A where the paper gives them)."""
 
@@ -57,6 +84,7 @@ class PredictionConfig:
     horizon: float | None = None  # s predicted in total, max(t_pred, t_plan); None: t_pred
     start_tangent: str = "motion"  # "motion", "paper" (eq. 11 as printed) or "heading"
     samples: int = 128  # points of the arc-length table of each curve
+    hybrid_astar: HybridAStarPredictionSettings = field(default_factory=HybridAStarPredictionSettings)
 
     def validate(self) -> PredictionConfig:
         for name in ("zeta", "t_pred"):
@@ -71,6 +99,7 @@ class PredictionConfig:
             raise ValueError(f"start_tangent must be one of {START_TANGENTS}, got {self.start_tangent!r}")
         if self.samples < 4:
             raise ValueError(f"samples must be >= 4, got {self.samples!r}")
+        self.hybrid_astar.validate()
         return self
 
 
@@ -267,7 +296,8 @@ class BezierPredictor(ConstantVelocityPredictor):
             ctrl = bezier_control_points(pose, speed, goal, cfg.zeta, phi)
             poses = follow_bezier(ctrl, speed, dt, n_steps, n_curve, float(pose[2]), flip, cfg.samples)
             out.append(PredictedTrajectory(agent_id=int(vehicle.id), poses=poses, dt=dt, probability=p,
-                                           length=float(vehicle.length), width=float(vehicle.width), spot_id=sid))
+                                           length=float(vehicle.length), width=float(vehicle.width), spot_id=sid,
+                                           goal=np.asarray(goal, dtype=float).copy()))
         if intention.none_probability >= cfg.mu and len(intention.exploration_points) == 0:
             out.append(constant_velocity_vehicle(vehicle, dt, n_steps, intention.none_probability))
         if not out:
@@ -287,15 +317,23 @@ class BezierPredictor(ConstantVelocityPredictor):
 
 
 PREDICTORS = {BezierPredictor.name: BezierPredictor, ConstantVelocityPredictor.name: ConstantVelocityPredictor}
+PREDICTOR_NAMES = ("bezier", "constant_velocity", "hybrid_astar")
 
 
 def make_predictor(name: str, lot: LotMap | None = None, config: PredictionConfig = PredictionConfig()
                    ) -> TrajectoryPredictor:
-    """The predictor called ``name`` ("bezier" or "constant_velocity"); ValueError lists the names."""
+    """The predictor called ``name`` (one of :data:`PREDICTOR_NAMES`); ValueError lists the names.
+
+    ``"hybrid_astar"`` is imported on demand (it pulls in the planner core, :mod:`avp_planner.core`).
+    """
+    if name == "hybrid_astar":
+        from avp_perception.core.prediction_astar import HybridAStarPredictor
+
+        return HybridAStarPredictor(lot, config)
     try:
         cls = PREDICTORS[name]
     except KeyError:
-        raise ValueError(f"unknown predictor {name!r}; choose one of {sorted(PREDICTORS)}") from None
+        raise ValueError(f"unknown predictor {name!r}; choose one of {sorted(PREDICTOR_NAMES)}") from None
     return cls(lot, config)
 
 

@@ -306,6 +306,18 @@ class EgoPlanner:
         idx = sorted(i for i in idx if beliefs[i] <= self.settings.decision.candidate_threshold)
         return np.asarray(idx, dtype=np.int64)
 
+    def _prioritised(self, cands: np.ndarray, priority: Sequence[int], ego: np.ndarray) -> np.ndarray:
+        """Candidate rows in the order of ``priority`` (spot ids); the rest after them, nearest first."""
+        rank = {}
+        for sid in priority:
+            if self.lot.has_spot(int(sid)):
+                rank.setdefault(self.lot.spot_index(int(sid)), len(rank))
+        listed = sorted((int(i) for i in cands if int(i) in rank), key=lambda i: rank[i])
+        rest = [int(i) for i in cands if int(i) not in rank]
+        dist = {i: math.hypot(*(self.lot.spot_poses[i, :2] - ego[:2])) for i in rest}
+        rest.sort(key=lambda i: (dist[i], i))
+        return np.asarray(listed + rest, dtype=np.int64)
+
     def spot_goals(self, k: int) -> np.ndarray:
         """The two goal poses of spot row ``k``: centred, spot heading and spot heading + π."""
         x, y, th = self.lot.spot_poses[k]
@@ -393,21 +405,26 @@ class EgoPlanner:
 
     # ------------------------------------------------------------------------------------- planning
     def _search_set(self, mode: str, items, ego, world, dyn, heur, astar, v0, t_end, stats, timing, blocked_out,
-                    max_iterations: int | None = None):
+                    max_iterations: int | None = None, first_feasible: bool = False):
         """Plan to each item (spot row index or exploration point) with branch and bound on c.
 
         Returns the feasible candidates sorted by cost, and whether some static path existed but every
-        one was blocked by predicted agents (those are appended to ``blocked_out``).
+        one was blocked by predicted agents (those are appended to ``blocked_out``). ``first_feasible``: the
+        items are tried in the given order (no lower bounds, no branch and bound) and the first feasible
+        plan ends the search (the implicit method's spot priority, ``decide(spot_priority=...)``).
         """
         entries = []
         for it in items:
             goals = self.spot_goals(it) if mode == PARK else it[0][None]
-            entries.append((self._lower_bound(ego, goals, heur), it, goals))
-        entries.sort(key=lambda e: e[0])
+            entries.append((0.0 if first_feasible else self._lower_bound(ego, goals, heur), it, goals))
+        if not first_feasible:
+            entries.sort(key=lambda e: e[0])
         found: list[_Candidate] = []
         blocked_by_agents = False
         best = math.inf
         for lb, it, goals in entries[: self.settings.decision.max_candidates_planned]:
+            if found and first_feasible:
+                break
             if (lb >= best and self.settings.decision.branch_and_bound) or time.perf_counter() > t_end:
                 break
             t0 = time.perf_counter()
@@ -471,8 +488,14 @@ class EgoPlanner:
 
     # ------------------------------------------------------------------------------------------ main
     def decide(self, obs: Observation, beliefs: np.ndarray | None = None,
-               predictions: Sequence[PredictedTrajectory] = ()) -> Decision:
-        """One decision step of §V-D (see the module docstring)."""
+               predictions: Sequence[PredictedTrajectory] = (), spot_priority: Sequence[int] | None = None
+               ) -> Decision:
+        """One decision step of §V-D (see the module docstring).
+
+        ``spot_priority`` (spot ids, most wanted first; the "Implicit" method of §VI-B-3): the candidate spots
+        are tried in that order — candidates not listed last, nearest first — and the first one with a safe
+        plan is taken instead of the lowest c_park.
+        """
         t_start = time.perf_counter()
         timing = {"spot_selection_time": 0.0, "path_planning_time": 0.0, "total": 0.0}
         stats: dict = {}
@@ -488,6 +511,9 @@ class EgoPlanner:
         world = self._static_world(obs, b)
         dyn = self._dynamic(obs, predictions)
         cands = self.candidate_spots(obs, b)
+        ordered = spot_priority is not None
+        if ordered:
+            cands = self._prioritised(cands, spot_priority, ego)
         timing["spot_selection_time"] += time.perf_counter() - t0
         why = ""
 
@@ -519,7 +545,7 @@ class EgoPlanner:
             self._last_park_attempt, self._park_attempt_step = attempt_key, obs.step
             heur, astar = self._searcher(world, ego, timing)
             found, blocked = self._search_set(PARK, cands.tolist(), ego, world, dyn, heur, astar, obs.ego_speed,
-                                              t_end, stats, timing, blocked_plans)
+                                              t_end, stats, timing, blocked_plans, first_feasible=ordered)
             plan = self._adopt(found, world, dyn, obs, timing)
             if plan is not None:
                 self._plan = plan
@@ -551,7 +577,7 @@ class EgoPlanner:
                 heur2, astar2 = self._searcher(world2, ego, timing)
                 if len(cands):
                     found, _ = self._search_set(PARK, cands.tolist(), ego, world, dyn, heur2, astar2,
-                                                obs.ego_speed, t_fb, stats, timing, blocked_plans, it_fb)
+                                                obs.ego_speed, t_fb, stats, timing, blocked_plans, it_fb, ordered)
                     plan = self._adopt(found, world, dyn, obs, timing)
                 if plan is None:
                     plan, _, _ = self._explore(ego, world, dyn, heur2, astar2, obs, t_fb, stats, timing,

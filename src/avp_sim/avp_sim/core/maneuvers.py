@@ -454,11 +454,12 @@ def _project(pc: _Piece, p: np.ndarray, hint: int) -> tuple[int, float, float]:
     return j, float(pc.s[j] + pc.direction * (c * ex + s * ey)), -s * ex + c * ey
 
 
-def _track(start: np.ndarray, pieces: list[_Piece], vehicle: VehicleSpec, dt: float) -> np.ndarray:
+def _track(start: np.ndarray, pieces: list[_Piece], vehicle: VehicleSpec, dt: float, max_speed: float = MAX_SPEED,
+           max_accel: float = MAX_ACCEL) -> np.ndarray:
     """Controls (T, 2) that drive eq. (1) along the pieces, stopping (v = 0) at the end of each.
 
     Speed: the largest of the discrete accelerate / cruise / brake-to-stop profile (see
-    :func:`_brake_speed`), never changing by more than MAX_ACCEL dt per step. Steering: an Euler step
+    :func:`_brake_speed`, at most ``max_speed``), never changing by more than ``max_accel`` dt per step. Steering: an Euler step
     moves the car along its *current* heading, so the heading is set one step ahead: omega_k makes
     theta_{k+1} equal to the reference heading at the middle of step k + 1 (the chord direction of the
     reference arc there, which removes the Euler drift off curves) minus d atan(e_lat / L) to steer the
@@ -466,12 +467,12 @@ def _track(start: np.ndarray, pieces: list[_Piece], vehicle: VehicleSpec, dt: fl
     |v| / R_min.
     """
     kmax = (1.0 / vehicle.min_turning_radius) * (1.0 - 1e-12)
-    dv = MAX_ACCEL * dt * (1.0 - 1e-12)
+    dv = max_accel * dt * (1.0 - 1e-12)
     state = np.asarray(start, dtype=float).copy()
     controls: list[tuple[float, float]] = []
 
     def next_speed(speed: float, rem: float) -> float:
-        return max(min(MAX_SPEED, speed + dv, _brake_speed(rem, dt, dv)), speed - dv, 0.0)
+        return max(min(max_speed, speed + dv, _brake_speed(rem, dt, dv)), speed - dv, 0.0)
 
     for pc in pieces:
         d = pc.direction
@@ -514,13 +515,14 @@ def _end_ok(final: np.ndarray, goal: np.ndarray) -> bool:
     return abs(lat) <= _END_LAT_TOL and abs(lon) <= _END_LON_TOL and dth <= _END_HEAD_TOL
 
 
-def _controls_ok(controls: np.ndarray, vehicle: VehicleSpec, dt: float) -> bool:
+def _controls_ok(controls: np.ndarray, vehicle: VehicleSpec, dt: float, max_speed: float = MAX_SPEED,
+                 max_accel: float = MAX_ACCEL) -> bool:
     v, om = controls[:, 0], controls[:, 1]
     acc = np.abs(np.diff(np.concatenate([[0.0], v]))) / dt
     return bool(
-        (np.abs(v) <= MAX_SPEED + 1e-9).all()
+        (np.abs(v) <= max_speed + 1e-9).all()
         and (np.abs(om) <= np.abs(v) / vehicle.min_turning_radius + 1e-9).all()
-        and (acc <= MAX_ACCEL + 1e-9).all()
+        and (acc <= max_accel + 1e-9).all()
     )
 
 
@@ -533,22 +535,31 @@ def generate_maneuver(
     scene: SceneGeometry = SceneGeometry(),
     vehicle: VehicleSpec = VehicleSpec(),
     dt: float = 0.1,
+    max_speed: float = MAX_SPEED,
+    max_accel: float = MAX_ACCEL,
 ) -> Maneuver:
     """Plan, time-parameterise and track one of the 8 maneuvers (see the module docstring). Cached.
 
+    ``max_speed`` / ``max_accel`` bound |v| and |dv/dt| of the time parameterisation (defaults: ParkSim's
+    parking limits 2 m/s, 2 m/s^2); the geometric path does not depend on them.
+
     Raises:
         RuntimeError: no feasible maneuver was found for this scene/vehicle.
+        ValueError: a non-positive ``max_speed`` or ``max_accel``.
     """
     key = _check_key(key)
+    if not (max_speed > 0 and max_accel > 0):
+        raise ValueError(f"max_speed and max_accel must be > 0, got {max_speed}, {max_accel}")
     planner = _Planner(key, scene, vehicle)
     verify = _Checker(key.side, scene, vehicle, max(scene.clearance - _VERIFY_SLACK, 0.0))
     start = planner.start
     for n_tried, plan in enumerate(planner.plans()):
         if n_tried >= 50:
             break
-        controls = _track(start, _pieces(start, plan.segments, planner.radius), vehicle, dt)
+        controls = _track(start, _pieces(start, plan.segments, planner.radius), vehicle, dt, max_speed, max_accel)
         states = rollout_vehicle(start, controls, dt)
-        if _controls_ok(controls, vehicle, dt) and _end_ok(states[-1], planner.goal) and verify.free(states):
+        ok = _controls_ok(controls, vehicle, dt, max_speed, max_accel) and _end_ok(states[-1], planner.goal)
+        if ok and verify.free(states):
             for a in (controls, states):
                 a.flags.writeable = False
             s0 = start.copy()

@@ -82,6 +82,8 @@ class ScenarioParams:
     cruise_speed: tuple[float, float] = (1.5, 2.5)  # m/s before braking for the maneuver start
     approach_distance: tuple[float, float] = (0.0, 8.0)  # m left to the maneuver start at t = 0
     braking_decel: float = 1.5  # m/s^2 when stopping at the maneuver start
+    maneuver_max_speed: float = 2.0  # m/s, |v| bound of the maneuvers' time parameterisation
+    maneuver_max_accel: float = 2.0  # m/s^2, |dv/dt| bound of the maneuvers (ParkSim a_max_parking)
     ego_start: tuple[float, float, float] = (21.5, 38.0, -math.pi / 2)
     ego_clearance: float = 1.0  # m between a dynamic vehicle at t = 0 and the ego's start footprint
     aisle_width: float = 7.0
@@ -133,7 +135,7 @@ def build_dynamic_vehicle(
     k = lot.spot_index(spot_id)
     scene = SceneGeometry(aisle_width=params.aisle_width, spot_length=float(lot.spot_dims[k, 0]),
                           spot_width=float(lot.spot_dims[k, 1]))
-    man = generate_maneuver(key, scene, vehicle, params.dt)
+    man = generate_maneuver(key, scene, vehicle, params.dt, params.maneuver_max_speed, params.maneuver_max_accel)
     start_world, _ = maneuver_to_world(man, lot.spot_poses[k], params.aisle_width, key.side)
     # find the cruise length such that at t = 0 (after hist_steps) `approach` metres remain
     hist = int(round(params.t_hist / params.dt))
@@ -252,3 +254,126 @@ class ScenarioSummary:
         return cls(sc.seed, sc.reactive, sum(v.parked for v in sc.vehicles),
                    [{"id": v.id, "target_spot": v.target_spot_id, "maneuver": v.maneuver,
                      "passiveness": v.passiveness} for v in sc.dynamic_vehicles()])
+
+
+# ------------------------------------------------------------------------------------------ scenario files
+
+#: keys of a scenario file and of each dynamic_vehicles entry
+_FILE_KEYS = {"seed", "reactive", "ego_start", "vacant_spot_ids", "dynamic_vehicles"}
+_DYN_KEYS = {"target_spot", "maneuver", "cruise_speed", "approach_distance", "passiveness"}
+
+
+def _number(v, where: str, lo: float = -math.inf, hi: float = math.inf) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ScenarioError(f"{where}: expected a finite number, got {v!r}")
+    if not lo <= v <= hi:
+        raise ScenarioError(f"{where}: {v} is outside [{lo}, {hi}]")
+    return float(v)
+
+
+def _integer(v, where: str, lo: int = 0, hi: int = 2**32 - 1) -> int:
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise ScenarioError(f"{where}: expected an integer, got {v!r}")
+    if not lo <= v <= hi:
+        raise ScenarioError(f"{where}: {v} is outside [{lo}, {hi}]")
+    return int(v)
+
+
+def scenario_from_dict(lot: LotMap, data: dict, source: str, seed: int, reactive: bool,
+                       params: ScenarioParams = ScenarioParams(), vehicle: VehicleSpec = VehicleSpec()) -> Scenario:
+    """A hand-written scenario (the same ingredients as §VI-A, fixed instead of drawn).
+
+    ``vacant_spot_ids``: the spots left empty (every other spot holds a parked car, heading flipped at
+    random by ``seed``); ``dynamic_vehicles``: each parks in one of the vacant spots with one of ParkSim's 8
+    maneuvers ("side/stop/entry", e.g. ``near/before/head_in``), cruising at ``cruise_speed`` and
+    ``approach_distance`` from its maneuver start at t = 0, with passiveness n_pass (§III-B; 0 when not
+    reactive); ``ego_start`` [x, y, theta]. ``seed`` / ``reactive`` default to the request's. Every problem
+    raises :class:`ScenarioError` naming ``source`` and the field.
+    """
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{source}: top level must be a mapping with keys {sorted(_FILE_KEYS)}")
+    unknown = sorted(set(data) - _FILE_KEYS)
+    if unknown:
+        raise ScenarioError(f"{source}: '{unknown[0]}': unknown key (known: {sorted(_FILE_KEYS)})")
+    seed = _integer(data.get("seed", seed), f"{source}: seed")
+    reactive = data.get("reactive", reactive)
+    if not isinstance(reactive, bool):
+        raise ScenarioError(f"{source}: reactive: expected true/false, got {reactive!r}")
+    ego = data.get("ego_start", list(params.ego_start))
+    if not isinstance(ego, list) or len(ego) != 3:
+        raise ScenarioError(f"{source}: ego_start: expected [x, y, theta], got {ego!r}")
+    ego_start = np.array([_number(x, f"{source}: ego_start[{i}]") for i, x in enumerate(ego)])
+    if not polygon_contains_points(lot.boundary, rect_corners(ego_start, vehicle.length, vehicle.width)).all():
+        raise ScenarioError(f"{source}: ego_start: the ego's footprint is outside the lot")
+    if "vacant_spot_ids" not in data:
+        raise ScenarioError(f"{source}: vacant_spot_ids: missing")
+    vac = data["vacant_spot_ids"]
+    if not isinstance(vac, list):
+        raise ScenarioError(f"{source}: vacant_spot_ids: expected a list of spot ids, got {vac!r}")
+    vacant = []
+    for i, s in enumerate(vac):
+        sid = _integer(s, f"{source}: vacant_spot_ids[{i}]")
+        if not lot.has_spot(sid):
+            raise ScenarioError(f"{source}: vacant_spot_ids[{i}]: unknown spot id {sid} (lot '{lot.name}')")
+        if sid in vacant:
+            raise ScenarioError(f"{source}: vacant_spot_ids[{i}]: spot {sid} listed twice")
+        vacant.append(sid)
+    dyn_list = data.get("dynamic_vehicles", [])
+    if not isinstance(dyn_list, list):
+        raise ScenarioError(f"{source}: dynamic_vehicles: expected a list, got {dyn_list!r}")
+    names = {"/".join(k): k for k in ALL_MANEUVERS}
+    dynamic: list[VehicleAgent] = []
+    for j, d in enumerate(dyn_list):
+        w = f"{source}: dynamic_vehicles[{j}]"
+        if not isinstance(d, dict):
+            raise ScenarioError(f"{w}: expected a mapping with keys {sorted(_DYN_KEYS)}")
+        unknown = sorted(set(d) - _DYN_KEYS)
+        if unknown:
+            raise ScenarioError(f"{w}.{unknown[0]}: unknown key (known: {sorted(_DYN_KEYS)})")
+        for key in ("target_spot", "maneuver"):
+            if key not in d:
+                raise ScenarioError(f"{w}.{key}: missing")
+        spot = _integer(d["target_spot"], f"{w}.target_spot")
+        if spot not in vacant:
+            raise ScenarioError(f"{w}.target_spot: spot {spot} is not in vacant_spot_ids")
+        if spot in {a.target_spot_id for a in dynamic}:
+            raise ScenarioError(f"{w}.target_spot: spot {spot} is already the target of another vehicle")
+        if d["maneuver"] not in names:
+            raise ScenarioError(f"{w}.maneuver: {d['maneuver']!r} is not one of {sorted(names)}")
+        v_c = _number(d.get("cruise_speed", sum(params.cruise_speed) / 2), f"{w}.cruise_speed", 0.1, 5.0)
+        approach = _number(d.get("approach_distance", 0.0), f"{w}.approach_distance", 0.0, 50.0)
+        n_pass = _integer(d.get("passiveness", params.passiveness[0]), f"{w}.passiveness", 0, 100)
+        agent = build_dynamic_vehicle(lot, 1000 + j, spot, names[d["maneuver"]], v_c, approach, params, vehicle)
+        if not _valid_dynamic(lot, agent, ego_start, vehicle, params, dynamic):
+            raise ScenarioError(f"{w}: its plan leaves the lot, starts on the ego or collides with another "
+                                f"dynamic vehicle's plan")
+        dynamic.append(replace(agent, passiveness=n_pass if reactive else 0))
+    rng = np.random.default_rng(seed)
+    parked: list[VehicleAgent] = []
+    for s in lot.spots:
+        flip = rng.random() < 0.5  # drawn for every spot so that headings do not depend on the vacant set
+        if s.id in vacant:
+            continue
+        heading = s.heading + (math.pi if flip else 0.0)
+        pose = np.array([s.x, s.y, math.atan2(math.sin(heading), math.cos(heading))])
+        parked.append(VehicleAgent(id=s.id, length=params.parked_length, width=params.parked_width,
+                                   initial_state=pose, controls=np.zeros((0, 2)), parked=True))
+    return Scenario(seed=seed, reactive=reactive, ego_start=ego_start, ego=vehicle, vehicles=tuple(parked + dynamic),
+                    dt=params.dt, t_hist=params.t_hist)
+
+
+def load_scenario_file(lot: LotMap, path, seed: int, reactive: bool, params: ScenarioParams = ScenarioParams(),
+                       vehicle: VehicleSpec = VehicleSpec()) -> Scenario:
+    """Read a scenario YAML file (see :func:`scenario_from_dict`; example: avp_sim/scenarios/two_cars.yaml)."""
+    from pathlib import Path
+
+    import yaml
+
+    p = Path(path)
+    try:
+        data = yaml.safe_load(p.read_text())
+    except FileNotFoundError:
+        raise ScenarioError(f"{p}: no such scenario file") from None
+    except (OSError, yaml.YAMLError) as exc:
+        raise ScenarioError(f"{p}: not valid YAML ({' '.join(str(exc).split())})") from None
+    return scenario_from_dict(lot, data, str(p), seed, reactive, params, vehicle)

@@ -1,0 +1,122 @@
+"""One method's ego pipeline (ROS-free): perception cores + the §V-D planner, one :meth:`MethodEgo.step` per
+observation. Used in-process by ``avp experiment`` and wrapped by the ``method_ego`` node (live graph).
+
+Per step, following the method profile (:mod:`.profiles`):
+
+1. eq. (7): the belief map b~_t from the observation (:class:`~avp_perception.core.belief.BeliefMap`);
+2. beliefs ``intent``: the intent CNN of §V-A on every observed dynamic vehicle's reconstructed BEV (§V-B) and
+   eq. (8) (:meth:`PerceptionCore.perceive`, what the belief node computes); ``observation``: b~_t as is;
+3. trajectory prediction of the other agents (§V-C) with the profile's predictor, conditioned on the
+   intentions of step 2 (none for ``observation`` / ``nawaz``: constant velocity ignores them);
+4. beliefs ``nawaz``: Nawaz et al.'s occupancy from those predictions on the observed vacant spots
+   (:mod:`avp_perception.core.nawaz`);
+5. ``ego_intent``: the intent CNN on the ego's own BEV orders its candidate spots
+   (:mod:`avp_perception.core.implicit`);
+6. the planner's decision (:meth:`EgoPlanner.decide`).
+
+``message_precision`` (default on) rounds what travels in float32 message fields between the per-stage nodes
+of the live graph (intention probabilities into the predictor, trajectory probabilities and b_t into the
+planner) exactly as the messages do (as :class:`avp_bringup.inproc.PerceptionPlanner`), so that in-process
+episodes equal the node graph's.
+
+Spot-selection time (Table I) = steps 1-5 + the planner's candidate selection and pricing; path-planning
+time = the planner's Hybrid A* searches and tracking (§VI-B).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from avp_bringup.experiment.profiles import MethodProfile, planner_settings, prediction_config
+from avp_perception.core.bev import BEVConfig
+from avp_perception.core.implicit import ego_intention, spot_priority
+from avp_perception.core.nawaz import NawazConfig, NawazOccupancy
+from avp_perception.core.pipeline import PerceptionCore, float32_beliefs, float32_intention
+from avp_planner.core.decision import Decision, EgoPlanner
+from avp_world.lot import LotMap
+from avp_world.types import Observation, PredictedTrajectory
+
+
+@dataclass
+class EgoStep:
+    """What the ego did at one step."""
+
+    step: int
+    command: tuple[float, float]
+    decision: Decision
+    beliefs: np.ndarray | None  # b_t given to the planner (None: the planner's own, eq. 7)
+    predictions: list[PredictedTrajectory]  # the other agents' predicted trajectories (§V-C)
+    priority: np.ndarray | None = None  # implicit method: spot ids, most wanted first
+    timings: dict = field(default_factory=dict)  # spot_selection_time, path_planning_time, perception_time [s]
+
+
+class MethodEgo:
+    """The ego of one Table I method; see the module docstring. One instance per episode (or :meth:`reset`).
+
+    Args:
+        lot: the lot map.
+        profile: the method (:func:`~.profiles.load_profile`); must be ``available``.
+        deterministic: lift the wall-clock caps of the planner and of the Hybrid A* predictor.
+        intent_weights: intent CNN state-dict file; "" = the shipped weights if present, else seeded random.
+        intent_seed: seed of the random weights.
+        message_precision: round float32 message fields as the node graph does.
+    """
+
+    def __init__(self, lot: LotMap, profile: MethodProfile, *, deterministic: bool = True, intent_weights: str = "",
+                 intent_seed: int = 0, message_precision: bool = True, bev_config: BEVConfig = BEVConfig(),
+                 nawaz_config: NawazConfig = NawazConfig(), t_hist: float = 4.0):
+        if not profile.available:
+            raise ValueError(f"method {profile.name!r} is not available: {profile.unavailable_reason}")
+        from avp_perception.core.pipeline import make_intent_predictor
+
+        self.lot = lot
+        self.profile = profile
+        self.message_precision = bool(message_precision)
+        settings, self.use_beliefs, self.use_predictions = planner_settings(profile, deterministic)
+        self.planner = EgoPlanner(lot, settings)
+        intent, self.intent_info = make_intent_predictor(lot, bev_config, intent_weights, intent_seed)
+        self.core = PerceptionCore(lot, bev_config, predictor=profile.predictor,
+                                   prediction_config=prediction_config(deterministic), intent=intent, t_hist=t_hist)
+        self.nawaz = NawazOccupancy(lot, nawaz_config) if profile.beliefs == "nawaz" else None
+
+    def reset(self) -> None:
+        self.core.reset()
+        self.planner.reset()
+
+    def step(self, obs: Observation) -> EgoStep:
+        prof = self.profile
+        t0 = time.perf_counter()
+        intentions = []
+        if prof.beliefs == "intent":
+            out = self.core.perceive(obs)  # eq. (7), BEVs, intent CNN, eq. (8)
+            b = out.beliefs
+            intentions = out.intentions
+            hist = self.core.ego_history(obs)  # the same observation again: history unchanged
+        else:
+            hist = self.core.ego_history(obs)
+            b = self.core.beliefs.observe(obs.vacant_spot_ids, obs.occupied_spot_ids)  # eq. (7)
+        if self.message_precision:
+            intentions = [float32_intention(i) for i in intentions]
+        predictions = self.core.predictor.predict(obs, intentions)  # §V-C
+        if self.message_precision:
+            predictions = [replace(p, probability=float(np.float32(p.probability))) for p in predictions]
+        if self.nawaz is not None:
+            b = self.nawaz.update(self.core.beliefs, obs, predictions)
+        priority = None
+        if prof.ego_intent:
+            priority = spot_priority(ego_intention(self.core.intent, obs, self.core.beliefs, hist))
+        if self.message_precision:
+            b = float32_beliefs(b)
+        t_perception = time.perf_counter() - t0
+        beliefs = b if self.use_beliefs else None
+        preds = predictions if self.use_predictions else []
+        dec = self.planner.decide(obs, beliefs, preds, priority)
+        tm = dec.timings or {}
+        timings = {"perception_time": t_perception,
+                   "spot_selection_time": t_perception + float(tm.get("spot_selection_time", 0.0)),
+                   "path_planning_time": float(tm.get("path_planning_time", 0.0))}
+        return EgoStep(int(obs.step), (float(dec.command[0]), float(dec.command[1])), dec, beliefs, predictions,
+                       priority, timings)

@@ -1,0 +1,217 @@
+"""Method profiles of Table I (issue #6): one YAML file per method, shared by the runner and the live graph.
+
+A profile (``src/avp_bringup/config/methods/<name>.yaml``) says how a method differs from the paper's
+pipeline — §VI-A: "all compared methods only differ in how they choose the ego's parking spot":
+
+.. code-block:: yaml
+
+    name: bezier                  # = the file name
+    label: Cubic Bézier (ours)    # row label of Table I
+    group: Explicit, past         # row group of Table I
+    available: true               # false: listed with the paper's numbers only (unavailable_reason: why)
+    perception:
+      beliefs: intent             # after eq. (7): intent (eq. 8 from the intent CNN of the other vehicles),
+                                  # nawaz (Nawaz et al.'s occupancy from predictions) or observation (eq. 7 only)
+      predictor: bezier           # trajectory predictor of the other agents (avp_perception make_predictor)
+      ego_intent: false           # true: the intent CNN on the ego's own BEV orders its candidate spots
+    planner:                      # avp_planner parameters over planner.param.yaml — a planner profile
+      use_beliefs: true
+      use_predictions: true
+
+:func:`planner_profile_yaml` turns the ``planner`` block into a planner parameter file (the format of
+``avp_planner/config/profiles/*.yaml``). Any problem raises :class:`ProfileError` with one line naming the
+file and the field.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from avp_common.params import ParameterError, check_value
+
+BELIEF_SOURCES = ("intent", "nawaz", "observation")
+TABLE_ORDER = ("bezier", "constant_velocity", "hybrid_astar", "learned", "implicit", "nawaz")  # rows of Table I
+# The planner's wall-clock caps are its only timing-dependent knobs (search.time_cap, decision.decision_time_cap,
+# decision.fallback_time_cap): the experiment lifts them so that iteration caps alone end searches and the
+# same command gives the same episodes (tests/test_dds_lockstep.py does the same).
+DETERMINISTIC_PLANNER = {"search.time_cap": 1.0e3, "decision.decision_time_cap": 1.0e4,
+                         "decision.fallback_time_cap": 1.0e3}
+DETERMINISTIC_PREDICTION = {"hybrid_astar.time_cap": 1.0e3}  # the Hybrid A* predictor's wall-clock safety net
+
+
+class ProfileError(ValueError):
+    """A method profile is missing or malformed; the message names the file and the field."""
+
+
+@dataclass(frozen=True)
+class MethodProfile:
+    name: str
+    label: str
+    group: str
+    available: bool
+    beliefs: str
+    predictor: str
+    ego_intent: bool
+    planner: dict[str, Any] = field(default_factory=dict)  # flat dotted keys
+    unavailable_reason: str = ""
+    source: str = ""
+
+    def planner_overrides(self) -> dict[str, Any]:
+        return dict(self.planner)
+
+
+def methods_dir() -> Path:
+    """The shipped profiles: the package share directory, else the source tree next to this package."""
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        d = Path(get_package_share_directory("avp_bringup")) / "config" / "methods"
+        if d.is_dir():
+            return d
+    except Exception:  # noqa: BLE001 - not in a sourced workspace: fall back to the source tree
+        pass
+    return Path(__file__).resolve().parents[2] / "config" / "methods"
+
+
+def available_names() -> list[str]:
+    """Shipped profile names in Table I order (then any others alphabetically)."""
+    names = sorted(p.stem for p in methods_dir().glob("*.yaml"))
+    return [n for n in TABLE_ORDER if n in names] + [n for n in names if n not in TABLE_ORDER]
+
+
+def _flatten(d: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flatten(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def _planner_specs():
+    from avp_planner.planner_node import PLANNER_PARAMS
+
+    return {s.name: s for s in PLANNER_PARAMS}
+
+
+def profile_from_dict(data: Any, source: str) -> MethodProfile:
+    """Validate a parsed profile; :class:`ProfileError` names ``source`` and the field."""
+    if not isinstance(data, dict):
+        raise ProfileError(f"{source}: top level must be a mapping")
+    known = {"name", "label", "group", "available", "unavailable_reason", "perception", "planner"}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ProfileError(f"{source}: field '{unknown[0]}': unknown key (known: {sorted(known)})")
+
+    def req(d: dict, key: str, typ: type, where: str):
+        if key not in d:
+            raise ProfileError(f"{source}: field '{where}{key}': missing")
+        v = d[key]
+        if not isinstance(v, typ) or (typ is not bool and isinstance(v, bool)):
+            raise ProfileError(f"{source}: field '{where}{key}': expected {typ.__name__}, got {v!r}")
+        return v
+
+    name = req(data, "name", str, "")
+    per = req(data, "perception", dict, "")
+    unknown = sorted(set(per) - {"beliefs", "predictor", "ego_intent"})
+    if unknown:
+        raise ProfileError(f"{source}: field 'perception.{unknown[0]}': unknown key")
+    beliefs = req(per, "beliefs", str, "perception.")
+    if beliefs not in BELIEF_SOURCES:
+        raise ProfileError(f"{source}: field 'perception.beliefs': {beliefs!r} is not one of {list(BELIEF_SOURCES)}")
+    planner = data.get("planner") or {}
+    if not isinstance(planner, dict):
+        raise ProfileError(f"{source}: field 'planner': expected a mapping of avp_planner parameters")
+    flat = _flatten(planner)
+    specs = _planner_specs()
+    for key, value in flat.items():
+        if key not in specs:
+            raise ProfileError(f"{source}: field 'planner.{key}': not an avp_planner parameter")
+        try:
+            flat[key] = check_value(specs[key], value, f"{source}: field 'planner'")
+        except ParameterError as exc:
+            raise ProfileError(str(exc)) from None
+    return MethodProfile(
+        name=name, label=str(data.get("label", name)), group=str(data.get("group", "")),
+        available=req(data, "available", bool, ""), beliefs=beliefs,
+        predictor=req(per, "predictor", str, "perception."), ego_intent=req(per, "ego_intent", bool, "perception."),
+        planner=flat, unavailable_reason=str(data.get("unavailable_reason", "")), source=source,
+    )
+
+
+def load_profile(name_or_path: str | Path) -> MethodProfile:
+    """A shipped profile by name (``bezier``) or a profile file by path."""
+    s = str(name_or_path)
+    p = Path(s)
+    if not (s.endswith((".yaml", ".yml")) or p.is_file()):
+        p = methods_dir() / f"{s}.yaml"
+        if not p.is_file():
+            raise ProfileError(f"unknown method {s!r}; shipped profiles: {available_names()} ({methods_dir()})")
+    try:
+        data = yaml.safe_load(p.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise ProfileError(f"{p}: cannot read method profile ({exc})") from None
+    prof = profile_from_dict(data, str(p))
+    if p.parent == methods_dir() and prof.name != p.stem:
+        raise ProfileError(f"{p}: field 'name': {prof.name!r} differs from the file name {p.stem!r}")
+    return prof
+
+
+# ------------------------------------------------------------------------------------ derived settings
+
+
+def planner_values(profile: MethodProfile, deterministic: bool = True) -> dict[str, Any]:
+    """avp_planner parameter values: the shipped planner.param.yaml, the profile's ``planner`` block, and
+    (``deterministic``) the lifted wall-clock caps."""
+    from ament_index_python.packages import get_package_share_directory
+
+    from avp_common.params import load_yaml_params
+    from avp_planner.planner_node import PLANNER_PARAMS
+
+    path = Path(get_package_share_directory("avp_planner")) / "config" / "planner.param.yaml"
+    values = load_yaml_params(path, "avp_planner", PLANNER_PARAMS)
+    values.update(profile.planner)
+    if deterministic:
+        values.update(DETERMINISTIC_PLANNER)
+    return values
+
+
+def planner_settings(profile: MethodProfile, deterministic: bool = True):
+    """(PlannerSettings, use_beliefs, use_predictions) of a profile."""
+    from avp_common.params import dataclass_from_values
+    from avp_planner.core.settings import DEFAULT_SETTINGS
+
+    v = planner_values(profile, deterministic)
+    return dataclass_from_values(DEFAULT_SETTINGS, v).validate(), bool(v["use_beliefs"]), bool(v["use_predictions"])
+
+
+def prediction_config(deterministic: bool = True):
+    """The §V-C prediction settings (library defaults; the Hybrid A* predictor's wall-clock cap lifted)."""
+    from avp_common.params import dataclass_from_values
+    from avp_perception.core.prediction import PredictionConfig
+
+    cfg = PredictionConfig()
+    if deterministic:
+        names = {f.name for f in dataclasses.fields(cfg)}
+        vals = {k: v for k, v in DETERMINISTIC_PREDICTION.items() if k.split(".")[0] in names}
+        cfg = dataclass_from_values(cfg, vals)
+    return cfg.validate()
+
+
+def planner_profile_yaml(profile: MethodProfile) -> str:
+    """The ``planner`` block as a ROS 2 parameter file for avp_planner (``/**: ros__parameters:``)."""
+    tree: dict = {}
+    for key, value in profile.planner.items():
+        node = tree
+        *parents, leaf = key.split(".")
+        for p in parents:
+            node = node.setdefault(p, {})
+        node[leaf] = value
+    head = f"# avp_planner parameters of method profile '{profile.name}' ({profile.source})\n"
+    return head + yaml.safe_dump({"/**": {"ros__parameters": tree}}, sort_keys=False)

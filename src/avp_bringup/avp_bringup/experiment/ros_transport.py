@@ -1,0 +1,191 @@
+"""``avp experiment --transport ros``: the same episodes through the live DDS graph.
+
+Per method one graph is started (:func:`avp_bringup.graph.method_graph`: avp_sim in lock-step with
+``autostart`` off + the ``method_ego`` node with the method's profile, wall-clock caps lifted), and each
+episode is started with the simulator's ``reset_episode`` service (seed, reactive). A collector node in
+this process records what the runner needs and the ego never sees: ``episode_status`` (the simulator's
+§VI-B metrics), ``debug/ground_truth`` (every vehicle's state per step, for minADE/minFDE), and the ego's
+``predictions`` and ``decision`` (timings). The record is built by the same function as in-process
+(:func:`~.metrics.episode_record`), so both transports give identical records apart from the timings.
+Slow (one episode at a time, ~10 ms per DDS round trip); meant for the equivalence test.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from avp_bringup.experiment.metrics import episode_record, prediction_errors
+from avp_bringup.experiment.runner import Key, RunConfig, sim_values
+
+NAMESPACE = "/avp"
+DRAIN_S = 10.0  # wall seconds to wait for the last messages after the episode ended
+STATE_NAMES = {2: "success", 3: "collision", 4: "timeout"}  # EpisodeStatus.STATE_*
+
+
+def _collector_class():
+    from rclpy.node import Node
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    from avp_common.conversions import predictions_from_msg
+    from avp_common.qos import STATUS
+    from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, PlannerDecision, PredictedTrajectoryArray
+
+    class EpisodeCollector(Node):
+        """Debug-side observer of one episode at a time (never part of the ego)."""
+
+        def __init__(self) -> None:
+            super().__init__("avp_experiment", namespace=NAMESPACE)
+            self.begin(-1, False)
+            # the simulator only waits for the ego: a deep reader history keeps every step even when this process
+            # falls behind for a while (with the graph's depth 10 a busy CPU loses messages here)
+            deep = QoSProfile(depth=2000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
+                              durability=DurabilityPolicy.VOLATILE)
+            self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, deep)
+            self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
+            self.create_subscription(PredictedTrajectoryArray, "predictions", self._on_preds, deep)
+            self.create_subscription(PlannerDecision, "decision", self._on_decision, deep)
+            self.kind_vehicle = AgentState.KIND_VEHICLE
+            self.terminal = (EpisodeStatus.STATE_SUCCESS, EpisodeStatus.STATE_COLLISION,
+                             EpisodeStatus.STATE_TIMEOUT)
+
+        def begin(self, seed: int, reactive: bool) -> None:
+            self.seed, self.reactive = seed, reactive
+            self.status = None
+            self.gt: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+            self.preds: dict[int, list] = {}
+            self.timings: dict[int, dict] = {}
+
+        def _on_gt(self, msg) -> None:
+            veh = [a for a in msg.agents if a.kind == self.kind_vehicle]
+            self.gt[int(msg.step)] = (np.array([a.id for a in veh], dtype=np.int64),
+                                      np.array([[a.pose.x, a.pose.y, a.pose.theta] for a in veh]).reshape(-1, 3))
+
+        def _on_status(self, msg) -> None:
+            if int(msg.seed) == self.seed and bool(msg.reactive) == self.reactive:
+                self.status = msg
+
+        def _on_preds(self, msg) -> None:
+            self.preds[int(msg.step)] = [p for p in predictions_from_msg(msg) if not p.is_pedestrian]
+
+        def _on_decision(self, msg) -> None:
+            self.timings[int(msg.step)] = {"spot_selection_time": float(msg.spot_selection_time),
+                                           "path_planning_time": float(msg.path_planning_time)}
+
+        @property
+        def ended(self) -> bool:
+            return self.status is not None and self.status.state in self.terminal
+
+        def missing(self) -> dict[str, list[int]]:
+            """Steps of the ended episode whose ground truth / predictions / decision have not arrived."""
+            n = int(self.status.metrics.steps)
+            return {name: [k for k in range(m) if k not in d] for name, d, m in
+                    (("ground_truth", self.gt, n + 1), ("predictions", self.preds, n), ("decision", self.timings, n))}
+
+        @property
+        def finished(self) -> bool:
+            return self.ended and not any(self.missing().values())
+
+        def ego_publishers_ready(self) -> bool:
+            return all(self.count_publishers(f"{NAMESPACE}/{t}") >= 1 for t in ("predictions", "decision"))
+
+        def record(self, method: str, horizon: float, wall_s: float) -> dict:
+            s = self.status
+            m = s.metrics
+            n = int(m.steps)
+            ids = self.gt[0][0]
+            for k in range(n + 1):
+                if not np.array_equal(self.gt[k][0], ids):
+                    raise RuntimeError(f"ground truth of step {k} lists other vehicles than step 0")
+            gt = np.stack([self.gt[k][1] for k in range(n + 1)])
+            ade, fde = prediction_errors({k: self.preds[k] for k in range(n)}, gt, ids, float(s.dt), horizon)
+            metrics = {"success": bool(m.success), "collision": bool(m.collision),
+                       "collision_with": m.collision_with, "spot_stolen": bool(m.spot_stolen),
+                       "parked_spot_id": int(m.parked_spot_id), "interrupted_steps": int(m.interrupted_steps),
+                       "interrupted_agent_steps": int(m.interrupted_agent_steps),
+                       "parking_time": float(m.parking_time), "steps": n}
+            return episode_record(method=method, seed=self.seed, reactive=self.reactive,
+                                  status=STATE_NAMES.get(int(s.state), str(s.state)), metrics=metrics, min_ade=ade,
+                                  min_fde=fde, step_timings=[self.timings[k] for k in range(n)], horizon=horizon,
+                                  transport="ros", wall_s=wall_s)
+
+    return EpisodeCollector
+
+
+def run_ros(keys: list[Key], cfg: RunConfig, on_record: Callable[[dict], None], log_dir: Path,
+            timeout: float = 600.0, env: dict | None = None) -> None:
+    """Run ``keys`` through the live graph, one method graph after the other (see the module docstring)."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    from avp_bringup.graph import Graph, method_graph
+    from avp_msgs.srv import ResetEpisode
+
+    sim_p = sim_values(cfg)
+    sim_extra = {k: sim_p[k] for k in ("t_final", "dt", "t_hist")} | dict(cfg.sim_overrides)
+    by_method: dict[str, list[Key]] = {}
+    for k in keys:
+        by_method.setdefault(k[0], []).append(k)
+    rclpy.init()
+    collector = _collector_class()()
+    executor = SingleThreadedExecutor()
+    executor.add_node(collector)
+    client = collector.create_client(ResetEpisode, "reset_episode")
+    try:
+        for method, mkeys in by_method.items():
+            nodes = method_graph(method, sim_extra=sim_extra, ego_extra={
+                "deterministic": True, "intent_weights": cfg.intent_weights, "intent_seed": cfg.intent_seed,
+                "message_precision": cfg.message_precision}, min_debug_subscribers=1)
+            graph = Graph(nodes, Path(log_dir) / method, env=env)
+            graph.start()
+            try:
+                t0 = time.monotonic()
+                # the simulator's step 0 waits for the ego's observation subscription; the ego's outputs must reach
+                # us from step 0 on too: wait until its publishers are discovered (then a moment for matching)
+                while not (client.wait_for_service(timeout_sec=0.2) and collector.ego_publishers_ready()):
+                    executor.spin_once(timeout_sec=0.05)
+                    _check_alive(graph, log_dir, method)
+                    if time.monotonic() - t0 > 60:
+                        raise RuntimeError(f"graph not up after 60 s (reset_episode service, method_ego publishers);"
+                                           f" logs in {log_dir}/{method}")
+                t1 = time.monotonic()
+                while time.monotonic() - t1 < 0.5:
+                    executor.spin_once(timeout_sec=0.05)
+                for _, seed, mode in mkeys:
+                    reactive = mode == "reactive"
+                    collector.begin(seed, reactive)
+                    t0 = time.monotonic()
+                    fut = client.call_async(ResetEpisode.Request(seed=int(seed), reactive=reactive))
+                    executor.spin_until_future_complete(fut, timeout_sec=30.0)
+                    res = fut.result()
+                    if res is None or not res.success:
+                        raise RuntimeError(f"reset_episode(seed={seed}, reactive={reactive}) failed: "
+                                           f"{None if res is None else res.message}")
+                    t_end = None
+                    while not collector.finished:
+                        executor.spin_once(timeout_sec=0.1)
+                        _check_alive(graph, log_dir, method)
+                        if collector.ended and t_end is None:
+                            t_end = time.monotonic()
+                        if t_end is not None and time.monotonic() - t_end > DRAIN_S:
+                            missing = {k: v[:10] for k, v in collector.missing().items() if v}
+                            raise RuntimeError(f"{method} seed {seed} {mode}: the episode ended but messages of steps "
+                                               f"{missing} never arrived; logs in {log_dir}/{method}")
+                        if time.monotonic() - t0 > timeout:
+                            raise RuntimeError(f"{method} seed {seed} {mode}: no complete episode after {timeout} s "
+                                               f"wall time; logs in {log_dir}/{method}")
+                    on_record(collector.record(method, cfg.ade_horizon, time.monotonic() - t0))
+            finally:
+                graph.stop()
+    finally:
+        collector.destroy_node()
+        rclpy.try_shutdown()
+
+
+def _check_alive(graph, log_dir: Path, method: str) -> None:
+    dead = {n: rc for n, rc in graph.poll().items() if rc is not None}
+    if dead:
+        raise RuntimeError(f"node(s) exited: {dead}; see {Path(log_dir) / method}/")

@@ -1,0 +1,407 @@
+"""``avp experiment``: the Table I runner (paper §VI-B, issue #6).
+
+Episodes are (method, seed, mode) triples: the first ``scenarios`` seeds >= ``seed_base`` that the §VI-A
+scenario generator can build (:func:`valid_seeds`; a seed's reactive and non-reactive runs share the same
+setup), reactive and/or non-reactive agents, and the chosen method profiles. Each finished episode is appended to
+``OUT/episodes.jsonl`` as one JSON line (:func:`~.metrics.episode_record`) and flushed, so a run can be
+interrupted and the same command continues where it stopped (episodes already in the file are skipped; a
+line cut off by the interruption is dropped). ``OUT/run.json`` records what the results depend on (t_f, the
+minADE horizon, the intent weights, the method profiles); re-running into the same folder with different
+values is refused. At the end ``OUT/summary.md``, ``OUT/summary.json`` and ``OUT/plots/*.png`` are written
+(:mod:`.summary`).
+
+Transports: ``inproc`` runs each episode in a worker process (``concurrent.futures``, spawn, one torch
+thread per worker) on the simulator core and :class:`~.ego.MethodEgo`; ``ros`` runs them through the live
+DDS graph (:mod:`.ros_transport`, one episode at a time). The planner's wall-clock caps are lifted in both
+(:data:`~.profiles.DETERMINISTIC_PLANNER`), so the same command gives the same episodes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import sys
+import time
+from collections.abc import Callable, Iterable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import asdict, dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+from avp_bringup.experiment.profiles import MethodProfile, ProfileError, available_names, load_profile
+
+MODES = {"reactive": (True,), "non-reactive": (False,), "both": (False, True)}
+RESULTS_FILE = "episodes.jsonl"
+RUN_FILE = "run.json"
+SEEDS_FILE = "seeds.json"
+DEFAULT_HORIZON = 4.0  # s: t_pred of the predictors (ParkPredict+'s horizon; the paper does not state one)
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """What the episodes' results depend on besides (method, seed, mode)."""
+
+    t_final: float = 100.0  # t_f [s] (§VI-A)
+    ade_horizon: float = DEFAULT_HORIZON  # H of minADE / minFDE [s]
+    intent_weights: str = ""  # "" = shipped weights if present, else random (intent_seed)
+    intent_seed: int = 0
+    message_precision: bool = True
+    sim_overrides: dict = field(default_factory=dict)  # further avp_sim parameters
+
+
+Key = tuple[str, int, str]  # (method, seed, "reactive" | "non_reactive")
+
+
+def mode_name(reactive: bool) -> str:
+    return "reactive" if reactive else "non_reactive"
+
+
+def record_key(r: dict) -> Key:
+    return (str(r["method"]), int(r["seed"]), str(r["mode"]))
+
+
+# ------------------------------------------------------------------------------------------ set-up
+
+
+def sim_values(cfg: RunConfig) -> dict[str, Any]:
+    """avp_sim parameters of the episodes: the shipped sim.param.yaml with t_f and the overrides."""
+    from ament_index_python.packages import get_package_share_directory
+
+    from avp_common.params import load_yaml_params, validate_values
+    from avp_sim.params import SIM_PARAMS
+
+    p = load_yaml_params(Path(get_package_share_directory("avp_sim")) / "config" / "sim.param.yaml", "avp_sim",
+                         SIM_PARAMS)
+    p.update(cfg.sim_overrides)
+    p["t_final"] = float(cfg.t_final)
+    return validate_values(p, SIM_PARAMS, "avp experiment")
+
+
+def intent_identity(cfg: RunConfig) -> str:
+    """Which intent weights the episodes use: 'sha256:<hex> (<path>)' or 'random seed N'."""
+    from avp_perception.core.pipeline import shipped_weights_path
+
+    path = Path(cfg.intent_weights) if cfg.intent_weights else shipped_weights_path()
+    if path is None:
+        return f"random seed {cfg.intent_seed}"
+    if not path.is_file():
+        raise ValueError(f"--intent-weights {path}: no such file")
+    return f"sha256:{hashlib.sha256(path.read_bytes()).hexdigest()} ({path})"
+
+
+def check_method(profile: MethodProfile) -> str:
+    """'' if the method can run in this build, else why not."""
+    if not profile.available:
+        return profile.unavailable_reason or "not available"
+    from avp_perception.core.prediction import make_predictor
+    from avp_world.lot import load_bundled_lot
+
+    try:
+        make_predictor(profile.predictor, load_bundled_lot())
+    except (ValueError, ImportError) as exc:
+        return f"predictor {profile.predictor!r} is not in this build ({exc})"
+    return ""
+
+
+def profile_digest(profile: MethodProfile) -> str:
+    return hashlib.sha256(Path(profile.source).read_bytes()).hexdigest()[:16]
+
+
+def run_identity(cfg: RunConfig, profiles: Iterable[MethodProfile]) -> dict:
+    return {"config": asdict(cfg), "intent": intent_identity(cfg),
+            "methods": {p.name: profile_digest(p) for p in profiles}}
+
+
+def check_run_file(out: Path, ident: dict) -> dict:
+    """Merge ``ident`` into OUT/run.json; ValueError if the folder holds results of other settings."""
+    path = out / RUN_FILE
+    if path.is_file():
+        old = json.loads(path.read_text())
+        for k in ("config", "intent"):
+            if old.get(k) != ident[k]:
+                raise ValueError(f"{path}: the results there were made with {k} = {old.get(k)!r}, this command "
+                                 f"uses {ident[k]!r}; use another --out (or delete {out})")
+        for name, digest in ident["methods"].items():
+            if old.get("methods", {}).get(name, digest) != digest:
+                raise ValueError(f"{path}: method profile {name!r} changed since its episodes there were run; "
+                                 f"use another --out")
+        ident = {**old, "methods": {**old.get("methods", {}), **ident["methods"]}}
+    out.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(ident, indent=2) + "\n")
+    return ident
+
+
+# ------------------------------------------------------------------------------------------ results file
+
+
+def read_results(path: Path) -> list[dict]:
+    """Records of a JSONL file; a last line cut off by an interruption is removed from the file."""
+    if not path.is_file():
+        return []
+    data = path.read_bytes()
+    if data and not data.endswith(b"\n"):  # an interrupted write: drop the partial line
+        cut = data.rfind(b"\n") + 1
+        with path.open("r+b") as f:
+            f.truncate(cut)
+        data = data[:cut]
+    out = []
+    for n, line in enumerate(data.decode().splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"{path}:{n}: not a JSON line ({exc})") from None
+    return out
+
+
+class ResultsWriter:
+    """Appends records as JSON lines, each flushed and fsync'ed (an interruption loses at most one line)."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.f = path.open("a")
+
+    def write(self, record: dict) -> None:
+        self.f.write(json.dumps(record, sort_keys=True, allow_nan=False) + "\n")
+        self.f.flush()
+        os.fsync(self.f.fileno())
+
+    def close(self) -> None:
+        self.f.close()
+
+
+# ------------------------------------------------------------------------------------------ episodes
+
+
+def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reactive: bool, cfg: RunConfig) -> dict:
+    """One episode on the simulator core with the method's :class:`~.ego.MethodEgo`; returns its record."""
+    from avp_bringup.experiment.ego import MethodEgo
+    from avp_bringup.experiment.metrics import episode_record, prediction_errors
+    from avp_sim.core.factory import make_world
+
+    t0 = time.perf_counter()
+    world = make_world(lot, sim_p, seed, reactive)
+    ego = MethodEgo(lot, profile, deterministic=True, intent_weights=cfg.intent_weights,
+                    intent_seed=cfg.intent_seed, message_precision=cfg.message_precision)
+    preds: dict[int, list] = {}
+    timings: list[dict] = []
+    while not world.done:
+        obs = world.observe()
+        out = ego.step(obs)
+        preds[out.step] = [p for p in out.predictions if not p.is_pedestrian]
+        timings.append(out.timings)
+        world.step(*out.command)
+    ade, fde = prediction_errors(preds, world.log_vehicles, world.vehicle_ids, world.dt, cfg.ade_horizon)
+    return episode_record(method=profile.name, seed=seed, reactive=reactive, status=world.status,
+                          metrics=world.metrics.as_dict(), min_ade=ade, min_fde=fde, step_timings=timings,
+                          horizon=cfg.ade_horizon, transport="inproc", wall_s=time.perf_counter() - t0)
+
+
+_WORKER: dict[str, Any] = {}
+
+
+def _init_worker(cfg: RunConfig, pool_worker: bool = False) -> None:
+    import signal
+
+    import torch
+
+    if pool_worker:  # Ctrl-C is the parent's: it lets the running episodes finish and records them
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    torch.set_num_threads(1)
+    from avp_world.lot import load_bundled_lot
+
+    _WORKER.update(cfg=cfg, lot=load_bundled_lot(), sim=sim_values(cfg), profiles={})
+
+
+def _worker_episode(key: Key) -> dict:
+    method, seed, mode = key
+    profiles = _WORKER["profiles"]
+    if method not in profiles:
+        profiles[method] = load_profile(method)
+    return run_episode_inproc(_WORKER["lot"], _WORKER["sim"], profiles[method], seed, mode == "reactive",
+                              _WORKER["cfg"])
+
+
+def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callable[[dict], None]) -> None:
+    """Run ``keys`` in ``workers`` processes (0: in this process), calling ``on_record`` as each finishes."""
+    if workers <= 0:
+        _init_worker(cfg)
+        for k in keys:
+            on_record(_worker_episode(k))
+        return
+    ctx = get_context("spawn")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
+                             initargs=(cfg, True)) as pool:
+        pending = {pool.submit(_worker_episode, k) for k in keys}
+        try:
+            while pending:
+                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for f in done:
+                    on_record(f.result())
+        except KeyboardInterrupt:
+            running = {f for f in pending if not f.cancel()}
+            print(f"\n[avp experiment] interrupted: finishing the {len(running)} running episode(s)", file=sys.stderr)
+            for f in running:
+                try:
+                    on_record(f.result())
+                except Exception:  # noqa: BLE001 - keep what finished, report the interruption
+                    pass
+            raise
+
+
+# ------------------------------------------------------------------------------------------ command
+
+
+def valid_seeds(n: int, seed_base: int, sim_p: dict, cache: Path | None = None) -> tuple[list[int], list[int]]:
+    """The first ``n`` seeds >= ``seed_base`` for which the §VI-A generator builds a scenario, and the seeds
+    skipped on the way (no collision-free plans for the dynamic vehicles, e.g. 162, 253, 448 and 476 below 500).
+    ``cache`` (a JSON file {seed: valid}) saves the ~40 ms per seed of a re-run."""
+    from avp_sim.core.factory import scenario_params
+    from avp_sim.core.scenario import ScenarioError, generate_paper_scenario
+    from avp_world.lot import load_bundled_lot
+
+    known: dict[str, bool] = json.loads(cache.read_text()) if cache is not None and cache.is_file() else {}
+    lot, params = None, scenario_params(sim_p)
+    seeds, bad = [], []
+    s = seed_base
+    while len(seeds) < n:
+        if str(s) not in known:
+            lot = lot or load_bundled_lot()
+            try:
+                generate_paper_scenario(lot, s, False, params)
+                known[str(s)] = True
+            except ScenarioError:
+                known[str(s)] = False
+        (seeds if known[str(s)] else bad).append(s)
+        s += 1
+    if cache is not None:
+        cache.write_text(json.dumps(known, sort_keys=True))
+    return seeds, bad
+
+
+def episode_keys(methods: list[str], seeds: list[int], modes: tuple[bool, ...]) -> list[Key]:
+    """Seed-major order, so that an interrupted run covers every method and mode for its first seeds."""
+    return [(m, s, mode_name(r)) for s in seeds for r in modes for m in methods]
+
+
+def resolve_methods(spec: str) -> tuple[list[MethodProfile], dict[str, str]]:
+    """(runnable profiles, {name: why skipped}) for 'all' or a comma-separated list of names / files."""
+    names = available_names() if spec == "all" else [s.strip() for s in spec.split(",") if s.strip()]
+    run, skipped = [], {}
+    for n in names:
+        prof = load_profile(n)
+        why = check_method(prof)
+        if why:
+            skipped[prof.name] = why
+        else:
+            run.append(prof)
+    return run, skipped
+
+
+def run_experiment(args: argparse.Namespace) -> dict:
+    """The ``avp experiment`` command (see :func:`add_arguments`); returns a small report."""
+    from avp_bringup.experiment.summary import write_summary
+
+    if args.scenarios < 1:
+        raise ValueError(f"--scenarios must be >= 1, got {args.scenarios}")
+    out = Path(args.out)
+    cfg = RunConfig(t_final=args.t_final, ade_horizon=args.ade_horizon, intent_weights=args.intent_weights,
+                    intent_seed=args.intent_seed, message_precision=not args.float64_messages)
+    profiles, skipped = resolve_methods(args.methods)
+    for name, why in skipped.items():
+        print(f"[avp experiment] skipping method {name!r}: {why}", file=sys.stderr)
+    if not profiles:
+        raise ValueError(f"no runnable method in --methods {args.methods!r}")
+    ident = run_identity(cfg, profiles)
+    check_run_file(out, ident)
+    path = out / RESULTS_FILE
+    records = read_results(path)
+    done = {record_key(r) for r in records}
+    seeds, bad_seeds = valid_seeds(args.scenarios, args.seed_base, sim_values(cfg), out / SEEDS_FILE)
+    keys = episode_keys([p.name for p in profiles], seeds, MODES[args.mode])
+    todo = [k for k in keys if k not in done]
+    print(f"[avp experiment] {len(keys)} episodes ({len(profiles)} methods x {args.scenarios} scenarios x "
+          f"{len(MODES[args.mode])} modes; seeds {seeds[0]}..{seeds[-1]}"
+          f"{', without ' + str(bad_seeds) + ' (no scenario)' if bad_seeds else ''}), {len(keys) - len(todo)} "
+          f"already in {path}, {len(todo)} to run over --transport {args.transport}; intent CNN: {ident['intent']}",
+          flush=True)
+    n_run = 0
+    if todo and not args.summary_only:
+        from tqdm import tqdm
+
+        writer = ResultsWriter(path)
+        bar = tqdm(total=len(todo), unit="ep", desc="episodes", disable=args.no_progress, smoothing=0.05)
+
+        def on_record(r: dict) -> None:
+            nonlocal n_run
+            writer.write(r)
+            records.append(r)
+            n_run += 1
+            bar.set_postfix_str(f"{r['method']} seed {r['seed']} {r['mode']}: {r['status']}", refresh=False)
+            bar.update(1)
+
+        try:
+            if args.transport == "inproc":
+                run_inproc(todo, cfg, args.workers, on_record)
+            else:
+                from avp_bringup.experiment.ros_transport import run_ros
+
+                run_ros(todo, cfg, on_record, out / "logs", timeout=args.episode_timeout)
+        finally:
+            bar.close()
+            writer.close()
+    wanted = set(keys)
+    summary = write_summary(out, [r for r in records if record_key(r) in wanted], skipped,
+                            {"ade_horizon": cfg.ade_horizon, "t_final": cfg.t_final, "intent": ident["intent"],
+                             "seeds_without_scenario": bad_seeds})
+    print(f"[avp experiment] ran {n_run} episodes; summary: {out / 'summary.md'}, plots in {out / 'plots'}/")
+    return {"ran": n_run, "skipped_methods": skipped, "summary": summary}
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scenarios", type=int, default=500,
+                   help="number of scenarios per mode [500, §VI-B]: the first seeds >= --seed-base that the §VI-A "
+                   "generator can build")
+    p.add_argument("--seed-base", type=int, default=0, help="first seed")
+    p.add_argument("--mode", choices=tuple(MODES), default="both", help="reactive and/or non-reactive agents")
+    p.add_argument("--methods", default="all",
+                   help="comma-separated method profiles (names of config/methods/ or files), or 'all'")
+    p.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 1)),
+                   help="worker processes for --transport inproc (0: run in this process)")
+    p.add_argument("--out", default=str(Path.cwd() / "out" / "experiment"), help="output folder")
+    p.add_argument("--transport", choices=("inproc", "ros"), default="inproc",
+                   help="inproc: simulator and ego cores in worker processes; ros: the live DDS graph")
+    p.add_argument("--t-final", type=float, default=100.0, help="episode time limit t_f [s] (§VI-A: 100)")
+    p.add_argument("--ade-horizon", type=float, default=DEFAULT_HORIZON, help="minADE/minFDE horizon H [s]")
+    p.add_argument("--intent-weights", default="", help="intent CNN weights (default: shipped, else random)")
+    p.add_argument("--intent-seed", type=int, default=0, help="seed of random intent weights")
+    p.add_argument("--float64-messages", action="store_true",
+                   help="do not round beliefs/intentions to the float32 of the messages (inproc only differs)")
+    p.add_argument("--episode-timeout", type=float, default=600.0, help="ros: wall seconds per episode")
+    p.add_argument("--summary-only", action="store_true", help="only rewrite the summary from the results file")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="avp experiment", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_arguments(p)
+    args = p.parse_args(argv)
+    try:
+        run_experiment(args)
+    except (ValueError, ProfileError, RuntimeError) as exc:
+        print(f"[avp experiment] {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"[avp experiment] interrupted; run the same command to continue ({args.out})", file=sys.stderr)
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,288 @@
+"""Live planner swap (`avp swap-planner`): lifecycle calls from rclpy (ros2cli is not on PyPI here).
+
+A *planner* is any node publishing on ``<namespace>/cmd``; to be swappable it must be a lifecycle
+(managed) node (lifecycle_msgs services ``<node>/get_state`` and ``<node>/change_state``). A swap
+
+1. (for a profile) starts ``avp_planner/planner`` as a new process with the profile's parameter file and
+   ``autostart:=false``, detached, and waits for its lifecycle services;
+2. configures the new planner (it builds its core for the lot; still silent);
+3. deactivates every other active planner — from here until step 4 no command is published: in
+   lock-step the simulator waits, in real time its watchdog holds the ego still;
+4. activates the new planner (it answers the newest observation first);
+5. shuts the old planners down (their processes exit), unless asked to keep them.
+
+Docs: docs/custom_planner.md (the topic contract and a minimal planner of your own).
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState, GetState
+
+TRANSITIONS = {"configure": Transition.TRANSITION_CONFIGURE, "cleanup": Transition.TRANSITION_CLEANUP,
+               "activate": Transition.TRANSITION_ACTIVATE, "deactivate": Transition.TRANSITION_DEACTIVATE,
+               "shutdown": None}  # shutdown: the id depends on the current state
+SHUTDOWN_FROM = {"unconfigured": Transition.TRANSITION_UNCONFIGURED_SHUTDOWN,
+                 "inactive": Transition.TRANSITION_INACTIVE_SHUTDOWN,
+                 "active": Transition.TRANSITION_ACTIVE_SHUTDOWN}
+
+
+class SwapError(RuntimeError):
+    """The swap could not be done (the message says which node and why)."""
+
+
+def fq_name(namespace: str, name: str) -> str:
+    return f"{namespace.rstrip('/')}/{name}"
+
+
+def profiles_dir() -> Path:
+    from ament_index_python.packages import get_package_share_directory
+
+    return Path(get_package_share_directory("avp_planner")) / "config" / "profiles"
+
+
+def available_profiles() -> list[str]:
+    d = profiles_dir()
+    return sorted(p.stem for p in d.glob("*.yaml")) if d.is_dir() else []
+
+
+def resolve_profile(profile: str) -> Path:
+    """A profile name (``config/profiles/<name>.yaml`` of avp_planner) or a path to a parameter YAML."""
+    p = Path(profile)
+    if p.suffix in (".yaml", ".yml") or "/" in profile:
+        if not p.is_file():
+            raise SwapError(f"profile file {p} does not exist")
+        return p.resolve()
+    f = profiles_dir() / f"{profile}.yaml"
+    if not f.is_file():
+        raise SwapError(f"unknown planner profile '{profile}'; available: {available_profiles()} "
+                        f"(or give a parameter YAML path)")
+    return f
+
+
+def validate_profile(path: Path) -> None:
+    """Check the profile's keys/types/ranges like the node will (one line naming file and key)."""
+    import yaml
+
+    from avp_common.params import ParameterError, check_value
+    from avp_planner.planner_node import PLANNER_PARAMS
+
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise SwapError(f"{path}: cannot read profile ({exc})") from None
+    block = (data or {}).get("/**", {}) if isinstance(data, dict) else None
+    params = block.get("ros__parameters") if isinstance(block, dict) else None
+    if not isinstance(params, dict):
+        raise SwapError(f"{path}: a profile is a ROS 2 parameter file: '/**: ros__parameters: {{...}}'")
+    from avp_common.params import _flatten
+
+    specs = {s.name: s for s in PLANNER_PARAMS}
+    for key, value in _flatten(params).items():
+        if key not in specs:
+            raise SwapError(f"{path}: parameter '{key}': unknown key")
+        try:
+            check_value(specs[key], value, str(path))
+        except ParameterError as exc:
+            raise SwapError(str(exc)) from None
+
+
+@dataclass
+class SwapReport:
+    new: str
+    pid: int | None = None
+    log: Path | None = None
+    deactivated: list[str] = field(default_factory=list)
+    shut_down: list[str] = field(default_factory=list)
+    gap_s: float = 0.0  # wall time with no active planner
+
+
+class LifecycleClient:
+    """Lifecycle service calls and graph queries from a plain rclpy node (spun while waiting)."""
+
+    def __init__(self, node) -> None:
+        self.node = node
+        self._clients: dict[tuple[str, str], object] = {}
+
+    def _client(self, target: str, kind: str):
+        key = (target, kind)
+        if key not in self._clients:
+            srv = GetState if kind == "get_state" else ChangeState
+            self._clients[key] = self.node.create_client(srv, f"{target}/{kind}")
+        return self._clients[key]
+
+    def _call(self, target: str, kind: str, request, timeout: float):
+        import rclpy
+
+        client = self._client(target, kind)
+        if not client.wait_for_service(timeout_sec=timeout):
+            raise SwapError(f"{target}: no lifecycle service {target}/{kind} (not running, or not a lifecycle node)")
+        future = client.call_async(request)
+        t0 = time.monotonic()
+        while not future.done() and time.monotonic() - t0 < timeout:
+            rclpy.spin_once(self.node, timeout_sec=0.05)
+        if not future.done():
+            raise SwapError(f"{target}: {kind} did not answer within {timeout} s")
+        return future.result()
+
+    def state(self, target: str, timeout: float = 10.0) -> str:
+        return self._call(target, "get_state", GetState.Request(), timeout).current_state.label
+
+    def change(self, target: str, transition: str, timeout: float = 30.0) -> None:
+        tid = TRANSITIONS[transition]
+        if transition == "shutdown":
+            tid = SHUTDOWN_FROM.get(self.state(target, timeout))
+            if tid is None:
+                return  # finalized already
+        req = ChangeState.Request()
+        req.transition.id = tid
+        if not self._call(target, "change_state", req, timeout).success:
+            raise SwapError(f"{target}: transition '{transition}' failed (state {self.state(target, timeout)})")
+
+    def spin(self, seconds: float) -> None:
+        import rclpy
+
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < seconds:
+            rclpy.spin_once(self.node, timeout_sec=0.05)
+
+    def is_lifecycle(self, target: str) -> bool:
+        return any(name == f"{target}/get_state" for name, _ in self.node.get_service_names_and_types())
+
+    def cmd_publishers(self, namespace: str) -> list[str]:
+        """Fully qualified names of the nodes publishing on ``<namespace>/cmd`` (the planners)."""
+        infos = self.node.get_publishers_info_by_topic(f"{namespace.rstrip('/')}/cmd")
+        return sorted({fq_name(i.node_namespace, i.node_name) for i in infos})
+
+    def lifecycle_nodes(self, namespace: str) -> list[str]:
+        ns = namespace.rstrip("/")
+        return sorted(n[: -len("/get_state")] for n, t in self.node.get_service_names_and_types()
+                      if n.startswith(ns + "/") and n.endswith("/get_state") and "lifecycle_msgs/srv/GetState" in t)
+
+
+def start_planner_process(name: str, profile: Path, namespace: str, log_dir: Path, user_params: str | None,
+                          env: dict | None = None) -> tuple[subprocess.Popen, Path]:
+    """``avp_planner/planner`` as a detached process named ``name`` (unconfigured: autostart false), with
+    the parameters the default graph gives its planner (e.g. use_beliefs / use_predictions)."""
+    from avp_bringup.graph import Graph, NodeSpec, default_graph
+
+    base = next(s for s in default_graph("planner") if s.package == "avp_planner" and s.executable == "planner")
+    spec = NodeSpec(name, base.package, base.executable, base.param_file, {**base.extra_params, "autostart": False})
+    cmd = Graph([spec], log_dir, user_params).command(spec)
+    cmd[cmd.index("-p"):cmd.index("-p")] = ["--params-file", str(profile)]  # defaults < user < profile < -p
+    if namespace != "/avp":
+        cmd[cmd.index("__ns:=/avp")] = f"__ns:={namespace}"
+    log_dir.mkdir(parents=True, exist_ok=True)
+    log = log_dir / f"{name}.log"
+    with open(log, "ab") as f:
+        proc = subprocess.Popen(cmd, stdout=f, stderr=subprocess.STDOUT, env=env, start_new_session=True)
+    return proc, log
+
+
+def unique_name(client: LifecycleClient, namespace: str, base: str) -> str:
+    taken = {n.split("/")[-1] for n in client.lifecycle_nodes(namespace)} | {
+        n for n, ns in client.node.get_node_names_and_namespaces() if ns.rstrip("/") == namespace.rstrip("/")}
+    name, i = base, 2
+    while name in taken:
+        name, i = f"{base}_{i}", i + 1
+    return name
+
+
+def swap_planner(client: LifecycleClient, namespace: str, *, profile: str | None = None, node: str | None = None,
+                 name: str | None = None, log_dir: Path | None = None, user_params: str | None = None,
+                 keep_old: bool = False, timeout: float = 30.0, env: dict | None = None,
+                 discovery: float = 3.0) -> SwapReport:
+    """Bring up ``profile`` (a new planner process) or the running lifecycle node ``node`` in place of the
+    active planner(s); see the module docstring."""
+    if (profile is None) == (node is None):
+        raise SwapError("give a profile or --node, not both")
+    path = None
+    if profile is not None:
+        path = resolve_profile(profile)
+        validate_profile(path)
+    client.spin(0.5)  # graph discovery (continued below while the new planner starts)
+    report = SwapReport(new=node or "")
+    proc = None
+    if path is not None:
+        base = name or "avp_planner_" + re.sub(r"[^A-Za-z0-9_]", "_", path.stem)
+        new_name = unique_name(client, namespace, base)
+        log_dir = log_dir or Path.cwd() / "out" / "logs" / time.strftime("swap-%Y%m%d-%H%M%S")
+        proc, log = start_planner_process(new_name, path, namespace, log_dir, user_params, env)
+        report.new, report.pid, report.log = fq_name(namespace, new_name), proc.pid, log
+        t0 = time.monotonic()
+        while not client.is_lifecycle(report.new):
+            if proc.poll() is not None:
+                raise SwapError(f"{report.new} exited at start-up (code {proc.returncode}); see {log}")
+            if time.monotonic() - t0 > timeout:
+                proc.kill()
+                raise SwapError(f"{report.new} did not come up within {timeout} s; see {log}")
+            client.spin(0.1)
+    elif not client.is_lifecycle(node):
+        client.spin(discovery)
+        if not client.is_lifecycle(node):
+            raise SwapError(f"{node}: no lifecycle services (is it running, in namespace {namespace}, "
+                            f"a lifecycle node?)")
+    target = report.new
+    try:
+        state = client.state(target, timeout)
+        if state == "unconfigured":
+            client.change(target, "configure", timeout)
+        elif state not in ("inactive", "active"):
+            raise SwapError(f"{target}: cannot bring it up from state '{state}'")
+        t0 = time.monotonic()  # the planners to replace: every other publisher on cmd
+        while not [n for n in client.cmd_publishers(namespace) if n != target] and time.monotonic() - t0 < discovery:
+            client.spin(0.1)
+        others = [n for n in client.cmd_publishers(namespace) if n != target]
+        unmanaged = [n for n in others if not client.is_lifecycle(n)]
+        if unmanaged:
+            raise SwapError(f"{unmanaged} publish {namespace}/cmd but are not lifecycle nodes: stop them first "
+                            f"(e.g. the scripted driver) or run a lifecycle planner")
+    except SwapError:
+        if proc is not None:  # do not leave the new planner behind
+            proc.terminate()
+        raise
+    states = {n: client.state(n, timeout) for n in others}
+    t_gap = time.monotonic()
+    for n in others:
+        if states[n] == "active":
+            client.change(n, "deactivate", timeout)
+            report.deactivated.append(n)
+    if client.state(target, timeout) != "active":
+        client.change(target, "activate", timeout)
+    report.gap_s = time.monotonic() - t_gap
+    if not keep_old:
+        for n in others:
+            client.change(n, "shutdown", timeout)
+            report.shut_down.append(n)
+    return report
+
+
+def shutdown_lifecycle_nodes(namespace: str = "/avp", discovery: float = 1.0, timeout: float = 5.0) -> list[str]:
+    """Shut down every lifecycle node of ``namespace`` (e.g. planners swapped in by another process)."""
+    import rclpy
+
+    own = not rclpy.ok()
+    if own:
+        rclpy.init()
+    node = rclpy.create_node("avp_lifecycle_shutdown")
+    done = []
+    try:
+        client = LifecycleClient(node)
+        client.spin(discovery)
+        for n in client.lifecycle_nodes(namespace):
+            try:
+                client.change(n, "shutdown", timeout)
+                done.append(n)
+            except SwapError:
+                pass
+    finally:
+        node.destroy_node()
+        if own:
+            rclpy.try_shutdown()
+    return done

@@ -1,0 +1,173 @@
+"""avp_perception belief node: the thin ROS wrapper around :meth:`PerceptionCore.perceive` (§V-A, §V-B).
+
+Topics (relative; the launcher puts every node in namespace /avp):
+  subscribes lot_map (latched), observation
+  publishes  beliefs (avp_msgs/SpotBeliefs, b_t of eq. 8, every spot of the lot),
+             intentions (avp_msgs/IntentionArray, §V-A), both stamped like the observation they answer;
+             debug/bev (sensor_msgs/Image rgb8: the BEVs I_k,0 of the observed dynamic vehicles side by side),
+             debug/occupancy (nav_msgs/OccupancyGrid of b_t; unknown = -1 for never-observed spots) — each
+             only while subscribed, or always / never (``debug.*`` parameters).
+
+One output per observation step, in order. An observation of a step already answered (the simulator
+re-sends in lock-step when a reply went missing) gets the same messages again, not a second update. A step
+lower than the last one means a new episode: the belief map, the ego trail and the intent bookkeeping are
+reset (one warning). A malformed observation (NaN/inf, unknown spot ids, a header stamp that is not
+step * dt) is dropped with one error naming the topic; the node keeps running.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+from nav_msgs.msg import OccupancyGrid
+from rclpy.node import Node
+from sensor_msgs.msg import Image
+
+from avp_common.conversions import (
+    MessageError,
+    beliefs_to_msg,
+    check_stamp,
+    lot_from_msg,
+    observation_from_msg,
+)
+from avp_common.node_main import run_node
+from avp_common.params import declare_and_validate
+from avp_common.qos import DEBUG, LATCHED, STEP
+from avp_msgs.msg import IntentionArray, LotMap, Observation, SpotBeliefs
+from avp_perception.conversions import intentions_to_msg
+from avp_perception.core.debug_views import belief_grid, grid_layout, tile_bevs
+from avp_perception.core.pipeline import PerceptionCore, make_intent_predictor
+from avp_perception.params import BELIEF_PARAMS, bev_config
+
+
+def check_spot_ids(obs, lot) -> None:
+    """MessageError naming the first vacant/occupied spot id the lot does not have."""
+    for what, ids in (("vacant_spot_ids", obs.vacant_spot_ids), ("occupied_spot_ids", obs.occupied_spot_ids)):
+        for sid in np.asarray(ids).tolist():
+            if not lot.has_spot(sid):
+                raise MessageError(f"{what}: unknown spot id {sid}")
+
+
+class BeliefNode(Node):
+    def __init__(self) -> None:
+        super().__init__("avp_belief")
+        p = declare_and_validate(self, BELIEF_PARAMS)
+        self.p = p
+        self.bev_config = bev_config(p)
+        import torch
+
+        torch.set_num_threads(p["torch_threads"])
+        self.intent, which = make_intent_predictor(None, self.bev_config, p["intent.weights"], p["intent.seed"],
+                                                   p["intent.mode"])
+        self.get_logger().info(which)
+        self.lot = None
+        self.core: PerceptionCore | None = None
+        self.layout = None
+        self.seen: np.ndarray | None = None
+        self.pending: dict[int, Observation] = {}  # observations that arrived before the lot map
+        self.last_step = -1
+        self.cache: tuple | None = None  # (step, beliefs msg, intentions msg, observation msg, core output)
+        self.pub_beliefs = self.create_publisher(SpotBeliefs, "beliefs", STEP)
+        self.pub_intentions = self.create_publisher(IntentionArray, "intentions", STEP)
+        self.pub_bev = self.create_publisher(Image, "debug/bev", DEBUG)
+        self.pub_occupancy = self.create_publisher(OccupancyGrid, "debug/occupancy", DEBUG)
+        self.create_subscription(LotMap, "lot_map", self._on_lot, LATCHED)
+        self.sub_obs = self.create_subscription(Observation, "observation", self._on_obs, STEP)
+
+    # ------------------------------------------------------------------------------------------ inputs
+    def _on_lot(self, msg: LotMap) -> None:
+        try:
+            lot = lot_from_msg(msg)
+        except ValueError as exc:
+            self.get_logger().error(f"lot_map: {exc}")
+            return
+        self.lot = lot
+        self.intent.renderer(lot)
+        self.core = PerceptionCore(lot, self.bev_config, intent=self.intent, t_hist=self.p["t_hist"],
+                                   belief_init=self.p["belief_init"], keep_bevs=True)
+        self.layout = grid_layout(lot, self.p["debug.occupancy_resolution"])
+        self.seen = np.zeros(lot.n_spots, dtype=bool)
+        self.last_step, self.cache = -1, None
+        self.get_logger().info(f"lot '{lot.name}' ({lot.n_spots} spots)")
+        for k in sorted(self.pending):
+            self._on_obs(self.pending.pop(k))
+
+    def _on_obs(self, msg: Observation) -> None:
+        if self.core is None:
+            self.pending[int(msg.step)] = msg
+            for old in sorted(self.pending)[:-10]:
+                del self.pending[old]
+            return
+        topic = self.sub_obs.topic_name
+        step = int(msg.step)
+        if step == self.last_step and self.cache is not None and self.cache[0] == step:
+            _, beliefs, intentions, obs_msg, out = self.cache  # re-sent observation: the same answer again
+            self.pub_beliefs.publish(beliefs)
+            self.pub_intentions.publish(intentions)
+            self._publish_debug(obs_msg, out)
+            return
+        try:
+            obs = observation_from_msg(msg)
+            check_stamp(msg.header.stamp, step, obs.dt)
+            check_spot_ids(obs, self.lot)
+        except (MessageError, ValueError) as exc:
+            self.get_logger().error(f"{topic} step {step}: {exc}; dropped")
+            return
+        if step < self.last_step:
+            self.get_logger().warning(f"{topic}: step {step} after step {self.last_step}: time went back, new "
+                                      "episode; beliefs and intent state reset")
+            self.core.reset()
+            self.seen[:] = False
+        out = self.core.perceive(obs)
+        self.seen |= self.core.beliefs.observed_mask
+        beliefs = beliefs_to_msg(step, obs.dt, self.lot.spot_ids, out.beliefs)
+        intentions = intentions_to_msg(step, obs.dt, out.intentions)
+        self.pub_beliefs.publish(beliefs)
+        self.pub_intentions.publish(intentions)
+        self.last_step, self.cache = step, (step, beliefs, intentions, msg, out)
+        self._publish_debug(msg, out)
+
+    # ------------------------------------------------------------------------------------------ debug
+    def _publish_debug(self, obs_msg: Observation, out) -> None:
+        if self._wanted(self.p["debug.bev"], self.pub_bev):
+            self.pub_bev.publish(self._bev_msg(obs_msg, out.bevs))
+        if self._wanted(self.p["debug.occupancy"], self.pub_occupancy):
+            self.pub_occupancy.publish(self._occupancy_msg(obs_msg, out.beliefs))
+
+    @staticmethod
+    def _wanted(mode: str, pub) -> bool:
+        return mode == "always" or (mode == "subscribed" and pub.get_subscription_count() > 0)
+
+    def _bev_msg(self, obs_msg: Observation, bevs) -> Image:
+        img = tile_bevs([b.image for b in bevs], self.bev_config.size_px)
+        msg = Image()
+        msg.header.stamp = obs_msg.header.stamp
+        msg.header.frame_id = "bev"
+        msg.height, msg.width = int(img.shape[0]), int(img.shape[1])
+        msg.encoding = "rgb8"
+        msg.is_bigendian = 0
+        msg.step = 3 * msg.width
+        msg.data = img.tobytes()
+        return msg
+
+    def _occupancy_msg(self, obs_msg: Observation, beliefs: np.ndarray) -> OccupancyGrid:
+        lay = self.layout
+        msg = OccupancyGrid()
+        msg.header.stamp = obs_msg.header.stamp
+        msg.header.frame_id = "map"
+        msg.info.map_load_time = obs_msg.header.stamp
+        msg.info.resolution = float(lay.resolution)
+        msg.info.width, msg.info.height = lay.width, lay.height
+        msg.info.origin.position.x, msg.info.origin.position.y = lay.origin
+        msg.info.origin.orientation.w = 1.0
+        msg.data = belief_grid(lay, beliefs, self.seen).ravel()
+        return msg
+
+
+def main(args=None) -> int:
+    return run_node(BeliefNode, "avp_belief", args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,96 @@
+"""Parameters of the belief and prediction nodes (config/belief.param.yaml, config/prediction.param.yaml).
+
+ROS-free. The core settings dataclasses (:class:`~avp_perception.core.bev.BEVConfig`,
+:class:`~avp_perception.core.prediction.PredictionConfig`) are the single source of the defaults and
+descriptions (``specs_from_dataclass``); this module adds the node-only rows, the paper's symbols and
+sections, and ranges. ``python tools/gen_params.py`` writes the YAML files and the README tables.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+from avp_common.params import ParamSpec, dataclass_from_values, specs_from_dataclass
+from avp_perception.core.belief import BELIEF_INIT
+from avp_perception.core.bev import EXPLORATION_SHAPES, BEVConfig
+from avp_perception.core.intent_model import MODES as INTENT_MODES
+from avp_perception.core.prediction import PREDICTOR_NAMES, START_TANGENTS, PredictionConfig
+
+DEBUG_CHOICES = ("never", "subscribed", "always")
+
+
+def _annotate(specs: list[ParamSpec], notes: dict[str, dict[str, Any]]) -> list[ParamSpec]:
+    unknown = set(notes) - {s.name for s in specs}
+    if unknown:
+        raise KeyError(f"annotations for unknown parameters {sorted(unknown)}")
+    return [replace(s, **notes.get(s.name, {})) for s in specs]
+
+
+BELIEF_NODE_PARAMS = [
+    ParamSpec("belief_init", float, "Belief of a spot before any observation (no information).", "b_-dt", "§V-B",
+              min=0.0, max=1.0, default=BELIEF_INIT),
+    ParamSpec("t_hist", float, "Ego poses kept for the ego's trail in the other vehicles' BEVs (as the "
+              "observed histories).", "t_hist", "§III-A", min=0.0, max=20.0, default=4.0),
+    ParamSpec("intent.weights", str, "Intent CNN state-dict file; empty = the shipped weights "
+              "(avp_perception/models/intent_cnn.pt) if present, else untrained seeded random weights. The "
+              "node logs which.", "", "§V-A", default=""),
+    ParamSpec("intent.seed", int, "Seed of the random weights (used only without a weights file).", "", "§V-A",
+              min=0, max=2**31 - 1, default=0),
+    ParamSpec("intent.mode", str, "Inference path (all compute the same logits; incremental is fastest).", "",
+              "§V-A", choices=INTENT_MODES, default="incremental"),
+    ParamSpec("torch_threads", int, "torch.set_num_threads for the CNN (1: deterministic and fastest on a "
+              "shared CPU, bench/bench_perception.py).", min=1, max=64, default=1),
+    ParamSpec("debug.bev", str, "Publish debug/bev (sensor_msgs/Image, the BEVs I_k,0 tiled): never, only while "
+              "someone subscribes, or always.", "I_k,0", "§V-B", choices=DEBUG_CHOICES, default="subscribed"),
+    ParamSpec("debug.occupancy", str, "Publish debug/occupancy (nav_msgs/OccupancyGrid of b_t): never, only while "
+              "someone subscribes, or always.", "b_t", "§V-B", choices=DEBUG_CHOICES, default="subscribed"),
+    ParamSpec("debug.occupancy_resolution", float, "Cell size of debug/occupancy.", min=0.05, max=5.0,
+              default=0.25),
+]
+
+_BEV_NOTES: dict[str, dict[str, Any]] = {
+    "bev.size_px": {"min": 8, "max": 1000, "section": "§V-B"},
+    "bev.m_per_px": {"min": 0.01, "max": 2.0, "section": "§V-B"},
+    "bev.beta": {"symbol": "β", "section": "§VI-A", "min": 0.0, "max": 1.0},
+    "bev.default_length": {"symbol": "l_def", "section": "§VI-A", "min": 0.1},
+    "bev.default_width": {"symbol": "w_def", "section": "§VI-A", "min": 0.1},
+    "bev.spot_margin": {"section": "§V-B", "min": 0.0},
+    "bev.spot_clear_halfwidth": {"section": "§V-B", "min": 0.0},
+    "bev.target_blocks_spot": {"section": "§V-B"},
+    "bev.trail_steps": {"section": "§V-B", "min": 0, "max": 100},
+    "bev.trail_period": {"section": "§V-B", "min": 0.01},
+    "bev.exploration_shape": {"symbol": "s_exp", "section": "§V-A", "choices": EXPLORATION_SHAPES},
+    "bev.exploration_radius": {"symbol": "Q_0", "section": "§V-D, §VI-A", "min": 0.1},
+}
+BELIEF_PARAMS: list[ParamSpec] = BELIEF_NODE_PARAMS + _annotate(specs_from_dataclass(BEVConfig(), "bev."), _BEV_NOTES)
+
+PREDICTION_NODE_PARAMS = [
+    ParamSpec("method", str, "Trajectory predictor: the paper's intention-conditioned Bezier curves, constant "
+              "velocity, or Hybrid A* paths to the intended goals.", "", "§V-C", choices=PREDICTOR_NAMES,
+              default="bezier"),
+]
+_PRED_NOTES: dict[str, dict[str, Any]] = {
+    "zeta": {"symbol": "ζ", "section": "eqs. (11)-(12), §VI-A", "min": 0.0, "max": 100.0},
+    "mu": {"symbol": "μ", "section": "§V-C, §VI-A", "min": 0.0, "max": 1.0},
+    "t_pred": {"symbol": "t_pred", "section": "§V-C", "min": 0.0, "max": 60.0},
+    "start_tangent": {"section": "eq. (11)", "choices": START_TANGENTS},
+    "samples": {"min": 4, "max": 100000},
+    "hybrid_astar.max_iterations": {"section": "§V-D", "min": 1, "max": 1000000},
+    "hybrid_astar.time_cap": {"min": 0.001, "max": 60.0},
+    "hybrid_astar.max_length": {"min": 0.1},
+    "hybrid_astar.min_speed": {"symbol": "v_hat", "section": "§V-C", "min": 0.0, "max": 10.0},
+    "hybrid_astar.footprint_margin": {"min": 0.0, "max": 2.0},
+}
+PREDICTION_PARAMS: list[ParamSpec] = PREDICTION_NODE_PARAMS + _annotate(specs_from_dataclass(PredictionConfig()),
+                                                                      _PRED_NOTES)
+
+
+def bev_config(values: dict[str, Any]) -> BEVConfig:
+    """BEVConfig from validated ``bev.*`` values (ValueError from its own checks)."""
+    return dataclass_from_values(BEVConfig(), values, "bev.").validate()
+
+
+def prediction_config(values: dict[str, Any]) -> PredictionConfig:
+    """PredictionConfig from validated values (ValueError from its own checks)."""
+    return dataclass_from_values(PredictionConfig(), values).validate()

@@ -1,0 +1,139 @@
+"""avp_perception prediction node: the thin ROS wrapper around the trajectory predictors of §V-C.
+
+Topics (relative; the launcher puts every node in namespace /avp):
+  subscribes lot_map (latched), observation, intentions (from the belief node)
+  publishes  predictions (avp_msgs/PredictedTrajectoryArray, stamped like the observation it answers)
+
+``method``: ``bezier`` (the paper's intention-conditioned cubic Bezier curves, eqs. 9-12), ``constant_velocity``
+or ``hybrid_astar`` (paths to the intended goals planned with the ego planner's Hybrid A*); pedestrians are
+always predicted at constant velocity. Each trajectory carries its intention's probability, spot id and goal.
+
+Lock-step: the observation and the intentions of step k are matched by step (either may come first) and
+answered once; an observation of a step already answered (re-sent by the simulator) gets the same message
+again. A step lower than the last one answered means a new episode: older buffered messages are dropped
+(one warning). A malformed message — NaN/inf, unknown spot ids, probabilities outside [0, 1], a header
+stamp that is not step * dt, intentions stamped unlike their observation — is dropped with one error
+naming the topic; the node keeps running.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from rclpy.node import Node
+
+from avp_common.conversions import (
+    MessageError,
+    check_stamp,
+    lot_from_msg,
+    observation_from_msg,
+    predictions_to_msg,
+    time_to_ns,
+)
+from avp_common.node_main import run_node
+from avp_common.params import declare_and_validate
+from avp_common.qos import LATCHED, STEP
+from avp_msgs.msg import IntentionArray, LotMap, Observation, PredictedTrajectoryArray
+from avp_perception.conversions import intentions_from_msg
+from avp_perception.core.prediction import make_predictor
+from avp_perception.params import PREDICTION_PARAMS, prediction_config
+
+
+class PredictionNode(Node):
+    def __init__(self) -> None:
+        super().__init__("avp_prediction")
+        p = declare_and_validate(self, PREDICTION_PARAMS)
+        self.method = p["method"]
+        self.config = prediction_config(p)
+        self.lot = None
+        self.predictor = None
+        self.obs: dict[int, Observation] = {}
+        self.intentions: dict[int, IntentionArray] = {}
+        self.last_step = -1
+        self.cache: tuple[int, PredictedTrajectoryArray] | None = None
+        self.pub = self.create_publisher(PredictedTrajectoryArray, "predictions", STEP)
+        self.create_subscription(LotMap, "lot_map", self._on_lot, LATCHED)
+        self.sub_obs = self.create_subscription(Observation, "observation", self._on_obs, STEP)
+        self.sub_int = self.create_subscription(IntentionArray, "intentions", self._on_intentions, STEP)
+        self.get_logger().info(f"prediction method '{self.method}'")
+
+    def _on_lot(self, msg: LotMap) -> None:
+        try:
+            self.lot = lot_from_msg(msg)
+        except ValueError as exc:
+            self.get_logger().error(f"lot_map: {exc}")
+            return
+        self.predictor = make_predictor(self.method, self.lot, self.config)
+        self.last_step, self.cache = -1, None
+        for k in sorted(self.obs):
+            self._try(k)
+
+    def _on_obs(self, msg: Observation) -> None:
+        k = int(msg.step)
+        if k == self.last_step and self.cache is not None and self.cache[0] == k:
+            self.pub.publish(self.cache[1])  # re-sent observation: the same answer again
+            return
+        if 0 <= k < self.last_step:
+            self.get_logger().warning(f"{self.sub_obs.topic_name}: step {k} after step {self.last_step}: time went "
+                                      "back, new episode")
+            self.last_step, self.cache = -1, None
+            for d in (self.obs, self.intentions):  # what is buffered beyond k belongs to the old episode
+                for s in [s for s in d if s > k]:
+                    del d[s]
+        self.obs[k] = msg
+        self._trim(self.obs)
+        self._try(k)
+
+    @staticmethod
+    def _trim(d: dict, keep: int = 50) -> None:
+        for s in sorted(d)[:-keep]:  # unmatched messages (no lot map yet, a partner that never comes)
+            del d[s]
+
+    def _on_intentions(self, msg: IntentionArray) -> None:
+        k = int(msg.step)
+        if k == self.last_step:
+            return  # already answered (re-sent with a re-sent observation)
+        self.intentions[k] = msg
+        self._trim(self.intentions)
+        self._try(k)
+
+    def _try(self, k: int) -> None:
+        if self.predictor is None or k not in self.obs or k not in self.intentions:
+            return
+        obs_msg, int_msg = self.obs.pop(k), self.intentions.pop(k)
+        for d in (self.obs, self.intentions):  # forget anything older
+            for s in [s for s in d if s < k]:
+                del d[s]
+        topic = self.sub_obs.topic_name
+        try:
+            obs = observation_from_msg(obs_msg)
+            check_stamp(obs_msg.header.stamp, k, obs.dt)
+            for what, ids in (("vacant_spot_ids", obs.vacant_spot_ids), ("occupied_spot_ids",
+                                                                        obs.occupied_spot_ids)):
+                bad = [int(i) for i in ids if not self.lot.has_spot(int(i))]
+                if bad:
+                    raise MessageError(f"{what}: unknown spot id {bad[0]}")
+        except (MessageError, ValueError) as exc:
+            self.get_logger().error(f"{topic} step {k}: {exc}; dropped")
+            return
+        topic = self.sub_int.topic_name
+        try:
+            if time_to_ns(int_msg.header.stamp) != time_to_ns(obs_msg.header.stamp):
+                raise MessageError(f"header.stamp {time_to_ns(int_msg.header.stamp)} ns differs from the "
+                                   f"observation's {time_to_ns(obs_msg.header.stamp)} ns")
+            intentions = intentions_from_msg(int_msg, self.lot)
+        except MessageError as exc:
+            self.get_logger().error(f"{topic} step {k}: {exc}; dropped")
+            return
+        trajectories = self.predictor.predict(obs, intentions)
+        out = predictions_to_msg(k, obs.dt, trajectories)
+        self.pub.publish(out)
+        self.last_step, self.cache = k, (k, out)
+
+
+def main(args=None) -> int:
+    return run_node(PredictionNode, "avp_prediction", args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

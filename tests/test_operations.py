@@ -1,0 +1,388 @@
+"""Operations (issue #7) over real DDS between real processes: a SIGKILLed recorder leaves a readable bag
+(a prefix of what was published), live planner swaps (lock-step and real time), and SIGKILLed pipeline
+nodes in real time (the ego stops within one step, the episode finishes after a restart)."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+rclpy = pytest.importorskip("rclpy")
+
+from avp_bringup.bagwriter import SplitBagWriter  # noqa: E402
+from avp_bringup.graph import Graph, NodeSpec, default_graph  # noqa: E402
+
+
+def _with(spec: NodeSpec, **extra) -> NodeSpec:
+    return NodeSpec(spec.name, spec.package, spec.executable, spec.param_file, {**spec.extra_params, **extra})
+
+
+def _poses(monitor) -> dict[int, tuple[float, float, float]]:
+    out = {}
+    for k, g in monitor.gt.items():
+        ego = next(a for a in g.agents if a.kind == 0)
+        out[k] = (ego.pose.x, ego.pose.y, ego.pose.theta)
+    return out
+
+
+@pytest.fixture()
+def ros(ros_env, monkeypatch):
+    for k, v in ros_env.items():
+        monkeypatch.setenv(k, v)
+    rclpy.init()
+    yield ros_env
+    rclpy.try_shutdown()
+
+
+# ------------------------------------------------------------------------------------------- crash-safe bags
+
+
+def _clock_writer_script(bag: Path) -> str:
+    return f"""
+import time
+from rosbags.typesys import Stores, get_typestore
+from avp_bringup.bag import _qos
+from avp_bringup.bagwriter import SplitBagWriter
+ts = get_typestore(Stores.ROS2_JAZZY)
+C, T = ts.types['rosgraph_msgs/msg/Clock'], ts.types['builtin_interfaces/msg/Time']
+w = SplitBagWriter({str(bag)!r}, split_period=0.2)
+w.open()
+c = w.add_connection('/clock', 'rosgraph_msgs/msg/Clock', typestore=ts, offered_qos_profiles=[_qos(False)])
+i = 0
+while True:
+    w.write(c, i, ts.serialize_cdr(C(clock=T(sec=i, nanosec=0)), 'rosgraph_msgs/msg/Clock'))
+    print(i, flush=True)
+    i += 1
+    time.sleep(0.002)
+"""
+
+
+def test_sigkilled_writer_leaves_a_readable_prefix(tmp_path):
+    """The writer alone, killed with SIGKILL while writing: AnyReader reads 0, 1, ..., m with no gap."""
+    from rosbags.highlevel import AnyReader
+
+    bag = tmp_path / "b"
+    proc = subprocess.Popen([sys.executable, "-c", _clock_writer_script(bag)], stdout=subprocess.PIPE, text=True)
+    written = []
+    for line in proc.stdout:
+        written.append(int(line))
+        if len(written) >= 600:  # > 1 s at 2 ms per message: several finished splits and an open one
+            break
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    with AnyReader([bag]) as reader:
+        got = [reader.deserialize(raw, c.msgtype).clock.sec for c, _, raw in reader.messages()]
+    assert 0 < len(got) < len(written) + 50
+    assert got == list(range(len(got)))  # a prefix of what was written, nothing missing, nothing invented
+    assert list(bag.glob(".b_*.partial")), "the open split should have been lost with the process"
+
+
+def test_writer_close_keeps_everything_and_refuses_existing_dir(tmp_path):
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    from avp_bringup.bag import _qos
+    from avp_bringup.bagwriter import BagWriteError
+
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    clock, t = ts.types["rosgraph_msgs/msg/Clock"], ts.types["builtin_interfaces/msg/Time"]
+    w = SplitBagWriter(tmp_path / "b", split_period=1e9)
+    w.open()
+    with AnyReader([tmp_path / "b"]) as reader:  # readable (empty) from the start
+        assert reader.message_count == 0
+    c = w.add_connection("/clock", "rosgraph_msgs/msg/Clock", typestore=ts, offered_qos_profiles=[_qos(True)])
+    for i in range(25):
+        w.write(c, i, ts.serialize_cdr(clock(clock=t(sec=i, nanosec=0)), "rosgraph_msgs/msg/Clock"))
+        if i in (9, 19):
+            w.rotate()
+    w.close()
+    with AnyReader([tmp_path / "b"]) as reader:
+        got = [reader.deserialize(raw, x.msgtype).clock.sec for x, _, raw in reader.messages()]
+        assert reader.connections[0].ext.offered_qos_profiles[0].durability.name == "TRANSIENT_LOCAL"
+    assert got == list(range(25))
+    assert sorted(p.name for p in (tmp_path / "b").iterdir()) == ["b_0.mcap", "b_1.mcap", "b_2.mcap",
+                                                                  "metadata.yaml"]
+    with pytest.raises(BagWriteError, match="exists already"):
+        SplitBagWriter(tmp_path / "b").open()
+
+
+def test_sigkilled_recorder_mid_episode_reads_back_a_prefix(ros, tmp_path):
+    """`avp record` SIGKILLed mid-episode: the bag's ground truth is a byte-identical prefix of what the
+    simulator published (received independently by this test)."""
+    from rosbags.highlevel import AnyReader
+
+    from avp_common.qos import STEP
+    from avp_msgs.msg import GroundTruth
+
+    env = ros
+    node = rclpy.create_node("probe", namespace="/avp")
+    published: list[bytes] = []
+    node.create_subscription(GroundTruth, "debug/ground_truth", lambda raw: published.append(bytes(raw)),
+                             STEP, raw=True)
+    bag = tmp_path / "bag"
+    rec = subprocess.Popen([sys.executable, "-m", "avp_bringup.cli", "record", str(bag), "--split-period", "0.3",
+                            "--topics", "/clock", "/avp/lot_map", "/avp/debug/ground_truth"], env=env,
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    nodes = default_graph("scripted")
+    # step 0 waits for both ground-truth subscribers (this probe and the recorder): nothing is missed
+    nodes[0] = _with(nodes[0], seed=3, t_final=100.0, publish_markers=False, min_debug_subscribers=2)
+    graph = Graph(nodes, tmp_path / "logs", env=env)
+    graph.start()
+    try:
+        def finished_splits() -> int:  # read from outside, as a user would
+            try:
+                return len(yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]["files"])
+            except (OSError, KeyError, TypeError, yaml.YAMLError):
+                return 0
+
+        t0 = time.monotonic()
+        while (len(published) < 150 or finished_splits() < 3) and time.monotonic() - t0 < 60:
+            rclpy.spin_once(node, timeout_sec=0.05)
+        assert len(published) >= 150 and finished_splits() >= 3, "the episode or the recorder did not run"
+        rec.send_signal(signal.SIGKILL)
+        rec.wait(10)
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 1.0:  # the episode goes on without the recorder
+            rclpy.spin_once(node, timeout_sec=0.05)
+        assert all(rc is None for rc in graph.poll().values())
+    finally:
+        graph.stop()
+        node.destroy_node()
+    assert rec.returncode == -signal.SIGKILL
+    with AnyReader([bag]) as reader:
+        conns = {c.topic: c for c in reader.connections}
+        recorded = [bytes(raw) for _, _, raw in reader.messages(connections=[conns["/avp/debug/ground_truth"]])]
+        lots = list(reader.messages(connections=[conns["/avp/lot_map"]]))
+    assert len(lots) == 1
+    assert 0 < len(recorded) < len(published), (len(recorded), len(published))  # the tail went with the process
+    assert recorded == published[: len(recorded)], "not a prefix"  # byte for byte, in order
+    steps = [int(reader_step) for reader_step in _steps(recorded)]
+    assert steps == list(range(len(recorded)))
+
+
+def _steps(raws: list[bytes]) -> list[int]:
+    from rclpy.serialization import deserialize_message
+
+    from avp_msgs.msg import GroundTruth
+
+    return [deserialize_message(r, GroundTruth).step for r in raws]
+
+
+# ------------------------------------------------------------------------------------------- planner swap
+
+
+def test_swap_to_a_user_node_in_lockstep(ros, tmp_path):
+    """Lock-step: with the planner deactivated the simulator waits; `swap_planner` brings up the example
+    user node (docs/custom_planner.md), which then drives to the end of the episode."""
+    from avp_bringup.lifecycle import LifecycleClient, swap_planner
+    from avp_bringup.monitor import EpisodeMonitor
+
+    env = ros
+    nodes = default_graph()
+    n_obs_subs = nodes[0].extra_params.get("min_subscribers", len(nodes) - 1)
+    user = NodeSpec("minimal_planner", "avp_planner", "minimal_planner", "config/minimal_planner.param.yaml",
+                    {"speed": 0.5})
+    # step 0 waits for the pipeline, the user node and this monitor
+    nodes[0] = _with(nodes[0], seed=3, t_final=12.0, publish_markers=False, min_subscribers=n_obs_subs + 2,
+                     min_debug_subscribers=1)
+    planner = next(s.name for s in nodes if s.executable == "planner")
+    monitor = EpisodeMonitor()
+    client = LifecycleClient(monitor)
+    graph = Graph([*nodes, user], tmp_path / "logs", env=env)
+    graph.start()
+    try:
+        t0 = time.monotonic()
+        while (not monitor.gt or max(monitor.gt) < 20) and time.monotonic() - t0 < 120:
+            rclpy.spin_once(monitor, timeout_sec=0.05)
+        assert monitor.gt and max(monitor.gt) >= 20, "the episode did not start"
+        assert client.state(f"/avp/{planner}") == "active"
+        assert client.state("/avp/minimal_planner") == "unconfigured"
+        client.change(f"/avp/{planner}", "deactivate")
+        client.spin(0.3)  # a command sent just before the deactivation may still step the simulator once
+        k_off = max(monitor.gt)
+        client.spin(2.0)
+        assert max(monitor.gt) == k_off, "lock-step stepped without an active planner"
+        report = swap_planner(client, "/avp", node="/avp/minimal_planner", discovery=1.0)
+        assert report.new == "/avp/minimal_planner" and report.deactivated == []
+        assert report.shut_down == [f"/avp/{planner}"]
+        t0 = time.monotonic()
+        while not monitor.finished and time.monotonic() - t0 < 120:
+            rclpy.spin_once(monitor, timeout_sec=0.05)
+        for _ in range(10):
+            rclpy.spin_once(monitor, timeout_sec=0.05)
+        assert monitor.finished, "the episode did not complete after the swap"
+        rc = graph.poll()
+    finally:
+        graph.stop()
+        monitor.destroy_node()
+    assert rc[planner] == 0, "the old planner should have exited after its lifecycle shutdown"
+    assert all(rc[n] is None for n in rc if n != planner)
+    poses = _poses(monitor)
+    steps = sorted(poses)
+    assert steps == list(range(steps[-1] + 1)) and monitor.status.state != 3  # every step, no collision
+    # after the swap: the example planner's commands, v in {0, 0.5}, omega = 0 (straight line)
+    after = np.array([poses[k] for k in steps if k >= k_off])
+    d = np.linalg.norm(np.diff(after[:, :2], axis=0), axis=1)
+    assert np.all(np.isclose(d, 0.0, atol=1e-9) | np.isclose(d, 0.05, atol=1e-9)), d
+    assert np.allclose(after[:, 2], after[0, 2], atol=1e-12) and d.sum() > 0.5
+
+
+def test_swap_planner_profile_in_realtime(ros, tmp_path):
+    """Real time: `avp swap-planner cautious` mid-episode replaces the running planner by a new process
+    with the 'cautious' profile (v_max 1 m/s) while the simulator keeps stepping; the episode completes."""
+    from avp_bringup.monitor import EpisodeMonitor
+
+    env = ros
+    nodes = default_graph()
+    nodes[0] = _with(nodes[0], mode="realtime", seed=3, t_final=80.0, publish_markers=False)
+    planner = next(s.name for s in nodes if s.executable == "planner")
+    monitor = EpisodeMonitor()
+    graph = Graph(nodes, tmp_path / "logs", env=env)
+    graph.start()
+    swap, k_swap, k_done, out = None, None, None, ""
+    try:
+        t0 = time.monotonic()
+        while not monitor.finished and time.monotonic() - t0 < 150:
+            rclpy.spin_once(monitor, timeout_sec=0.05)
+            poses = _poses(monitor)
+            moved = np.hypot(*np.subtract(poses[max(poses)][:2], poses[min(poses)][:2])) if poses else 0.0
+            if swap is None and len(poses) > 40 and moved > 3:
+                k_swap = max(poses)
+                swap = subprocess.Popen([sys.executable, "-m", "avp_bringup.cli", "swap-planner", "cautious",
+                                         "--log-dir", str(tmp_path / "logs")], env=env, stdout=subprocess.PIPE,
+                                        stderr=subprocess.STDOUT, text=True)
+            if swap is not None and swap.poll() is not None and k_done is None:
+                k_done = max(monitor.gt)
+        if swap is not None:
+            out = swap.communicate(timeout=60)[0]
+        for _ in range(10):
+            rclpy.spin_once(monitor, timeout_sec=0.05)
+        rc = graph.poll()
+    finally:
+        graph.stop()
+        monitor.destroy_node()
+        subprocess.run([sys.executable, "-c", "from avp_bringup.lifecycle import shutdown_lifecycle_nodes as s; s()"],
+                       env=env, timeout=60)  # the swapped-in planner (a process of its own)
+        if swap is not None and swap.returncode is None:
+            out += swap.communicate(timeout=60)[0]
+        for pid in re.findall(r"\(pid (\d+),", out):  # if the shutdown did not reach it
+            with contextlib.suppress(OSError):
+                if "avp_planner_cautious" in Path(f"/proc/{pid}/cmdline").read_text():
+                    os.kill(int(pid), signal.SIGKILL)
+    assert swap is not None, "the ego never started moving"
+    assert swap.returncode == 0, out
+    assert "active planner: /avp/avp_planner_cautious" in out and f"deactivated ['/avp/{planner}']" in out
+    assert rc[planner] == 0, "the old planner should have exited (lifecycle shutdown)"
+    assert monitor.finished and monitor.status.state != 3, monitor.metrics_dict()
+    poses = _poses(monitor)
+    ks = sorted(poses)
+    speed = {k: np.hypot(*np.subtract(poses[k][:2], poses[k - 1][:2])) / 0.1 for k in ks[1:] if k - 1 in poses}
+    assert max(v for k, v in speed.items() if k <= k_swap) > 1.5  # the shipped planner: up to 2 m/s
+    assert max(v for k, v in speed.items() if k > k_done) <= 1.0 + 1e-6  # the cautious profile: 1 m/s
+    assert k_done - k_swap >= 10  # the simulator kept stepping while the new planner came up
+
+
+# ------------------------------------------------------------------------------------------- faults
+
+
+class _EgoProbe:
+    """Ego pose of every step (debug/ground_truth, deep queue, cheap callback) and the episode status."""
+
+    def __init__(self) -> None:
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+        from avp_common.qos import STATUS
+        from avp_msgs.msg import EpisodeStatus, GroundTruth
+
+        self.node = rclpy.create_node("ego_probe", namespace="/avp")
+        self.poses: dict[int, tuple[float, float, float]] = {}
+        self.arrival: dict[int, float] = {}
+        self.status = None
+        self.node.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt,
+                                      QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE))
+        self.node.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
+
+    def _on_gt(self, msg) -> None:
+        ego = next(a for a in msg.agents if a.kind == 0)
+        self.poses[int(msg.step)] = (ego.pose.x, ego.pose.y, ego.pose.theta)
+        self.arrival[int(msg.step)] = time.monotonic()
+
+    def _on_status(self, msg) -> None:
+        self.status = msg
+
+    @property
+    def finished(self) -> bool:
+        return self.status is not None and self.status.state in (2, 3, 4)
+
+    def last(self) -> int:
+        return max(self.poses) if self.poses else -1
+
+    def spin(self, seconds: float, until=None) -> None:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < seconds and not (until is not None and until()):
+            rclpy.spin_once(self.node, timeout_sec=0.02)
+
+
+def test_sigkill_pipeline_nodes_in_realtime(ros, tmp_path):
+    """Real time: each pipeline node in turn is SIGKILLed while the ego drives; the simulator keeps
+    running, the ego moves at most the one step answered before the kill and then holds still (no
+    collision), and once the node is restarted the ego drives on and the episode finishes."""
+    env = ros
+    nodes = default_graph()
+    nodes[0] = _with(nodes[0], mode="realtime", seed=3, t_final=90.0, publish_markers=False)
+    pipeline = nodes[1:]
+    probe = _EgoProbe()
+    graph = Graph(nodes, tmp_path / "logs", env=env)
+    graph.start()
+    kills = []  # (node, last step seen before the kill, step the node was restarted at)
+
+    def driving() -> bool:  # the ego moved in the newest step
+        k = probe.last()
+        return k > 5 and k - 1 in probe.poses and np.hypot(
+            *np.subtract(probe.poses[k][:2], probe.poses[k - 1][:2])) > 0.03
+
+    try:
+        t0 = time.monotonic()
+        for spec in pipeline:
+            probe.spin(150, driving)
+            assert driving() and not probe.finished, "the ego is not driving"
+            probe.spin(0.0)  # take what is already delivered: the simulator is at the newest step
+            k_kill = probe.last()
+            graph.kill_node(spec.name)
+            graph.procs[spec.name].wait(5)
+            probe.spin(2.0)
+            assert graph.procs["avp_sim"].poll() is None
+            k_restart = probe.last()
+            arrivals = np.diff([probe.arrival[k] for k in sorted(probe.arrival) if k >= k_kill])
+            assert k_restart >= k_kill + 12, ("the simulator stopped stepping", spec.name, arrivals.round(2))
+            graph.start_node(spec)
+            kills.append((spec.name, k_kill, k_restart))
+        probe.spin(200 - (time.monotonic() - t0), lambda: probe.finished)
+        probe.spin(0.5)
+        rc = graph.poll()
+    finally:
+        graph.stop()
+        probe.node.destroy_node()
+    assert all(v is None for v in rc.values()), rc
+    poses = probe.poses
+    for name, k_kill, k_restart in kills:
+        window = [k for k in range(k_kill + 1, k_restart + 1) if k in poses]
+        assert len(window) >= 12, (name, window)
+        # at most the step k_kill -> k_kill + 1 (answered before the kill) moves; then the ego holds still
+        held = [poses[k] for k in window]
+        assert all(np.allclose(q, held[0], atol=1e-12) for q in held), (name, k_kill, held)
+        # ... and it drives again after the restart
+        later = [k for k in sorted(poses) if k > k_restart + 1]
+        assert any(not np.allclose(poses[k][:2], poses[k_restart][:2]) for k in later), name
+    m = probe.status.metrics
+    assert probe.finished and not m.collision and probe.status.state in (2, 4), probe.status
