@@ -6,7 +6,8 @@ setup:
 	@bash tools/bootstrap.sh
 
 demo: setup
-	@source tools/env.sh && ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-42} avp demo --seed $${SEED:-3}
+	@source tools/env.sh && ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-42} avp demo --seed $${SEED:-1} --method $${METHOD:-bezier} \
+		$${REALTIME:+--realtime}
 
 test: setup
 	@source tools/env.sh && python -m pytest -q tests

@@ -22,7 +22,7 @@ def test_cores_are_ros_free():
 
 def test_ego_nodes_never_touch_ground_truth():
     ego_side = [*SRC.glob("avp_planner/avp_planner/*.py"), *SRC.glob("avp_perception/avp_perception/**/*.py"),
-                SRC / "avp_bringup/avp_bringup/method_node.py", SRC / "avp_bringup/avp_bringup/experiment/ego.py"]
+                SRC / "avp_bringup/avp_bringup/experiment/ego.py"]
     assert ego_side
     for f in ego_side:
         text = f.read_text()

@@ -1,5 +1,6 @@
-"""`avp demo` end to end over DDS: metrics.json, episode.png, an MCAP bag that rosbags' reader decodes,
-and `avp metrics BAG` recomputing the live metrics from the bag's ground truth."""
+"""`avp demo` end to end over DDS: metrics.json (with the closed-loop step time), episode.png, episode.gif drawn
+from the bag, an MCAP bag that rosbags' reader decodes, and `avp metrics BAG` recomputing the live metrics from the
+bag's ground truth; the GIF's frame drawing on a hand-made recording."""
 
 from __future__ import annotations
 
@@ -27,6 +28,9 @@ def test_demo_writes_results_and_a_readable_bag(ros_env, tmp_path):
     assert metrics["steps"] == 40 or metrics["state"] != "timeout"
     img = cv2.imread(str(out / "episode.png"))
     assert img is not None and img.shape[0] > 400 and img.shape[1] > 400
+    assert metrics["method"] == "bezier"
+    check_step_time(metrics, "lockstep", 40)
+    check_gif(out / "episode.gif", min_frames=41)  # t_f = 4 s: every step of 0..40 (stride 1)
     # independent reader: rosbags' AnyReader builds the types from the definitions stored in the bag
     with AnyReader([Path(bag)]) as reader:
         topics = {c.topic: c for c in reader.connections}
@@ -49,6 +53,91 @@ def test_demo_writes_results_and_a_readable_bag(ros_env, tmp_path):
                        capture_output=True, text=True, timeout=60)
     assert m.returncode == 0, m.stdout + m.stderr
     assert "equal the live ones" in m.stdout
+
+
+def check_step_time(metrics: dict, mode: str, steps: int) -> None:
+    """The closed-loop step time is in metrics.json: one value per answered step, positive, ordered figures."""
+    lat = metrics["closed_loop_step_time"]
+    assert lat["sim_mode"] == mode and lat["steps"] >= steps - 1 and lat["target_p95_ms"] == 100.0
+    assert 0 < lat["min_ms"] <= lat["median_ms"] <= lat["p95_ms"] <= lat["max_ms"]
+    assert ("late_steps" in lat) == (mode == "realtime")
+
+
+def check_gif(path: Path, min_frames: int) -> None:
+    """An animated GIF read back by Pillow: enough frames, < 5 MB, and the ego moves (frames differ)."""
+    import numpy as np
+    from PIL import Image
+
+    assert path.stat().st_size < 5e6
+    with Image.open(path) as im:
+        assert im.format == "GIF" and im.n_frames >= min_frames and im.size[0] > 300
+        im.seek(0)
+        first = np.asarray(im.convert("RGB"))
+        im.seek(im.n_frames - 1)
+        last = np.asarray(im.convert("RGB"))
+    assert (first != last).any()
+
+
+def test_realtime_demo_measures_the_step_time(ros_env, tmp_path):
+    """`avp demo --realtime`: the simulator steps on its wall timer; the step time and the late steps are in
+    metrics.json (figures in docs/benchmarks.md, bench/bench_live_latency.py — no timed assertion here)."""
+    out, bag = tmp_path / "demo", tmp_path / "bag"
+    r = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "demo", "--seed", "1", "--t-final", "3",
+                        "--realtime", "--method", "implicit", "--out", str(out), "--bag", str(bag), "--timeout",
+                        "120"], env=ros_env, capture_output=True, text=True, timeout=180)
+    assert r.returncode == 0, r.stdout + r.stderr
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["lock_step"] is False and metrics["method"] == "implicit" and metrics["steps"] == 30
+    check_step_time(metrics, "realtime", 20)  # real time: a command may come too late to be answered at all
+    assert "closed-loop step time" in r.stdout and "p95" in r.stdout
+    check_gif(out / "episode.gif", min_frames=20)
+    from avp_bringup.episode_video import read_recording
+
+    rec = read_recording(bag)  # the implicit method's ego intention went over the graph and into the bag
+    assert len(rec.ego_intention) >= 20 and all(not its for its in rec.intentions.values())
+
+
+def test_gif_frame_draws_the_recorded_beliefs_plan_and_ego(paper_lot):
+    """render_frame on a hand-made recording: spot fills follow b (0 -> FREE, 1 -> TAKEN, never observed ->
+    UNSEEN), the ego rectangle and the plan are where the messages say (pixel positions from the lot's bounds and
+    the scale, computed here)."""
+    import math
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from avp_bringup.episode_video import EGO, FREE, PARK, TAKEN, UNSEEN, EpisodeRecording, render_frame
+    from avp_world.types import Observation
+
+    lot = paper_lot
+    rec = EpisodeRecording(lot)
+    b = np.full(lot.n_spots, 0.5)
+    i0, i1, i2 = lot.spot_index(0), lot.spot_index(21), lot.spot_index(39)
+    b[i0], b[i1] = 0.0, 1.0
+    ego = np.array([21.5, 30.0, -math.pi / 2])
+    rec.beliefs[0] = b
+    rec.ground_truth[0] = SimpleNamespace(agents=[])
+    rec.observations[0] = Observation(step=0, dt=0.1, ego_pose=ego, ego_length=4.6, ego_width=1.85, ego_speed=0.0,
+                                      vacant_spot_ids=np.array([0]), occupied_spot_ids=np.array([21]))
+    pose = lambda x, y: SimpleNamespace(pose=SimpleNamespace(position=SimpleNamespace(x=x, y=y)))  # noqa: E731
+    rec.decisions[0] = SimpleNamespace(mode=1, spot_id=-1, plan=SimpleNamespace(poses=[pose(21.5, 20.0),
+                                                                                       pose(10.0, 20.0)]))
+    seen = np.zeros(lot.n_spots, dtype=bool)
+    seen[[i0, i1]] = True
+    s = 12.0
+    img = render_frame(rec, 0, seen, px_per_m=s)
+    xmin, _, _, ymax = lot.bounds()
+
+    def at(x, y):  # the canvas (margin 1 m) starts below the 22 px header
+        return img[22 + int(round((ymax + 1.0 - y) * s)), int(round((x - xmin + 1.0) * s))].tolist()
+
+    def centre(i):
+        return lot.spot_poses[i, :2]
+
+    assert at(*centre(i0)) == FREE.tolist() and at(*centre(i1)) == TAKEN.tolist()
+    assert at(*centre(i2)) == list(UNSEEN)
+    assert at(ego[0], ego[1]) == list(EGO)
+    assert at(15.0, 20.0) == list(PARK)
 
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "bags" / "examples" / "demo_seed4_4s"
@@ -77,7 +166,7 @@ def test_replay_republishes_the_recorded_bytes(ros_env, monkeypatch):
     node.create_subscription(Observation, "/avp/observation", got.append, deep, raw=True)
     node.create_subscription(LotMap, "/avp/lot_map", lots.append, LATCHED, raw=True)
     proc = subprocess.Popen([sys.executable, "-m", "avp_bringup.cli", "replay", str(EXAMPLE), "--rate", "0",
-                             "--delay", "3", "--topics", "/avp/observation", "/avp/lot_map"], env=ros_env,
+                             "--delay", "1", "--wait-subscribers", "--topics", "/avp/observation", "/avp/lot_map"], env=ros_env,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         t0 = time.monotonic()

@@ -66,12 +66,48 @@ def test_every_table_row_has_a_profile():
     assert use_b and use_p and settings.search.time_cap >= 100 and settings.decision.decision_time_cap >= 100
 
 
+def test_profiles_map_onto_the_four_node_graph():
+    """One mapping (method_node_params) puts a profile on the same 4 nodes as the default graph: written out here
+    for the implicit and Nawaz rows; the Bézier row changes nothing the node defaults do not already say."""
+    from avp_bringup.experiment.profiles import BELIEF_SOURCES, method_node_params
+    from avp_bringup.graph import default_graph, method_graph
+    from avp_perception.core.pipeline import BELIEF_SOURCES as NODE_SOURCES
+
+    assert BELIEF_SOURCES == NODE_SOURCES
+    assert method_node_params(load_profile("implicit")) == {
+        "avp_belief": {"belief_source": "observation", "ego_intent": True},
+        "avp_prediction": {"method": "constant_velocity"},
+        "avp_planner": {"use_beliefs": True, "use_predictions": True, "use_ego_intention": True}}
+    p = method_node_params(load_profile("nawaz"), deterministic=True, intent_weights="w.pt", intent_seed=3)
+    assert p["avp_belief"] == {"belief_source": "nawaz", "ego_intent": False, "intent.weights": "w.pt",
+                               "intent.seed": 3}
+    assert p["avp_prediction"] == {"method": "constant_velocity", "hybrid_astar.time_cap": 60.0}
+    assert p["avp_planner"]["use_ego_intention"] is False and p["avp_planner"]["search.time_cap"] >= 100
+    base = default_graph("planner")
+    for name in ("bezier", "constant_velocity", "hybrid_astar", "implicit", "nawaz"):
+        nodes = method_graph(name, sim_extra={"seed": 5})
+        assert [(n.name, n.package, n.executable) for n in nodes] == [(n.name, n.package, n.executable) for n in base]
+        assert nodes[0].extra_params["seed"] == 5
+    # the bezier profile = the shipped parameter files of the default graph
+    from avp_common.params import load_yaml_params
+    from avp_perception.params import BELIEF_PARAMS, PREDICTION_PARAMS
+    from avp_planner.planner_node import PLANNER_PARAMS
+
+    for spec, specs in zip(method_graph("bezier")[1:], (BELIEF_PARAMS, PREDICTION_PARAMS, PLANNER_PARAMS), strict=True):
+        values = load_yaml_params(spec.default_params(), spec.name, specs)
+        default_extra = next(n for n in base if n.name == spec.name).extra_params
+        assert all(values[k] == v or default_extra.get(k) == v for k, v in spec.extra_params.items()), spec.name
+    with pytest.raises(ProfileError, match="not available"):
+        method_graph("learned")
+
+
 @pytest.mark.parametrize("mutate,needle", [
     (lambda d: d["perception"].update(beliefs="oracle"), "'perception.beliefs'"),
     (lambda d: d["planner"].update(no_such_key=1), "'planner.no_such_key'"),
     (lambda d: d["planner"].update(use_beliefs="yes"), "'use_beliefs'"),
     (lambda d: d.pop("available"), "'available': missing"),
     (lambda d: d.update(colour="red"), "'colour': unknown key"),
+    (lambda d: d["planner"].update(use_ego_intention=True), "'planner.use_ego_intention': follows"),
 ])
 def test_bad_profile_names_file_and_field(tmp_path, mutate, needle):
     data = yaml.safe_load(Path(load_profile("bezier").source).read_text())
@@ -151,6 +187,23 @@ def test_resumable_and_summary(tmp_path):
     assert run(out, "--methods", "nawaz", "--workers", "0", "--ade-horizon", "2.0") == 2
 
 
+def test_sim_param_overrides_are_checked_and_part_of_the_run_identity(tmp_path):
+    from avp_bringup.experiment.profiles import load_profile
+    from avp_bringup.experiment.runner import RunConfig, check_run_file, parse_sim_params, run_identity
+
+    old = parse_sim_params(["scenario.maneuver_max_speed=2.0", "scenario.outer_row_max=9"])
+    assert old == {"scenario.maneuver_max_speed": 2.0, "scenario.outer_row_max": 9}
+    for bad, needle in (("scenario.maneuver_speed=2", "avp_sim parameter"), ("t_final", "KEY=VALUE"),
+                        ("scenario.outer_row_max=12", "above the maximum"), ("dt=fast", "expected a number")):
+        with pytest.raises(ValueError, match=needle):
+            parse_sim_params([bad])
+    prof = [load_profile("nawaz")]
+    check_run_file(tmp_path, run_identity(RunConfig(), prof))
+    check_run_file(tmp_path, run_identity(RunConfig(), prof))  # same settings: accepted
+    with pytest.raises(ValueError, match=r"scenario\.maneuver_max_speed, scenario\.outer_row_max"):
+        check_run_file(tmp_path, run_identity(RunConfig(sim_overrides=old), prof))
+
+
 def test_same_command_twice_gives_identical_episodes(tmp_path):
     """Worker processes (spawn) in both runs, finishing in any order: per-episode results are identical."""
     a, b = tmp_path / "a", tmp_path / "b"
@@ -167,8 +220,9 @@ pytest.importorskip("rclpy")
 
 
 def test_inproc_and_ros_transport_give_identical_episodes(tmp_path, ros_env, monkeypatch):
-    """Seeds 1 and 2 (dynamic vehicles in view early, so minADE has samples) through the live graph (sim node +
-    method_ego node over DDS, reset service per episode) equal the in-process episodes."""
+    """Seeds 1 and 2 (dynamic vehicles in view early, so minADE has samples) through the live graph (the 4 nodes —
+    simulator, belief, prediction, planner — configured per method, over DDS, reset service per episode) equal the
+    in-process episodes bit for bit, Nawaz's occupancy and the implicit ego intention included."""
     for k, v in ros_env.items():
         monkeypatch.setenv(k, v)
     common = ["--t-final", "10", "--methods", "bezier,nawaz,implicit", "--mode", "reactive"]
@@ -179,3 +233,5 @@ def test_inproc_and_ros_transport_give_identical_episodes(tmp_path, ros_env, mon
     assert all(r["ade_samples"] > 0 for r in ros.values())
     raw = read_results(tmp_path / "ros" / RESULTS_FILE)
     assert {r["transport"] for r in raw} == {"ros"}
+    # the perception's share (observation k -> predictions k across the belief and prediction nodes) is counted
+    assert all(r["timings"]["perception_time"] > 0 for r in raw)

@@ -172,6 +172,50 @@ def test_maneuvers_differ(maneuvers):
     assert maneuvers[mv.ManeuverKey("near", "before", "tail_in")].n_cusps >= 1
 
 
+# ------------------------------------------------------------------------------- ParkSim's pace
+
+
+PARKSIM_PACE = 1.1  # m/s: the scenario generator's speed bound (ScenarioParams.maneuver_max_speed)
+
+
+@pytest.fixture(scope="module")
+def paced():
+    return {k: mv.generate_maneuver(k, SCENE, VEH, DT, max_speed=PARKSIM_PACE, max_accel=2.0) for k in KEYS}
+
+
+def _path_length(states: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(states[:, :2], axis=0), axis=1).sum())
+
+
+def test_parksim_pace_lasts_about_one_second_per_metre(paced):
+    """ParkSim's H-OBCA library runs N steps of dt = 0.1 s with N = the number of Hybrid A* warm-start samples,
+    0.1 m apart (hobca_planner.py, hybrid_a_star.py MOTION_RESOLUTION): a maneuver of L m lasts about L s."""
+    lengths = np.array([_path_length(m.states) for m in paced.values()])
+    durations = np.array([m.duration for m in paced.values()])
+    assert 0.95 <= lengths.sum() / durations.sum() <= 1.05  # library mean speed ~ 1 m/s
+    assert ((lengths / durations > 0.8) & (lengths / durations < 1.2)).all()
+
+
+@pytest.mark.parametrize("key", KEYS, ids=lambda k: "-".join(k))
+def test_paced_maneuvers_keep_their_bounds_and_still_park(maneuvers, paced, key):
+    m, fast = paced[key], maneuvers[key]
+    v, om = m.controls[:, 0], m.controls[:, 1]
+    assert (np.abs(v) <= PARKSIM_PACE + 1e-9).all() and np.abs(v).max() > PARKSIM_PACE - 0.05
+    assert (np.abs(om) <= np.abs(v) / VEH.min_turning_radius + 1e-9).all()
+    assert (np.abs(np.diff(np.concatenate([[0.0], v]))) / DT <= 2.0 + 1e-9).all() and v[-1] == 0.0
+    assert np.array_equal(m.states, rollout_vehicle(m.start, m.controls, DT))
+    assert m.duration > fast.duration + 1.0  # slower than the 2 m/s library
+    assert _footprints(m.states[-1][None])[0].within(_spot_polygon(key.side))
+    cars = _parked_cars(key.side)
+    assert all(fp.distance(cars) >= SCENE.clearance - 0.05 and fp.within(GEOFENCE) for fp in _footprints(m.states))
+    assert abs(_path_length(m.states) - _path_length(fast.states)) < 0.5  # same path, another speed
+
+
+def test_speed_bounds_must_be_positive():
+    with pytest.raises(ValueError, match="max_speed"):
+        mv.generate_maneuver(KEYS[0], SCENE, VEH, DT, max_speed=0.0)
+
+
 # ------------------------------------------------------------------------------------------ world
 
 

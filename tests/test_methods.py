@@ -5,6 +5,7 @@ not by the code under test."""
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -149,6 +150,33 @@ def test_spot_priority_orders_by_probability_then_id():
     it = Intention(vehicle_id=EGO_ID, spot_ids=np.array([3, 7, 1, 2]),
                    spot_probabilities=np.array([0.1, 0.3, 0.2, 0.3]), none_probability=0.1)
     assert spot_priority(it).tolist() == [2, 7, 1, 3]
+
+
+def test_planner_node_reads_the_ego_intention_message(paper_lot):
+    """The planner node's ego_intention conversion: the same order as spot_priority on float32 values (written out
+    by hand here), and one MessageError per malformed message."""
+    pytest.importorskip("rclpy")
+    from avp_common.conversions import MessageError
+    from avp_msgs.msg import Intention as IntentionMsg
+    from avp_msgs.msg import IntentionArray
+    from avp_planner.planner_node import ego_priority_from_msg
+
+    def msg(*its):
+        m = IntentionArray()
+        for ids, ps in its:
+            m.intentions.append(IntentionMsg(vehicle_id=0, spot_ids=list(ids),
+                                             spot_probabilities=np.asarray(ps, dtype=np.float32)))
+        return m
+
+    # 0.3 and 0.30000001 are the same float32: the tie goes to the smaller id
+    assert ego_priority_from_msg(msg(([3, 7, 1, 2], [0.1, 0.3, 0.2, 0.30000001])), paper_lot).tolist() == [2, 7, 1, 3]
+    assert ego_priority_from_msg(msg(([], [])), paper_lot).tolist() == []
+    for bad, needle in ((msg(), "exactly one intention"), (msg(([1], [0.5]), ([2], [0.5])), "exactly one"),
+                        (msg(([1, 2], [0.5])), "2 spot ids but 1 probabilities"),
+                        (msg(([999], [0.5])), "unknown spot id 999"), (msg(([1], [float("nan")])), "NaN"),
+                        (msg(([1], [1.5])), "[0, 1]")):
+        with pytest.raises(MessageError, match=re.escape(needle)):
+            ego_priority_from_msg(bad, paper_lot)
 
 
 def test_ego_intention_scores_the_empty_spots_of_the_egos_own_bev(paper_lot):

@@ -7,7 +7,6 @@ from pathlib import Path
 import pytest
 import yaml
 
-from avp_bringup.method_node import METHOD_NODE_PARAMS
 from avp_common.params import ParameterError, load_yaml_params
 from avp_perception.params import BELIEF_PARAMS, PREDICTION_PARAMS
 from avp_planner.examples.minimal_planner import MINIMAL_PARAMS
@@ -21,8 +20,7 @@ FILES = [("avp_sim", SRC / "avp_sim/config/sim.param.yaml", SIM_PARAMS),
          ("scripted_driver", SRC / "avp_planner/config/scripted_driver.param.yaml", DRIVER_PARAMS),
          ("avp_belief", SRC / "avp_perception/config/belief.param.yaml", BELIEF_PARAMS),
          ("avp_prediction", SRC / "avp_perception/config/prediction.param.yaml", PREDICTION_PARAMS),
-         ("minimal_planner", SRC / "avp_planner/config/minimal_planner.param.yaml", MINIMAL_PARAMS),
-         ("method_ego", SRC / "avp_bringup/config/method_ego.param.yaml", METHOD_NODE_PARAMS)]
+         ("minimal_planner", SRC / "avp_planner/config/minimal_planner.param.yaml", MINIMAL_PARAMS)]
 
 
 @pytest.mark.parametrize("node,path,specs", FILES, ids=[f[0] for f in FILES])
@@ -58,6 +56,9 @@ BAD = [
     ("avp_planner", "search.max_iterations", "many", "expected an integer"),
     ("avp_planner", "decision.candidate_threshold", KeyError, "missing"),
     ("avp_belief", "bev.beta", 1.5, "above the maximum"),
+    ("avp_belief", "belief_source", "oracle", "not one of"),
+    ("avp_belief", "nawaz.alpha", 1.5, "above the maximum"),
+    ("avp_planner", "use_ego_intention", "yes", "expected true/false"),
     ("avp_belief", "debug.bev", "sometimes", "not one of"),
     ("avp_prediction", "method", "kalman", "not one of"),
     ("avp_prediction", "hybrid_astar.max_iterations", 0, "below the minimum"),

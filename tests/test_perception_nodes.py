@@ -293,6 +293,69 @@ def test_nodes_over_dds_match_the_cores(paper_lot, ros, tmp_path, method):
         assert first == again
 
 
+@pytest.mark.parametrize("source,ego_intent", [("observation", True), ("nawaz", False)])
+def test_belief_sources_and_ego_intention_over_dds(paper_lot, ros, tmp_path, source, ego_intent):
+    """belief_source observation (eq. 7 only; Table I 'Implicit') with the ego's own intention, and nawaz (Nawaz
+    et al.'s occupancy from constant-velocity predictions), against the cores called here one by one: eq. (7)
+    written out by hand, NawazOccupancy on the 4 s constant-velocity predictions of the prediction module (the
+    node predicts only the 2.5 s the rule samples), ego_intention on an ego history kept here."""
+    from avp_perception.core.belief import BeliefMap
+    from avp_perception.core.implicit import ego_intention
+    from avp_perception.core.nawaz import NawazOccupancy
+    from avp_perception.core.prediction import ConstantVelocityPredictor
+
+    lot = paper_lot
+    obs, _ = episode_observations(lot, "bezier")
+    probe = Probe(lot)
+    ego_msgs: dict[int, list] = {}
+    probe.node.create_subscription(IntentionArray, "ego_intention",
+                                   lambda m: ego_msgs.setdefault(int(m.step), []).append(m), STEP)
+    graph = Graph([NodeSpec(BELIEF.name, BELIEF.package, BELIEF.executable, BELIEF.param_file,
+                            {"belief_source": source, "ego_intent": ego_intent, "debug.bev": "never",
+                             "debug.occupancy": "never"})], tmp_path / "logs", env=ros)
+    graph.start()
+    need = ("beliefs", "intentions")
+    try:
+        probe.wait_for_graph(1, ("beliefs", "intentions", "ego_intention") if ego_intent else need)
+        for k, o in enumerate(obs):
+            assert probe.step(observation_to_msg(o), need), f"no output for step {k}"
+            if ego_intent:
+                assert probe.spin_until(lambda k=k: k in ego_msgs, 4.0), f"no ego_intention for step {k}"
+        assert all(rc is None for rc in graph.poll().values())
+    finally:
+        graph.stop()
+        probe.node.destroy_node()
+    b_par, _ = node_params()
+    intent = reference_core(lot, b_par).intent if ego_intent else None
+    beliefs = BeliefMap.from_lot(lot, b_par["belief_init"])
+    b7 = np.full(lot.n_spots, b_par["belief_init"])
+    hist: list[np.ndarray] = []
+    keep = round(b_par["t_hist"] / obs[0].dt) + 1
+    n_changed = 0
+    for k, o in enumerate(obs):
+        b7[[lot.spot_index(i) for i in o.vacant_spot_ids]] = 0.0  # eq. (7) by hand
+        b7[[lot.spot_index(i) for i in o.occupied_spot_ids]] = 1.0
+        beliefs.observe(o.vacant_spot_ids, o.occupied_spot_ids)
+        expect = b7.copy()
+        if source == "nawaz":
+            expect = NawazOccupancy(lot).update(beliefs, o, ConstantVelocityPredictor(lot).predict(o))
+            n_changed += int(np.any(expect != b7))
+        got = probe.got["beliefs"][k][0]
+        np.testing.assert_array_equal(np.asarray(got.beliefs, dtype=float), f32(expect))
+        assert probe.got["intentions"][k][0].intentions == []  # nobody else's intention with these sources
+        hist = (hist + [np.asarray(o.ego_pose, dtype=float)])[-keep:]
+        if ego_intent:
+            ref = ego_intention(intent, o, beliefs, np.array(hist))
+            (m,) = ego_msgs[k][0].intentions
+            assert m.vehicle_id == 0 and list(m.spot_ids) == ref.spot_ids.tolist()
+            np.testing.assert_array_equal(np.asarray(m.spot_probabilities, dtype=float), f32(ref.spot_probabilities))
+            assert m.none_probability == np.float32(ref.none_probability)
+        else:
+            assert ego_msgs == {}
+    if source == "nawaz":
+        assert n_changed >= 5  # the dynamic vehicles' predictions raise some vacant spot above eq. (7)'s 0
+
+
 def test_belief_node_bad_observations(paper_lot, ros, tmp_path):
     lot = paper_lot
     obs, ref = episode_observations(lot, "bezier")

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from shapely.geometry import Polygon
 
-from avp_sim.core.scenario import ScenarioParams, generate_paper_scenario, plan_states
+from avp_sim.core.maneuvers import ManeuverKey, SceneGeometry, generate_maneuver
+from avp_sim.core.scenario import ScenarioParams, generate_paper_scenario, outer_rows, plan_states
 from avp_sim.core.world import World, WorldConfig
 from avp_world.geometry import rect_corners
 
@@ -52,11 +55,12 @@ def test_protocol_properties(paper_lot, seed):
     targets = [d.target_spot_id for d in dyn]
     assert len(set(targets)) == len(targets) and set(targets) <= CONTESTED
     assert all(2 <= d.passiveness <= 6 for d in dyn)
-    # spots without a parked car: the vacant contested ones (>= n_dyn) and exactly one per outer column
+    # spots without a parked car: the vacant contested ones (>= n_dyn) and exactly one per outer column, in the
+    # contested spots' rows 0-4 (ids 0-4 of column c0, 30-34 of c3; docs/world.md)
     empty = set(paper_lot.spot_ids.tolist()) - {v.id for v in parked}
     assert set(targets) <= empty and len(empty & CONTESTED) >= len(dyn)
     assert len(empty & set(range(0, 10))) == 1 and len(empty & set(range(30, 40))) == 1
-    assert empty <= CONTESTED | set(range(0, 10)) | set(range(30, 40))
+    assert empty <= CONTESTED | set(range(0, 5)) | set(range(30, 35))
     lot_poly = Polygon(paper_lot.boundary).buffer(1e-9)
     ego_poly = Polygon(rect_corners(sc.ego_start, sc.ego.length, sc.ego.width))
     parked_polys = [Polygon(rect_corners(v.initial_state, v.length, v.width)) for v in parked]
@@ -89,3 +93,39 @@ def test_non_reactive_has_zero_passiveness(paper_lot):
         r = generate_paper_scenario(paper_lot, seed, reactive=True)
         assert [(v.id, v.target_spot_id, v.maneuver) for v in sc.vehicles] == [
             (v.id, v.target_spot_id, v.maneuver) for v in r.vehicles]
+
+
+def test_dynamic_vehicles_park_at_parksims_pace(paper_lot):
+    """Default: the plan ends with ParkSim's maneuver timed with |v| <= 1.1 m/s (about 1 s per metre, checked
+    against the geometry in test_maneuvers.py); the earlier reading (2 m/s) stays reachable."""
+    fast = replace(ScenarioParams(), maneuver_max_speed=2.0)
+    n_same = 0
+    for seed in range(6):
+        sc, old = generate_paper_scenario(paper_lot, seed, True), generate_paper_scenario(paper_lot, seed, True, fast)
+        for d, o in zip(sc.dynamic_vehicles(), old.dynamic_vehicles(), strict=True):
+            for agent, vmax in ((d, 1.1), (o, 2.0)):
+                k = paper_lot.spot_index(agent.target_spot_id)
+                scene = SceneGeometry(7.0, float(paper_lot.spot_dims[k, 0]), float(paper_lot.spot_dims[k, 1]))
+                m = generate_maneuver(ManeuverKey(*agent.maneuver.split("/")), scene, sc.ego, sc.dt, vmax, 2.0)
+                assert np.array_equal(agent.controls[-len(m.controls):], m.controls)
+                assert np.abs(m.controls[:, 0]).max() == pytest.approx(vmax, abs=0.05)
+            if (d.target_spot_id, d.maneuver) == (o.target_spot_id, o.maneuver):
+                n_same += 1
+                assert len(d.controls) > len(o.controls)  # the same maneuver takes longer
+    assert n_same >= 3
+
+
+def test_outer_fallback_rows_are_a_parameter(paper_lot):
+    """Default rows 0-4 of the outer columns; ``outer_rows(0, 9)`` (anywhere, the earlier reading) is reachable."""
+    assert outer_rows(0, 4) == ((0, 1, 2, 3, 4), (30, 31, 32, 33, 34)) == ScenarioParams().outer_spot_groups
+    anywhere = replace(ScenarioParams(), outer_spot_groups=outer_rows(0, 9))
+    high = set()
+    for seed in range(20):
+        sc = generate_paper_scenario(paper_lot, seed, False, anywhere)
+        empty = set(paper_lot.spot_ids.tolist()) - {v.id for v in sc.vehicles if v.parked}
+        outer = empty - CONTESTED
+        assert len(outer) == 2 and outer <= set(range(0, 10)) | set(range(30, 40))
+        high |= {s % 10 for s in outer if s % 10 >= 5}
+    assert high  # some fallback spot above row 4
+    with pytest.raises(ValueError):
+        outer_rows(5, 4)

@@ -41,6 +41,10 @@ if [ "$(cat "$ROOT/ros2_ws/.build.sha1" 2>/dev/null || true)" != "$SRC_HASH" ] |
     # Fix 2: colcon/ament must find the venv as an install prefix.
     export AMENT_PREFIX_PATH="$VENV" CMAKE_PREFIX_PATH="$VENV"
     cd "$ROOT/ros2_ws"
+    # a file removed from src/ leaves a dangling symlink in build/ (--symlink-install) that breaks setup.py's
+    # data_files glob, and a stale entry-point script in install/: drop both
+    [ -d build ] && find build -xtype l -delete
+    [ -d install ] && find install -xtype l -delete
     python -m colcon --log-base log build --base-paths ../src --symlink-install \
       --event-handlers console_cohesion- summary+ \
       --cmake-args -DPython3_EXECUTABLE="$VENV/bin/python" -DBUILD_TESTING=OFF

@@ -22,7 +22,5 @@ setup(
     maintainer_email="maintainers@avp-stack.org",
     description="Launch files, parameter files, the avp command line (launch, demo) and rendering.",
     license="Apache-2.0",
-    entry_points={"console_scripts": [
-        "method_ego = avp_bringup.method_node:main",
-    ]},
+    entry_points={"console_scripts": []},
 )

@@ -33,6 +33,7 @@ GRAPH_TOPICS: dict[str, tuple[str, bool]] = {
     "/avp/debug/ground_truth": ("avp_msgs/msg/GroundTruth", False),
     "/avp/beliefs": ("avp_msgs/msg/SpotBeliefs", False),
     "/avp/intentions": ("avp_msgs/msg/IntentionArray", False),
+    "/avp/ego_intention": ("avp_msgs/msg/IntentionArray", False),  # the implicit method's (belief node's ego_intent)
     "/avp/predictions": ("avp_msgs/msg/PredictedTrajectoryArray", False),
     "/avp/decision": ("avp_msgs/msg/PlannerDecision", False),
     "/avp/plan": ("nav_msgs/msg/Path", False),

@@ -1,8 +1,10 @@
 """The ``avp`` command: run the live graph and its tools (ros2cli/launch are not on PyPI here).
 
-  avp launch [--params FILE] [--log-dir DIR]       start the node graph; Ctrl-C stops it
-  avp demo   [--seed N] [--non-reactive] [--out DIR] [--params FILE]
-                                                   one seeded episode over DDS -> metrics.json, episode.png
+  avp launch [--method NAME] [--params FILE] [--log-dir DIR]
+                                                   start the node graph (a Table I method); Ctrl-C stops it
+  avp demo   [--method NAME] [--seed N] [--non-reactive] [--realtime] [--out DIR] [--params FILE]
+                                                   one seeded episode over DDS -> metrics.json (with the
+                                                   closed-loop step time), episode.png, episode.gif
   avp record OUT [--topics T ...] [--storage mcap|sqlite3] [--split-period S]
                                                    record the graph to a rosbag2 until Ctrl-C (crash-safe splits)
   avp replay BAG [--rate R] [--start S] [--topics T ...]
@@ -12,8 +14,13 @@
   avp experiment [--scenarios N] [--seed-base S] [--mode reactive|non-reactive|both] [--methods M,...|all]
                  [--workers W] [--out DIR] [--transport inproc|ros]
                                                    the Table I runner (docs/experiment.md); resumable
-  avp bench sensing|planner|perception|soak [ARGS...]  run a benchmark script of bench/ (figures in docs/benchmarks.md)
+  avp bench sensing|planner|perception|soak|live_latency [ARGS...]
+                                                   run a benchmark script of bench/ (figures in docs/benchmarks.md)
   avp params [NODE]                                print the parameter tables (Markdown)
+  avp train-intent [--scale full|quick|tiny] [--out DIR] [--workers W] [--threads T]
+                                                   the intent CNN from scratch: data, training, evaluation,
+                                                   weights (docs/intent_model.md)
+  avp gen-intent-data SPLIT --episodes N --out FILE.npz   intent samples of one split (train|val|test|paper)
 """
 
 from __future__ import annotations
@@ -34,11 +41,17 @@ def _log_dir(arg: str | None) -> Path:
     return Path(arg) if arg else _root() / "out" / "logs" / time.strftime("%Y%m%d-%H%M%S")
 
 
-def _ego_graph(args: argparse.Namespace):
-    """The graph of ``--method NAME`` (simulator + method_ego running a Table I method profile), else of ``--ego``."""
+def _ego_graph(args: argparse.Namespace, deterministic: bool = False):
+    """The 4-node graph of ``--method NAME`` (the Table I method's parameters on the belief node, the prediction
+    node and the planner: ``avp_bringup.graph.method_graph``), or the simulator + scripted driver (``--ego
+    scripted``), or the default graph."""
     from avp_bringup.graph import default_graph, method_graph
 
-    return method_graph(args.method, autostart=True) if args.method else default_graph(args.ego)
+    if args.ego == "scripted":
+        if args.method:
+            raise ValueError("--method and --ego scripted exclude each other")
+        return default_graph("scripted")
+    return method_graph(args.method, deterministic=deterministic) if args.method else default_graph(args.ego)
 
 
 def cmd_experiment(args: argparse.Namespace) -> int:
@@ -61,7 +74,12 @@ def cmd_launch(args: argparse.Namespace) -> int:
     from avp_bringup.graph import Graph
 
     log_dir = _log_dir(args.log_dir)
-    graph = Graph(_ego_graph(args), log_dir, args.params)
+    try:
+        nodes = _ego_graph(args)
+    except ValueError as exc:
+        print(f"[avp launch] {exc}", file=sys.stderr)
+        return 2
+    graph = Graph(nodes, log_dir, args.params)
     graph.start()
     print(f"[avp] started {len(graph.procs)} nodes in namespace /avp; logs in {log_dir}/")
     for name, p in graph.procs.items():
@@ -88,6 +106,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
+    """One seeded episode through the live graph; see docs/experiment.md ("The demo")."""
     import rclpy
 
     from avp_bringup.graph import Graph, with_params
@@ -96,10 +115,21 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     log_dir = out / "logs"
-    nodes = _ego_graph(args)
+    mode = "realtime" if args.realtime else "lockstep"
+    if args.ego == "planner" and not args.method:
+        args.method = "bezier"  # the paper's method
+    try:
+        # lock-step: the wall-clock caps lifted, so the episode is the same whatever the machine's load
+        nodes = _ego_graph(args, deterministic=not args.realtime)
+    except ValueError as exc:
+        print(f"[avp demo] {exc}", file=sys.stderr)
+        return 2
     sim = nodes[0]
-    # step 0 waits for the graph's observation subscribers plus our monitor and recorder
-    extra = {"seed": args.seed, "reactive": not args.non_reactive,
+    # the episode is started with reset_episode once the whole graph is up and discovered both ways (a volatile
+    # reader that matches after step 0 was sent never gets it: lock-step would re-send after lockstep_timeout, real
+    # time would run without the pipeline); in lock-step step 0 also waits for the graph's observation subscribers
+    # plus our monitor and recorder
+    extra = {"seed": args.seed, "reactive": not args.non_reactive, "mode": mode, "autostart": False,
              "min_subscribers": sim.extra_params.get("min_subscribers", 1) + 2, "min_debug_subscribers": 2}
     if args.t_final is not None:
         extra["t_final"] = args.t_final
@@ -108,21 +138,31 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from rclpy.executors import SingleThreadedExecutor
 
     from avp_bringup.bag import BagRecorder
+    from avp_msgs.srv import ResetEpisode
 
     bag = Path(args.bag) if args.bag else _root() / "bags" / f"demo_seed{args.seed}_{time.strftime('%Y%m%d-%H%M%S')}"
     bag.parent.mkdir(parents=True, exist_ok=True)
+    method = args.method or "scripted"
+    from avp_bringup.bagwriter import BagWriteError
+
     rclpy.init()
+    try:
+        recorder = BagRecorder(bag)
+    except BagWriteError as exc:
+        print(f"[avp demo] {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
     monitor = EpisodeMonitor()
-    recorder = BagRecorder(bag)
     executor = SingleThreadedExecutor()
     executor.add_node(monitor)
     executor.add_node(recorder)
     graph = Graph(nodes, log_dir, args.params)
     t0 = time.monotonic()
     graph.start()
-    print(f"[avp demo] seed {args.seed} ({'non-' if args.non_reactive else ''}reactive) through the live graph "
-          f"over DDS; node logs in {log_dir}/")
+    print(f"[avp demo] method {method}, seed {args.seed} ({'non-' if args.non_reactive else ''}reactive), {mode}, "
+          f"through the live graph over DDS ({', '.join(n.name for n in nodes)}); node logs in {log_dir}/")
     try:
+        _start_episode(monitor, executor, graph, ResetEpisode, args, len(nodes) - 1 + 2, log_dir)
         while not monitor.finished:
             executor.spin_once(timeout_sec=0.2)
             dead = {n: rc for n, rc in graph.poll().items() if rc is not None}
@@ -132,10 +172,16 @@ def cmd_demo(args: argparse.Namespace) -> int:
             if time.monotonic() - t0 > args.timeout:
                 print(f"[avp demo] no episode end after {args.timeout} s wall time", file=sys.stderr)
                 return 1
-        for _ in range(10):  # drain the last ground-truth messages
-            executor.spin_once(timeout_sec=0.05)
         wall = time.monotonic() - t0
-        metrics = monitor.write(lot, out, {"wall_time_s": round(wall, 2), "ego_node": nodes[-1].name})
+        t_end = time.monotonic()
+        while time.monotonic() - t_end < 1.0:  # drain: the last step's messages to the monitor and the bag
+            executor.spin_once(timeout_sec=0.05)
+        latency = monitor.latency_dict(mode)
+        metrics = monitor.write(lot, out, {"wall_time_s": round(wall, 2), "method": method,
+                                           "ego_node": nodes[-1].name, "closed_loop_step_time": latency})
+    except RuntimeError as exc:
+        print(f"[avp demo] {exc}", file=sys.stderr)
+        return 1
     finally:
         graph.stop()
         recorder.close()
@@ -145,7 +191,46 @@ def cmd_demo(args: argparse.Namespace) -> int:
     print(f"[avp demo] bag: {bag}\n[avp demo]   replay it: avp replay {bag}   metrics from it: avp metrics {bag}")
     print(f"[avp demo] {metrics['state']} after {metrics['sim_time']:.1f} s sim time ({wall:.1f} s wall); "
           f"wrote {out / 'metrics.json'} and {out / 'episode.png'}")
+    print(f"[avp demo] {_latency_line(latency)}")
+    if not args.no_gif:
+        from avp_bringup.episode_video import episode_gif
+
+        gif = out / "episode.gif"
+        info = episode_gif(bag, gif, title=f"{method} seed {args.seed}")
+        print(f"[avp demo] wrote {gif} ({info['frames']} frames, every {info['stride']}. step, "
+              f"{info['bytes'] / 1e6:.1f} MB) from the bag's topics")
     return 0
+
+
+def _latency_line(lat: dict) -> str:
+    if not lat.get("steps"):
+        return "closed-loop step time: no step answered"
+    late = f", {lat['late_steps']} step(s) answered too late (ego held still)" if "late_steps" in lat else ""
+    return (f"closed-loop step time (observation k sent -> command k received, {lat['sim_mode']}, {lat['steps']} "
+            f"steps): median {lat['median_ms']:.1f} ms, p95 {lat['p95_ms']:.1f} ms, max {lat['max_ms']:.1f} ms "
+            f"(target p95 <= 100 ms){late}")
+
+
+def _start_episode(monitor, executor, graph, srv_type, args, n_obs_subs: int, log_dir: Path,
+                   timeout: float = 60.0) -> None:
+    """Wait until every node is up (observation subscribers, the ego's cmd publisher, the reset service) and a
+    second for discovery to settle, then start the episode with reset_episode (RuntimeError when that fails)."""
+    client = monitor.create_client(srv_type, "reset_episode")
+    t0 = time.monotonic()
+    while not (client.service_is_ready() and monitor.count_subscribers("/avp/observation") >= n_obs_subs
+               and monitor.count_publishers("/avp/cmd") >= 1):
+        executor.spin_once(timeout_sec=0.1)
+        dead = {n: rc for n, rc in graph.poll().items() if rc is not None}
+        if dead or time.monotonic() - t0 > timeout:
+            raise RuntimeError(f"graph not up ({dead or f'after {timeout} s'}); see {log_dir}/")
+    t1 = time.monotonic()
+    while time.monotonic() - t1 < 1.0:  # matching completes both ways; the latched lot map reaches every node
+        executor.spin_once(timeout_sec=0.05)
+    fut = client.call_async(srv_type.Request(seed=int(args.seed), reactive=not args.non_reactive))
+    executor.spin_until_future_complete(fut, timeout_sec=30.0)
+    res = fut.result()
+    if res is None or not res.success:
+        raise RuntimeError(f"reset_episode failed: {None if res is None else res.message}")
 
 
 def cmd_record(args: argparse.Namespace) -> int:
@@ -202,6 +287,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
     print(f"[avp replay] {args.bag}: {len(rep.connections)} topics at rate {args.rate}, from +{args.start} s")
     try:
         time.sleep(args.delay)  # let subscribers discover the publishers
+        if args.wait_subscribers and not rep.wait_for_subscribers(list(rep.pubs), timeout=30.0):
+            print("[avp replay] --wait-subscribers: no subscriber matched every topic within 30 s; playing anyway",
+                  file=sys.stderr)
         n = rep.play(rate=args.rate, start_offset=args.start)
         print(f"[avp replay] published {n} messages")
     except KeyboardInterrupt:
@@ -263,7 +351,6 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_params(args: argparse.Namespace) -> int:
-    from avp_bringup.method_node import METHOD_NODE_PARAMS
     from avp_common.params import markdown_table
     from avp_perception.params import BELIEF_PARAMS, PREDICTION_PARAMS
     from avp_planner.examples.minimal_planner import MINIMAL_PARAMS
@@ -272,13 +359,24 @@ def cmd_params(args: argparse.Namespace) -> int:
     from avp_sim.params import SIM_PARAMS
 
     tables = {"avp_sim": SIM_PARAMS, "avp_belief": BELIEF_PARAMS, "avp_prediction": PREDICTION_PARAMS,
-              "avp_planner": PLANNER_PARAMS, "scripted_driver": DRIVER_PARAMS, "minimal_planner": MINIMAL_PARAMS,
-              "method_ego": METHOD_NODE_PARAMS}
+              "avp_planner": PLANNER_PARAMS, "scripted_driver": DRIVER_PARAMS, "minimal_planner": MINIMAL_PARAMS}
     for name, specs in tables.items():
         if args.node and args.node != name:
             continue
         print(f"### {name}\n\n{markdown_table(specs)}\n")
     return 0
+
+
+def cmd_train_intent(args: argparse.Namespace) -> int:
+    from avp_perception.training.run import cmd_train_intent as run
+
+    return run(args)
+
+
+def cmd_gen_intent_data(args: argparse.Namespace) -> int:
+    from avp_perception.training.run import cmd_gen_intent_data as run
+
+    return run(args)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -288,15 +386,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--params", help="extra ROS 2 parameter file applied after the defaults")
     p.add_argument("--log-dir")
     p.add_argument("--ego", choices=("planner", "scripted"), default="planner", help="the ego's node")
-    p.add_argument("--method", help="run a Table I method profile instead (bezier, constant_velocity, hybrid_astar, "
-                   "implicit, nawaz or a profile file): simulator + method_ego node")
+    p.add_argument("--method", help="a Table I method profile (bezier, constant_velocity, hybrid_astar, implicit, "
+                   "nawaz or a profile file): the same 4 nodes with the profile's parameters")
     p.set_defaults(func=cmd_launch)
     p = sub.add_parser("demo", help="run one seeded episode through the live graph")
-    p.add_argument("--seed", type=int, default=3)
+    p.add_argument("--seed", type=int, default=1, help="scenario seed (1: a car in view early; parks at ~17 s)")
     p.add_argument("--non-reactive", action="store_true")
     p.add_argument("--ego", choices=("planner", "scripted"), default="planner", help="the ego's node")
-    p.add_argument("--method", help="run a Table I method profile instead (bezier, constant_velocity, hybrid_astar, "
-                   "implicit, nawaz or a profile file): simulator + method_ego node")
+    p.add_argument("--method", default=None, help="a Table I method profile (bezier, constant_velocity, "
+                   "hybrid_astar, implicit, nawaz or a profile file) [default: bezier; ignored with --ego scripted]")
+    p.add_argument("--realtime", action="store_true", help="the simulator steps at 1/dt wall rate (mode: realtime) "
+                   "instead of lock-step; the closed-loop step time then decides whether commands come in time")
+    p.add_argument("--no-gif", action="store_true", help="do not write episode.gif")
     p.add_argument("--t-final", type=float, default=None)
     p.add_argument("--out", default=str(_root() / "out" / "demo"))
     p.add_argument("--params")
@@ -318,6 +419,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--start", type=float, default=0.0, help="start offset into the bag [s]")
     p.add_argument("--topics", nargs="+")
     p.add_argument("--delay", type=float, default=1.0, help="wall seconds to wait for subscribers first")
+    p.add_argument("--wait-subscribers", action="store_true",
+                   help="after --delay, also wait (up to 30 s) until every replayed topic has a subscriber")
     p.set_defaults(func=cmd_replay)
     p = sub.add_parser("metrics", help="recompute an episode's metrics from a bag")
     p.add_argument("bag")
@@ -340,12 +443,20 @@ def main(argv: list[str] | None = None) -> int:
     add_arguments(p)
     p.set_defaults(func=cmd_experiment)
     p = sub.add_parser("bench", help="run a benchmark script of bench/")
-    p.add_argument("which", choices=("sensing", "planner", "perception", "soak"))
+    p.add_argument("which", choices=("sensing", "planner", "perception", "soak", "live_latency"))
     p.add_argument("rest", nargs=argparse.REMAINDER)
     p.set_defaults(func=cmd_bench)
     p = sub.add_parser("params", help="print parameter tables")
     p.add_argument("node", nargs="?")
     p.set_defaults(func=cmd_params)
+    from avp_perception.training.run import add_gen_arguments, add_train_arguments
+
+    p = sub.add_parser("train-intent", help="train the intent CNN from scratch (docs/intent_model.md)")
+    add_train_arguments(p)
+    p.set_defaults(func=cmd_train_intent)
+    p = sub.add_parser("gen-intent-data", help="generate intent-model samples of one split")
+    add_gen_arguments(p)
+    p.set_defaults(func=cmd_gen_intent_data)
     args = parser.parse_args(argv)
     return args.func(args)
 

@@ -70,17 +70,25 @@ def with_params(spec: NodeSpec, **extra) -> NodeSpec:
     return NodeSpec(spec.name, spec.package, spec.executable, spec.param_file, {**spec.extra_params, **extra})
 
 
-def method_graph(method: str, sim_extra: dict | None = None, ego_extra: dict | None = None,
-                 min_debug_subscribers: int = 0, autostart: bool = False) -> list[NodeSpec]:
-    """The live graph of one Table I method (issue #6): the simulator + the ``method_ego`` node running the
-    method profile ``method`` (avp_bringup/config/methods/, a name or a file). With ``autostart`` false the
-    simulator waits for the ``reset_episode`` service (``avp experiment --transport ros``)."""
-    sim = NodeSpec("avp_sim", "avp_sim", "sim_node", "config/sim.param.yaml",
-                   {"autostart": autostart, "publish_markers": False, "min_subscribers": 1,
-                    "min_debug_subscribers": min_debug_subscribers, **(sim_extra or {})})
-    ego = NodeSpec("method_ego", "avp_bringup", "method_ego", "config/method_ego.param.yaml",
-                   {"method": method, **(ego_extra or {})})
-    return [sim, ego]
+def method_graph(method, *, deterministic: bool = False, intent_weights: str | None = None,
+                 intent_seed: int | None = None, sim_extra: dict | None = None) -> list[NodeSpec]:
+    """The live graph of one Table I method (issue #6): :func:`default_graph` ("planner") — the same four nodes
+    — with the parameters of the method profile ``method`` (a name of avp_bringup/config/methods/, a profile
+    file or a :class:`~avp_bringup.experiment.profiles.MethodProfile`) on its pipeline nodes
+    (:func:`~avp_bringup.experiment.profiles.method_node_params`, also for ``deterministic`` and the intent
+    weights) and ``sim_extra`` on the simulator. ProfileError (a ValueError) for an unknown or unavailable
+    method."""
+    from avp_bringup.experiment.profiles import MethodProfile, load_profile, method_node_params
+
+    profile = method if isinstance(method, MethodProfile) else load_profile(method)
+    params = method_node_params(profile, deterministic=deterministic, intent_weights=intent_weights,
+                                intent_seed=intent_seed)
+    nodes = [with_params(n, **params.get(n.name, {})) for n in default_graph("planner")]
+    missing = set(params) - {n.name for n in nodes}
+    assert not missing, f"method_node_params names nodes the graph does not have: {missing}"
+    if sim_extra:
+        nodes[0] = with_params(nodes[0], **sim_extra)
+    return nodes
 
 
 def _ros_value(v) -> str:

@@ -4,7 +4,9 @@ A *planner* is any node publishing on ``<namespace>/cmd``; to be swappable it mu
 (managed) node (lifecycle_msgs services ``<node>/get_state`` and ``<node>/change_state``). A swap
 
 1. (for a profile) starts ``avp_planner/planner`` as a new process with the profile's parameter file and
-   ``autostart:=false``, detached, and waits for its lifecycle services;
+   ``autostart:=false``, detached, and waits for its lifecycle services; it inherits the running planner's
+   inputs (``use_beliefs``, ``use_predictions``, ``use_ego_intention``: e.g. the spot order of ``avp launch
+   --method implicit``) so that the swap keeps the graph's method;
 2. configures the new planner (it builds its core for the lot; still silent);
 3. deactivates every other active planner — from here until step 4 no command is published: in
    lock-step the simulator waits, in real time its watchdog holds the ego still;
@@ -145,6 +147,30 @@ class LifecycleClient:
         if not self._call(target, "change_state", req, timeout).success:
             raise SwapError(f"{target}: transition '{transition}' failed (state {self.state(target, timeout)})")
 
+    def parameters(self, target: str, names: tuple[str, ...], timeout: float = 5.0) -> dict:
+        """The values of ``names`` that ``target`` has declared (rcl_interfaces GetParameters); {} when the node
+        has no parameter service or does not answer in time."""
+        import rclpy
+        from rcl_interfaces.msg import ParameterType
+        from rcl_interfaces.srv import GetParameters
+
+        key = (target, "get_parameters")
+        if key not in self._clients:
+            self._clients[key] = self.node.create_client(GetParameters, f"{target}/get_parameters")
+        client = self._clients[key]
+        if not client.wait_for_service(timeout_sec=timeout):
+            return {}
+        future = client.call_async(GetParameters.Request(names=list(names)))
+        t0 = time.monotonic()
+        while not future.done() and time.monotonic() - t0 < timeout:
+            rclpy.spin_once(self.node, timeout_sec=0.05)
+        if not future.done() or future.result() is None:
+            return {}
+        readers = {ParameterType.PARAMETER_BOOL: "bool_value", ParameterType.PARAMETER_INTEGER: "integer_value",
+                   ParameterType.PARAMETER_DOUBLE: "double_value", ParameterType.PARAMETER_STRING: "string_value"}
+        return {n: getattr(v, readers[v.type]) for n, v in zip(names, future.result().values, strict=False)
+                if v.type in readers}
+
     def spin(self, seconds: float) -> None:
         import rclpy
 
@@ -166,14 +192,20 @@ class LifecycleClient:
                       if n.startswith(ns + "/") and n.endswith("/get_state") and "lifecycle_msgs/srv/GetState" in t)
 
 
+#: the planner's inputs, inherited by a swapped-in planner from the running one
+WIRING = ("use_beliefs", "use_predictions", "use_ego_intention")
+
+
 def start_planner_process(name: str, profile: Path, namespace: str, log_dir: Path, user_params: str | None,
-                          env: dict | None = None) -> tuple[subprocess.Popen, Path]:
+                          env: dict | None = None, wiring: dict | None = None) -> tuple[subprocess.Popen, Path]:
     """``avp_planner/planner`` as a detached process named ``name`` (unconfigured: autostart false), with
-    the parameters the default graph gives its planner (e.g. use_beliefs / use_predictions)."""
+    the parameters the default graph gives its planner (use_beliefs / use_predictions), replaced by ``wiring``
+    (the running planner's inputs, :data:`WIRING`) where given."""
     from avp_bringup.graph import Graph, NodeSpec, default_graph
 
     base = next(s for s in default_graph("planner") if s.package == "avp_planner" and s.executable == "planner")
-    spec = NodeSpec(name, base.package, base.executable, base.param_file, {**base.extra_params, "autostart": False})
+    extra = {**base.extra_params, **{k: v for k, v in (wiring or {}).items() if k in WIRING}, "autostart": False}
+    spec = NodeSpec(name, base.package, base.executable, base.param_file, extra)
     cmd = Graph([spec], log_dir, user_params).command(spec)
     cmd[cmd.index("-p"):cmd.index("-p")] = ["--params-file", str(profile)]  # defaults < user < profile < -p
     if namespace != "/avp":
@@ -213,7 +245,12 @@ def swap_planner(client: LifecycleClient, namespace: str, *, profile: str | None
         base = name or "avp_planner_" + re.sub(r"[^A-Za-z0-9_]", "_", path.stem)
         new_name = unique_name(client, namespace, base)
         log_dir = log_dir or Path.cwd() / "out" / "logs" / time.strftime("swap-%Y%m%d-%H%M%S")
-        proc, log = start_planner_process(new_name, path, namespace, log_dir, user_params, env)
+        wiring: dict = {}
+        for running in client.cmd_publishers(namespace):  # keep the graph's method (module docstring, step 1)
+            wiring = client.parameters(running, WIRING, timeout=min(timeout, 5.0))
+            if wiring:
+                break
+        proc, log = start_planner_process(new_name, path, namespace, log_dir, user_params, env, wiring)
         report.new, report.pid, report.log = fq_name(namespace, new_name), proc.pid, log
         t0 = time.monotonic()
         while not client.is_lifecycle(report.new):

@@ -1,4 +1,14 @@
-"""A graph observer (debug side only): collects ground truth and status to write metrics and pictures."""
+"""A graph observer (debug side only): collects ground truth and status to write metrics and pictures, and
+measures the closed-loop step time of the live graph.
+
+**Closed-loop step time** (sense → command, issue #6): for every step k, the wall time from the simulator
+publishing observation k to the command answering it (stamped t_k) arriving — the DDS *source timestamp* of
+observation k (taken by the simulator's writer; in lock-step, of its last re-send before the answer) to the DDS
+*reception timestamp* of the first command stamped t_k at this node's reader (taken by the middleware's receive
+thread, so it does not depend on how busy this process is). Both clocks are the same machine's system clock. In
+real time (sim ``mode: realtime``) a command arriving after observation k+1 was sent comes too late to be used
+(``command_max_lag`` 0): counted as ``late_steps``.
+"""
 
 from __future__ import annotations
 
@@ -7,11 +17,12 @@ import math
 from pathlib import Path
 
 import numpy as np
+from geometry_msgs.msg import TwistStamped
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from avp_common.conversions import observation_from_msg
-from avp_common.qos import DEBUG, STATUS
+from avp_common.conversions import observation_from_msg, time_to_ns
+from avp_common.qos import STATUS
 from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation
 
 GROUND_TRUTH_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
@@ -27,12 +38,16 @@ class EpisodeMonitor(Node):
         super().__init__("avp_monitor", namespace=namespace)
         self.gt: dict[int, GroundTruth] = {}
         self.status: EpisodeStatus | None = None
-        self._last_obs_raw: bytes | None = None
-        # every ground-truth step matters (metrics, the DDS tests): a deep reader queue rides out a busy CPU
+        self.last_obs: Observation | None = None
+        self.obs_sent: dict[int, list[int]] = {}  # stamp [ns] -> DDS source timestamps of the observation [ns]
+        self.next_sent: dict[int, int] = {}  # stamp [ns] -> source timestamp of the observation after it [ns]
+        self.cmd_received: dict[int, int] = {}  # stamp [ns] -> reception timestamp of the first command [ns]
+        self._last_stamp: int | None = None
+        # every step matters (metrics, step times, the DDS tests): deep reader queues ride out a busy CPU
         self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, GROUND_TRUTH_QOS)
         self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
-        # only the last observation is used (rays in the picture): kept as CDR bytes, decoded once at the end
-        self.create_subscription(Observation, "observation", self._on_obs, DEBUG, raw=True)
+        self.create_subscription(Observation, "observation", self._on_obs, GROUND_TRUTH_QOS)
+        self.create_subscription(TwistStamped, "cmd", self._on_cmd, GROUND_TRUTH_QOS)
 
     def _on_gt(self, msg: GroundTruth) -> None:
         self.gt[int(msg.step)] = msg
@@ -40,16 +55,47 @@ class EpisodeMonitor(Node):
     def _on_status(self, msg: EpisodeStatus) -> None:
         self.status = msg
 
-    def _on_obs(self, raw: bytes) -> None:
-        self._last_obs_raw = raw
+    def _on_obs(self, msg: Observation, info) -> None:
+        stamp = time_to_ns(msg.header.stamp)
+        if self._last_stamp is not None and stamp < self._last_stamp:  # a new episode: time restarts
+            for d in (self.obs_sent, self.next_sent, self.cmd_received):
+                d.clear()
+            self._last_stamp = None
+        sent = int(info["source_timestamp"])
+        self.obs_sent.setdefault(stamp, []).append(sent)  # more than one: re-sent in lock-step
+        if self._last_stamp is not None and self._last_stamp < stamp:
+            self.next_sent.setdefault(self._last_stamp, sent)
+        self._last_stamp = stamp
+        self.last_obs = msg
 
-    @property
-    def last_obs(self) -> Observation | None:
-        if self._last_obs_raw is None:
-            return None
-        from rclpy.serialization import deserialize_message
+    def _on_cmd(self, msg: TwistStamped, info) -> None:
+        self.cmd_received.setdefault(time_to_ns(msg.header.stamp), int(info["received_timestamp"]))
 
-        return deserialize_message(self._last_obs_raw, Observation)
+    def step_times(self) -> tuple[np.ndarray, int]:
+        """(closed-loop step times [s] of the steps answered, in step order; how many answers came after the next
+        observation had been sent)."""
+        stamps = sorted(k for k in self.obs_sent if k in self.cmd_received)
+        # the send the command answers: the last one before it arrived
+        sent = {k: max([t for t in self.obs_sent[k] if t <= self.cmd_received[k]] or self.obs_sent[k][:1])
+                for k in stamps}
+        lat = np.array([(self.cmd_received[k] - sent[k]) * 1e-9 for k in stamps])
+        late = sum(1 for k in stamps if k in self.next_sent and self.cmd_received[k] > self.next_sent[k])
+        return lat, late
+
+    def latency_dict(self, mode: str) -> dict:
+        """Closed-loop step-time figures for metrics.json (module docstring): milliseconds."""
+        lat, late = self.step_times()
+        ms = lat * 1e3
+        out = {"definition": "per step: DDS source timestamp of observation k (simulator) -> DDS reception timestamp "
+                             "of the first command stamped t_k (wall clock)",
+               "sim_mode": mode, "steps": int(len(ms)), "target_p95_ms": 100.0}
+        if len(ms):
+            out.update(median_ms=round(float(np.median(ms)), 2), p95_ms=round(float(np.percentile(ms, 95)), 2),
+                       mean_ms=round(float(ms.mean()), 2), max_ms=round(float(ms.max()), 2),
+                       min_ms=round(float(ms.min()), 2))
+        if mode == "realtime":
+            out["late_steps"] = int(late)  # answered after observation k+1 was sent: not used, the ego held still
+        return out
 
     @property
     def finished(self) -> bool:

@@ -1,12 +1,21 @@
-"""avp_perception belief node: the thin ROS wrapper around :meth:`PerceptionCore.perceive` (§V-A, §V-B).
+"""avp_perception belief node: the thin ROS wrapper around :meth:`PerceptionCore.believe` (§V-A, §V-B).
 
 Topics (relative; the launcher puts every node in namespace /avp):
   subscribes lot_map (latched), observation
-  publishes  beliefs (avp_msgs/SpotBeliefs, b_t of eq. 8, every spot of the lot),
+  publishes  beliefs (avp_msgs/SpotBeliefs, b_t of every spot of the lot),
              intentions (avp_msgs/IntentionArray, §V-A), both stamped like the observation they answer;
+             ego_intention (avp_msgs/IntentionArray with one Intention, vehicle_id 0 = the ego: eta_0,i of the
+             ego's own BEV, §VI-B-3), only with ``ego_intent``;
              debug/bev (sensor_msgs/Image rgb8: the BEVs I_k,0 of the observed dynamic vehicles side by side),
              debug/occupancy (nav_msgs/OccupancyGrid of b_t; unknown = -1 for never-observed spots) — each
              only while subscribed, or always / never (``debug.*`` parameters).
+
+``belief_source`` says what follows eq. (7) (Table I methods, docs/experiment.md): ``intent`` — eq. (8) with
+the intent CNN of every observed dynamic vehicle (the paper); ``nawaz`` — Nawaz et al.'s occupancy on the observed
+vacant spots from constant-velocity predictions that this node computes itself (``nawaz.*``; computing them here
+keeps the graph acyclic: the prediction node waits for this node's intentions); ``observation`` — eq. (7) only.
+With ``nawaz`` / ``observation`` the intentions topic carries an empty array each step (the prediction node's
+lock-step partner).
 
 One output per observation step, in order. An observation of a step already answered (the simulator
 re-sends in lock-step when a reply went missing) gets the same messages again, not a second update. A step
@@ -18,6 +27,7 @@ step * dt) is dropped with one error naming the topic; the node keeps running.
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 
 import numpy as np
 from nav_msgs.msg import OccupancyGrid
@@ -37,8 +47,11 @@ from avp_common.qos import DEBUG, LATCHED, STEP
 from avp_msgs.msg import IntentionArray, LotMap, Observation, SpotBeliefs
 from avp_perception.conversions import intentions_to_msg
 from avp_perception.core.debug_views import belief_grid, grid_layout, tile_bevs
+from avp_perception.core.nawaz import NawazOccupancy
 from avp_perception.core.pipeline import PerceptionCore, make_intent_predictor
-from avp_perception.params import BELIEF_PARAMS, bev_config
+from avp_perception.params import BELIEF_PARAMS, bev_config, nawaz_config
+
+EGO_VEHICLE_ID = 0  # vehicle_id of the ego's intention on ego_intention (the ego has no id among observed vehicles)
 
 
 def check_spot_ids(obs, lot) -> None:
@@ -55,6 +68,8 @@ class BeliefNode(Node):
         p = declare_and_validate(self, BELIEF_PARAMS)
         self.p = p
         self.bev_config = bev_config(p)
+        self.nawaz_config = nawaz_config(p)
+        self.source, self.ego_intent = p["belief_source"], p["ego_intent"]
         import torch
 
         torch.set_num_threads(p["torch_threads"])
@@ -67,13 +82,18 @@ class BeliefNode(Node):
         self.seen: np.ndarray | None = None
         self.pending: dict[int, Observation] = {}  # observations that arrived before the lot map
         self.last_step = -1
-        self.cache: tuple | None = None  # (step, beliefs msg, intentions msg, observation msg, core output)
+        self.nawaz: NawazOccupancy | None = None
+        # (step, beliefs msg, intentions msg, ego_intention msg or None, observation msg, core output)
+        self.cache: tuple | None = None
         self.pub_beliefs = self.create_publisher(SpotBeliefs, "beliefs", STEP)
         self.pub_intentions = self.create_publisher(IntentionArray, "intentions", STEP)
+        self.pub_ego = self.create_publisher(IntentionArray, "ego_intention", STEP) if self.ego_intent else None
         self.pub_bev = self.create_publisher(Image, "debug/bev", DEBUG)
         self.pub_occupancy = self.create_publisher(OccupancyGrid, "debug/occupancy", DEBUG)
         self.create_subscription(LotMap, "lot_map", self._on_lot, LATCHED)
         self.sub_obs = self.create_subscription(Observation, "observation", self._on_obs, STEP)
+        self.get_logger().info(f"belief source '{self.source}'" + (", ego intention on ego_intention"
+                                                                    if self.ego_intent else ""))
 
     # ------------------------------------------------------------------------------------------ inputs
     def _on_lot(self, msg: LotMap) -> None:
@@ -86,6 +106,7 @@ class BeliefNode(Node):
         self.intent.renderer(lot)
         self.core = PerceptionCore(lot, self.bev_config, intent=self.intent, t_hist=self.p["t_hist"],
                                    belief_init=self.p["belief_init"], keep_bevs=True)
+        self.nawaz = NawazOccupancy(lot, self.nawaz_config)
         self.layout = grid_layout(lot, self.p["debug.occupancy_resolution"])
         self.seen = np.zeros(lot.n_spots, dtype=bool)
         self.last_step, self.cache = -1, None
@@ -102,9 +123,8 @@ class BeliefNode(Node):
         topic = self.sub_obs.topic_name
         step = int(msg.step)
         if step == self.last_step and self.cache is not None and self.cache[0] == step:
-            _, beliefs, intentions, obs_msg, out = self.cache  # re-sent observation: the same answer again
-            self.pub_beliefs.publish(beliefs)
-            self.pub_intentions.publish(intentions)
+            _, beliefs, intentions, ego, obs_msg, out = self.cache  # re-sent observation: the same answer again
+            self._publish(beliefs, intentions, ego)
             self._publish_debug(obs_msg, out)
             return
         try:
@@ -119,14 +139,22 @@ class BeliefNode(Node):
                                       "episode; beliefs and intent state reset")
             self.core.reset()
             self.seen[:] = False
-        out = self.core.perceive(obs)
+        out = self.core.believe(obs, self.source, self.nawaz, self.ego_intent)
         self.seen |= self.core.beliefs.observed_mask
         beliefs = beliefs_to_msg(step, obs.dt, self.lot.spot_ids, out.beliefs)
         intentions = intentions_to_msg(step, obs.dt, out.intentions)
+        ego = None
+        if out.ego_intention is not None:
+            ego = intentions_to_msg(step, obs.dt, [replace(out.ego_intention, vehicle_id=EGO_VEHICLE_ID)])
+        self._publish(beliefs, intentions, ego)
+        self.last_step, self.cache = step, (step, beliefs, intentions, ego, msg, out)
+        self._publish_debug(msg, out)
+
+    def _publish(self, beliefs: SpotBeliefs, intentions: IntentionArray, ego: IntentionArray | None) -> None:
+        if ego is not None:  # first: the planner's last input in lock-step is the prediction node's answer
+            self.pub_ego.publish(ego)
         self.pub_beliefs.publish(beliefs)
         self.pub_intentions.publish(intentions)
-        self.last_step, self.cache = step, (step, beliefs, intentions, msg, out)
-        self._publish_debug(msg, out)
 
     # ------------------------------------------------------------------------------------------ debug
     def _publish_debug(self, obs_msg: Observation, out) -> None:

@@ -15,6 +15,8 @@ from avp_common.params import ParamSpec, dataclass_from_values, specs_from_datac
 from avp_perception.core.belief import BELIEF_INIT
 from avp_perception.core.bev import EXPLORATION_SHAPES, BEVConfig
 from avp_perception.core.intent_model import MODES as INTENT_MODES
+from avp_perception.core.nawaz import COVARIANCE_MODES, MAHALANOBIS_MODES, NawazConfig
+from avp_perception.core.pipeline import BELIEF_SOURCES
 from avp_perception.core.prediction import PREDICTOR_NAMES, START_TANGENTS, PredictionConfig
 
 DEBUG_CHOICES = ("never", "subscribed", "always")
@@ -28,6 +30,14 @@ def _annotate(specs: list[ParamSpec], notes: dict[str, dict[str, Any]]) -> list[
 
 
 BELIEF_NODE_PARAMS = [
+    ParamSpec("belief_source", str, "What follows eq. (7): intent = eq. (8) with the intent CNN of every observed "
+              "dynamic vehicle (the paper; intentions published); nawaz = Nawaz et al.'s occupancy P_T on the observed "
+              "vacant spots from constant-velocity predictions computed in this node (nawaz.*; Table I 'Explicit, "
+              "future'); observation = eq. (7) only. With nawaz/observation the intentions topic carries an empty "
+              "array.", "b_t", "§V-B, §VI-B-2", choices=BELIEF_SOURCES, default="intent"),
+    ParamSpec("ego_intent", bool, "Also run the intent CNN on the ego's own BEV and publish its intention on "
+              "ego_intention (Table I 'Implicit (ParkPredict+)': the planner's use_ego_intention tries spots in "
+              "decreasing eta_0,i).", "eta_0,i", "§VI-B-3", default=False),
     ParamSpec("belief_init", float, "Belief of a spot before any observation (no information).", "b_-dt", "§V-B",
               min=0.0, max=1.0, default=BELIEF_INIT),
     ParamSpec("t_hist", float, "Ego poses kept for the ego's trail in the other vehicles' BEVs (as the "
@@ -63,7 +73,23 @@ _BEV_NOTES: dict[str, dict[str, Any]] = {
     "bev.exploration_shape": {"symbol": "s_exp", "section": "§V-A", "choices": EXPLORATION_SHAPES},
     "bev.exploration_radius": {"symbol": "Q_0", "section": "§V-D, §VI-A", "min": 0.1},
 }
-BELIEF_PARAMS: list[ParamSpec] = BELIEF_NODE_PARAMS + _annotate(specs_from_dataclass(BEVConfig(), "bev."), _BEV_NOTES)
+_NAWAZ_NOTES: dict[str, dict[str, Any]] = {
+    "nawaz.step": {"symbol": "h", "section": "§VI-B-2", "min": 0.01, "max": 10.0},
+    "nawaz.n_steps": {"symbol": "T", "section": "§VI-B-2", "min": 0, "max": 100},
+    "nawaz.sigma0_scale": {"symbol": "Σ_0", "section": "§VI-B-2", "min": 1e-6},
+    "nawaz.q": {"symbol": "Q", "section": "§VI-B-2", "min": 0.0},
+    "nawaz.pedestrian_sigma0_scale": {"section": "§VI-B-2", "min": 0.0},
+    "nawaz.pedestrian_q_scale": {"section": "§VI-B-2", "min": 0.0},
+    "nawaz.alpha_g": {"symbol": "α_g", "section": "§VI-B-2", "min": 1e-6},
+    "nawaz.alpha": {"symbol": "α", "section": "§VI-B-2", "min": 0.0, "max": 1.0},
+    "nawaz.rho": {"symbol": "ρ", "section": "§VI-B-2", "min": 0.0},
+    "nawaz.gate_gain": {"symbol": "g", "section": "§VI-B-2", "min": 0.0},
+    "nawaz.floor": {"section": "§VI-B-2", "min": 0.0, "max": 1.0},
+    "nawaz.mahalanobis": {"section": "§VI-B-2", "choices": MAHALANOBIS_MODES},
+    "nawaz.covariance": {"section": "§VI-B-2", "choices": COVARIANCE_MODES},
+}
+BELIEF_PARAMS: list[ParamSpec] = (BELIEF_NODE_PARAMS + _annotate(specs_from_dataclass(BEVConfig(), "bev."), _BEV_NOTES)
+                                  + _annotate(specs_from_dataclass(NawazConfig(), "nawaz."), _NAWAZ_NOTES))
 
 PREDICTION_NODE_PARAMS = [
     ParamSpec("method", str, "Trajectory predictor: the paper's intention-conditioned Bezier curves, constant "
@@ -89,6 +115,11 @@ PREDICTION_PARAMS: list[ParamSpec] = PREDICTION_NODE_PARAMS + _annotate(specs_fr
 def bev_config(values: dict[str, Any]) -> BEVConfig:
     """BEVConfig from validated ``bev.*`` values (ValueError from its own checks)."""
     return dataclass_from_values(BEVConfig(), values, "bev.").validate()
+
+
+def nawaz_config(values: dict[str, Any]) -> NawazConfig:
+    """NawazConfig from validated ``nawaz.*`` values (ValueError from its own checks)."""
+    return dataclass_from_values(NawazConfig(), values, "nawaz.").validate()
 
 
 def prediction_config(values: dict[str, Any]) -> PredictionConfig:

@@ -1,7 +1,9 @@
 """avp_planner node: the thin ROS wrapper around :class:`avp_planner.core.decision.EgoPlanner` (§V-D).
 
-Subscribes lot_map (latched), observation, and — when enabled — beliefs and predictions; in lock-step
-it decides once all enabled inputs stamped like observation k have arrived. Publishes cmd
+Subscribes lot_map (latched), observation, and — when enabled — beliefs, predictions and ego_intention (the
+belief node's ``ego_intent``: the ego's own intention eta_0,i; the candidate spots are then tried in decreasing
+eta_0,i, Table I "Implicit", §VI-B-3); in lock-step it decides once all enabled inputs stamped like observation k
+have arrived. Publishes cmd
 (TwistStamped, stamped like the observation it answers), plan (nav_msgs/Path), decision
 (avp_msgs/PlannerDecision with timings). Never reads ground truth.
 
@@ -30,6 +32,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from avp_common.conversions import (
     MessageError,
     beliefs_from_msg,
+    check_probabilities,
     lot_from_msg,
     observation_from_msg,
     predictions_from_msg,
@@ -43,7 +46,7 @@ from avp_common.params import (
     specs_from_dataclass,
 )
 from avp_common.qos import LATCHED, STEP
-from avp_msgs.msg import LotMap, Observation, PlannerDecision, PredictedTrajectoryArray, SpotBeliefs
+from avp_msgs.msg import IntentionArray, LotMap, Observation, PlannerDecision, PredictedTrajectoryArray, SpotBeliefs
 from avp_planner.core.settings import DEFAULT_SETTINGS
 
 NODE_PARAMS = [
@@ -53,9 +56,31 @@ NODE_PARAMS = [
               "observation only.", "b_t", "§V-B", default=False),
     ParamSpec("use_predictions", bool, "Wait for and use predicted trajectories (#4); false = none.", "",
               "§V-C", default=False),
+    ParamSpec("use_ego_intention", bool, "Wait for ego_intention (the belief node's ego_intent) and try the "
+              "candidate spots in decreasing eta_0,i until one has a safe plan (Table I 'Implicit'); false = the "
+              "lowest c_park.", "eta_0,i", "§VI-B-3", default=False),
 ]
 PLANNER_PARAMS = NODE_PARAMS + specs_from_dataclass(DEFAULT_SETTINGS)
 MODES = {"idle": PlannerDecision.MODE_IDLE, "park": PlannerDecision.MODE_PARK, "explore": PlannerDecision.MODE_EXPLORE}
+
+
+def ego_priority_from_msg(msg: IntentionArray, lot) -> np.ndarray:
+    """The spot order of the "Implicit" method from an ego_intention message (one Intention: spot ids and
+    float32 eta_0,i): decreasing probability, ties smaller id first. MessageError for anything but exactly one
+    intention, sizes that differ, NaN/inf or probabilities outside [0, 1], unknown spot ids."""
+    from avp_planner.core.decision import priority_from_probabilities
+
+    if len(msg.intentions) != 1:
+        raise MessageError(f"expected exactly one intention (the ego's), got {len(msg.intentions)}")
+    m = msg.intentions[0]
+    if len(m.spot_ids) != len(m.spot_probabilities):
+        raise MessageError(f"{len(m.spot_ids)} spot ids but {len(m.spot_probabilities)} probabilities")
+    ids = np.asarray(m.spot_ids, dtype=np.int64)
+    unknown = [int(i) for i in ids if not lot.has_spot(int(i))]
+    if unknown:
+        raise MessageError(f"unknown spot id {unknown[0]}")
+    p = check_probabilities(m.spot_probabilities, "spot_probabilities")
+    return priority_from_probabilities(ids, p)
 
 
 def _quat_z(theta: float):
@@ -68,6 +93,7 @@ class PlannerNode(LifecycleNode):
         guard_lifecycle_services(self)
         p = declare_and_validate(self, PLANNER_PARAMS)
         self.use_beliefs, self.use_predictions = p["use_beliefs"], p["use_predictions"]
+        self.use_ego_intention = p["use_ego_intention"]
         self.settings = dataclass_from_values(DEFAULT_SETTINGS, p).validate()
         self.planner = None
         self.lot = None
@@ -77,6 +103,8 @@ class PlannerNode(LifecycleNode):
         self.obs: dict[int, Observation] = {}
         self.beliefs: dict[int, SpotBeliefs] = {}
         self.preds: dict[int, PredictedTrajectoryArray] = {}
+        self.ego_int: dict[int, IntentionArray] = {}
+        self.inputs = (self.obs, self.beliefs, self.preds, self.ego_int)
         self.pub_cmd = self.create_publisher(TwistStamped, "cmd", STEP)
         self.pub_plan = self.create_publisher(Path, "plan", STEP)
         self.pub_decision = self.create_publisher(PlannerDecision, "decision", STEP)
@@ -87,6 +115,8 @@ class PlannerNode(LifecycleNode):
             self.create_subscription(SpotBeliefs, "beliefs", self._on_beliefs, STEP)
         if self.use_predictions:
             self.create_subscription(PredictedTrajectoryArray, "predictions", self._on_preds, STEP)
+        if self.use_ego_intention:
+            self.create_subscription(IntentionArray, "ego_intention", self._on_ego_intention, STEP)
         if p["autostart"]:
             self.trigger_configure()
             self.trigger_activate()
@@ -146,7 +176,7 @@ class PlannerNode(LifecycleNode):
         k = int(msg.step)
         if k == 0 and self.last_step is not None:  # a new episode (reset): forget the old one
             self.obs.clear()
-            for d in (self.beliefs, self.preds):
+            for d in (self.beliefs, self.preds, self.ego_int):
                 for old in [s for s in d if s > 0]:
                     del d[old]
             if self.planner is not None:
@@ -160,7 +190,7 @@ class PlannerNode(LifecycleNode):
         self.last_step = k
         self.obs[k] = msg
         if not self.active:  # keep only the newest inputs while inactive
-            for d in (self.obs, self.beliefs, self.preds):
+            for d in self.inputs:
                 for old in [s for s in d if s < k]:
                     del d[old]
         self._try(k)
@@ -173,10 +203,15 @@ class PlannerNode(LifecycleNode):
         self.preds[int(msg.step)] = msg
         self._try(int(msg.step))
 
+    def _on_ego_intention(self, msg: IntentionArray) -> None:
+        self.ego_int[int(msg.step)] = msg
+        self._try(int(msg.step))
+
     def _try(self, k: int) -> None:
         if not self.active or self.planner is None or k not in self.obs:
             return
-        if (self.use_beliefs and k not in self.beliefs) or (self.use_predictions and k not in self.preds):
+        if ((self.use_beliefs and k not in self.beliefs) or (self.use_predictions and k not in self.preds)
+                or (self.use_ego_intention and k not in self.ego_int)):
             return
         msg = self.obs.pop(k)
         topic = self.sub_obs.topic_name
@@ -186,15 +221,17 @@ class PlannerNode(LifecycleNode):
             beliefs = beliefs_from_msg(self.beliefs.pop(k), self.lot) if self.use_beliefs else None
             topic = self.sub_obs.topic_name.replace("observation", "predictions")
             preds = predictions_from_msg(self.preds.pop(k)) if self.use_predictions else []
+            topic = self.sub_obs.topic_name.replace("observation", "ego_intention")
+            priority = ego_priority_from_msg(self.ego_int.pop(k), self.lot) if self.use_ego_intention else None
         except MessageError as exc:
             self.get_logger().error(f"{topic} step {k}: {exc}; holding still")
             self._publish_cmd(msg.header.stamp, 0.0, 0.0)
             return
-        for d in (self.obs, self.beliefs, self.preds):  # forget anything older
+        for d in self.inputs:  # forget anything older
             for old in [s for s in d if s < k]:
                 del d[old]
         t0 = time.perf_counter()
-        decision = self.planner.decide(obs, beliefs, preds)
+        decision = self.planner.decide(obs, beliefs, preds, priority)
         total = time.perf_counter() - t0
         v, om = decision.command
         if decision.reason.startswith("invalid input"):

@@ -1,25 +1,26 @@
 """One method's ego pipeline (ROS-free): perception cores + the §V-D planner, one :meth:`MethodEgo.step` per
-observation. Used in-process by ``avp experiment`` and wrapped by the ``method_ego`` node (live graph).
+observation — the in-process twin of the live graph of a method (``avp_bringup.graph.method_graph``: the belief
+node, the prediction node and the planner configured from the profile), used by ``avp experiment --transport
+inproc``.
 
 Per step, following the method profile (:mod:`.profiles`):
 
-1. eq. (7): the belief map b~_t from the observation (:class:`~avp_perception.core.belief.BeliefMap`);
-2. beliefs ``intent``: the intent CNN of §V-A on every observed dynamic vehicle's reconstructed BEV (§V-B) and
-   eq. (8) (:meth:`PerceptionCore.perceive`, what the belief node computes); ``observation``: b~_t as is;
-3. trajectory prediction of the other agents (§V-C) with the profile's predictor, conditioned on the
-   intentions of step 2 (none for ``observation`` / ``nawaz``: constant velocity ignores them);
-4. beliefs ``nawaz``: Nawaz et al.'s occupancy from those predictions on the observed vacant spots
-   (:mod:`avp_perception.core.nawaz`);
-5. ``ego_intent``: the intent CNN on the ego's own BEV orders its candidate spots
-   (:mod:`avp_perception.core.implicit`);
-6. the planner's decision (:meth:`EgoPlanner.decide`).
+1. the belief node's step (:meth:`PerceptionCore.believe`): eq. (7), then per ``beliefs`` — ``intent``: the
+   intent CNN of §V-A on every observed dynamic vehicle's reconstructed BEV (§V-B) and eq. (8); ``nawaz``:
+   Nawaz et al.'s occupancy from constant-velocity predictions on the observed vacant spots
+   (:mod:`avp_perception.core.nawaz`); ``observation``: nothing more — and with ``ego_intent`` the intent CNN
+   on the ego's own BEV (:mod:`avp_perception.core.implicit`);
+2. the prediction node's step: the other agents' trajectories (§V-C) with the profile's predictor, conditioned
+   on the intentions of step 1 (none for ``observation`` / ``nawaz``);
+3. the planner's decision (:meth:`EgoPlanner.decide`; ``ego_intent``: candidate spots tried in decreasing
+   eta_0,i).
 
-``message_precision`` (default on) rounds what travels in float32 message fields between the per-stage nodes
-of the live graph (intention probabilities into the predictor, trajectory probabilities and b_t into the
+``message_precision`` (default on) rounds what travels in float32 message fields between the nodes (intention
+probabilities into the predictor and the planner's spot order, trajectory probabilities and b_t into the
 planner) exactly as the messages do (as :class:`avp_bringup.inproc.PerceptionPlanner`), so that in-process
-episodes equal the node graph's.
+episodes equal the node graph's bit for bit (tests/test_experiment.py).
 
-Spot-selection time (Table I) = steps 1-5 + the planner's candidate selection and pricing; path-planning
+Spot-selection time (Table I) = steps 1-2 + the planner's candidate selection and pricing; path-planning
 time = the planner's Hybrid A* searches and tracking (§VI-B).
 """
 
@@ -32,7 +33,7 @@ import numpy as np
 
 from avp_bringup.experiment.profiles import MethodProfile, planner_settings, prediction_config
 from avp_perception.core.bev import BEVConfig
-from avp_perception.core.implicit import ego_intention, spot_priority
+from avp_perception.core.implicit import spot_priority
 from avp_perception.core.nawaz import NawazConfig, NawazOccupancy
 from avp_perception.core.pipeline import PerceptionCore, float32_beliefs, float32_intention
 from avp_planner.core.decision import Decision, EgoPlanner
@@ -89,27 +90,16 @@ class MethodEgo:
     def step(self, obs: Observation) -> EgoStep:
         prof = self.profile
         t0 = time.perf_counter()
-        intentions = []
-        if prof.beliefs == "intent":
-            out = self.core.perceive(obs)  # eq. (7), BEVs, intent CNN, eq. (8)
-            b = out.beliefs
-            intentions = out.intentions
-            hist = self.core.ego_history(obs)  # the same observation again: history unchanged
-        else:
-            hist = self.core.ego_history(obs)
-            b = self.core.beliefs.observe(obs.vacant_spot_ids, obs.occupied_spot_ids)  # eq. (7)
+        out = self.core.believe(obs, prof.beliefs, self.nawaz, prof.ego_intent)  # the belief node
+        b, intentions, ego = out.beliefs, out.intentions, out.ego_intention
         if self.message_precision:
             intentions = [float32_intention(i) for i in intentions]
-        predictions = self.core.predictor.predict(obs, intentions)  # §V-C
+            ego = float32_intention(ego) if ego is not None else None
+        predictions = self.core.predictor.predict(obs, intentions)  # the prediction node, §V-C
         if self.message_precision:
             predictions = [replace(p, probability=float(np.float32(p.probability))) for p in predictions]
-        if self.nawaz is not None:
-            b = self.nawaz.update(self.core.beliefs, obs, predictions)
-        priority = None
-        if prof.ego_intent:
-            priority = spot_priority(ego_intention(self.core.intent, obs, self.core.beliefs, hist))
-        if self.message_precision:
             b = float32_beliefs(b)
+        priority = spot_priority(ego) if ego is not None else None
         t_perception = time.perf_counter() - t0
         beliefs = b if self.use_beliefs else None
         preds = predictions if self.use_predictions else []

@@ -18,6 +18,19 @@ pipeline — §VI-A: "all compared methods only differ in how they choose the eg
       use_beliefs: true
       use_predictions: true
 
+In the live graph a method is the same 4-node graph as always (simulator, belief node, prediction node,
+planner) with per-node parameters: :func:`method_node_params` is the one mapping from a profile to them, used by
+``avp launch|demo --method`` and ``avp experiment --transport ros`` (through ``avp_bringup.graph.method_graph``):
+
+=============================  ====================================================================
+profile field                  node parameter
+=============================  ====================================================================
+``perception.beliefs``         avp_belief ``belief_source`` (intent | nawaz | observation)
+``perception.ego_intent``      avp_belief ``ego_intent`` and avp_planner ``use_ego_intention``
+``perception.predictor``       avp_prediction ``method``
+``planner.*``                  avp_planner parameters as they are
+=============================  ====================================================================
+
 :func:`planner_profile_yaml` turns the ``planner`` block into a planner parameter file (the format of
 ``avp_planner/config/profiles/*.yaml``). Any problem raises :class:`ProfileError` with one line naming the
 file and the field.
@@ -34,14 +47,14 @@ import yaml
 
 from avp_common.params import ParameterError, check_value
 
-BELIEF_SOURCES = ("intent", "nawaz", "observation")
+BELIEF_SOURCES = ("intent", "nawaz", "observation")  # = the belief node's belief_source (tests/test_experiment.py)
 TABLE_ORDER = ("bezier", "constant_velocity", "hybrid_astar", "learned", "implicit", "nawaz")  # rows of Table I
 # The planner's wall-clock caps are its only timing-dependent knobs (search.time_cap, decision.decision_time_cap,
 # decision.fallback_time_cap): the experiment lifts them so that iteration caps alone end searches and the
 # same command gives the same episodes (tests/test_dds_lockstep.py does the same).
 DETERMINISTIC_PLANNER = {"search.time_cap": 1.0e3, "decision.decision_time_cap": 1.0e4,
                          "decision.fallback_time_cap": 1.0e3}
-DETERMINISTIC_PREDICTION = {"hybrid_astar.time_cap": 1.0e3}  # the Hybrid A* predictor's wall-clock safety net
+DETERMINISTIC_PREDICTION = {"hybrid_astar.time_cap": 60.0}  # the Hybrid A* predictor's wall-clock safety net (its max)
 
 
 class ProfileError(ValueError):
@@ -129,6 +142,10 @@ def profile_from_dict(data: Any, source: str) -> MethodProfile:
     if not isinstance(planner, dict):
         raise ProfileError(f"{source}: field 'planner': expected a mapping of avp_planner parameters")
     flat = _flatten(planner)
+    ego_intent = req(per, "ego_intent", bool, "perception.")
+    if "use_ego_intention" in flat and flat["use_ego_intention"] is not ego_intent:
+        raise ProfileError(f"{source}: field 'planner.use_ego_intention': follows perception.ego_intent "
+                           f"({ego_intent}); leave it out")
     specs = _planner_specs()
     for key, value in flat.items():
         if key not in specs:
@@ -140,7 +157,7 @@ def profile_from_dict(data: Any, source: str) -> MethodProfile:
     return MethodProfile(
         name=name, label=str(data.get("label", name)), group=str(data.get("group", "")),
         available=req(data, "available", bool, ""), beliefs=beliefs,
-        predictor=req(per, "predictor", str, "perception."), ego_intent=req(per, "ego_intent", bool, "perception."),
+        predictor=req(per, "predictor", str, "perception."), ego_intent=ego_intent,
         planner=flat, unavailable_reason=str(data.get("unavailable_reason", "")), source=source,
     )
 
@@ -202,6 +219,32 @@ def prediction_config(deterministic: bool = True):
         vals = {k: v for k, v in DETERMINISTIC_PREDICTION.items() if k.split(".")[0] in names}
         cfg = dataclass_from_values(cfg, vals)
     return cfg.validate()
+
+
+NODE_NAMES = ("avp_belief", "avp_prediction", "avp_planner")  # the pipeline nodes of avp_bringup.graph
+
+
+def method_node_params(profile: MethodProfile, *, deterministic: bool = False, intent_weights: str | None = None,
+                       intent_seed: int | None = None) -> dict[str, dict[str, Any]]:
+    """The parameters that make the live graph's pipeline nodes run ``profile`` (the table in the module
+    docstring), keyed by node name: ``avp_belief``, ``avp_prediction``, ``avp_planner``; applied on top of each
+    node's parameter file (and a user file). ``deterministic``: lift the wall-clock caps of the planner and the
+    Hybrid A* predictor (:data:`DETERMINISTIC_PLANNER`, :data:`DETERMINISTIC_PREDICTION`). ``intent_weights`` /
+    ``intent_seed``: the belief node's ``intent.weights`` / ``intent.seed`` (None: the parameter file's).
+    ProfileError for a profile that cannot run (not available)."""
+    if not profile.available:
+        raise ProfileError(f"method {profile.name!r} is not available: {profile.unavailable_reason}")
+    belief: dict[str, Any] = {"belief_source": profile.beliefs, "ego_intent": profile.ego_intent}
+    if intent_weights is not None:
+        belief["intent.weights"] = str(intent_weights)
+    if intent_seed is not None:
+        belief["intent.seed"] = int(intent_seed)
+    prediction: dict[str, Any] = {"method": profile.predictor}
+    planner: dict[str, Any] = {**profile.planner, "use_ego_intention": profile.ego_intent}
+    if deterministic:
+        prediction.update(DETERMINISTIC_PREDICTION)
+        planner.update(DETERMINISTIC_PLANNER)
+    return {"avp_belief": belief, "avp_prediction": prediction, "avp_planner": planner}
 
 
 def planner_profile_yaml(profile: MethodProfile) -> str:

@@ -1,13 +1,19 @@
 """``avp experiment --transport ros``: the same episodes through the live DDS graph.
 
-Per method one graph is started (:func:`avp_bringup.graph.method_graph`: avp_sim in lock-step with
-``autostart`` off + the ``method_ego`` node with the method's profile, wall-clock caps lifted), and each
-episode is started with the simulator's ``reset_episode`` service (seed, reactive). A collector node in
-this process records what the runner needs and the ego never sees: ``episode_status`` (the simulator's
-§VI-B metrics), ``debug/ground_truth`` (every vehicle's state per step, for minADE/minFDE), and the ego's
-``predictions`` and ``decision`` (timings). The record is built by the same function as in-process
+Per method one graph is started (:func:`avp_bringup.graph.method_graph`: the simulator in lock-step with
+``autostart`` off, the belief node, the prediction node and the planner, each configured from the method's
+profile, wall-clock caps lifted), and each episode is started with the simulator's ``reset_episode`` service
+(seed, reactive). A collector node in this process records what the runner needs and the ego never sees:
+``episode_status`` (the simulator's §VI-B metrics), ``debug/ground_truth`` (every vehicle's state per step, for
+minADE/minFDE), the prediction node's ``predictions``, the planner's ``decision`` (timings) and the publication
+times of ``observation`` and ``predictions``. The record is built by the same function as in-process
 (:func:`~.metrics.episode_record`), so both transports give identical records apart from the timings.
-Slow (one episode at a time, ~10 ms per DDS round trip); meant for the equivalence test.
+
+Timings: the perception runs in two other processes, so its share of the spot-selection time is measured on
+the critical path — the DDS source timestamps of predictions k minus observation k (belief node, prediction
+node and two hops) — and added to the planner's own spot-selection time from ``decision``. In-process timings
+(``--transport inproc``) are pure compute and are the ones to compare with Table I. Slow (one episode at a time,
+~10-20 ms per DDS round trip); meant for the equivalence test.
 """
 
 from __future__ import annotations
@@ -32,7 +38,14 @@ def _collector_class():
 
     from avp_common.conversions import predictions_from_msg
     from avp_common.qos import STATUS
-    from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, PlannerDecision, PredictedTrajectoryArray
+    from avp_msgs.msg import (
+        AgentState,
+        EpisodeStatus,
+        GroundTruth,
+        Observation,
+        PlannerDecision,
+        PredictedTrajectoryArray,
+    )
 
     class EpisodeCollector(Node):
         """Debug-side observer of one episode at a time (never part of the ego)."""
@@ -48,6 +61,7 @@ def _collector_class():
             self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
             self.create_subscription(PredictedTrajectoryArray, "predictions", self._on_preds, deep)
             self.create_subscription(PlannerDecision, "decision", self._on_decision, deep)
+            self.create_subscription(Observation, "observation", self._on_obs, deep)
             self.kind_vehicle = AgentState.KIND_VEHICLE
             self.terminal = (EpisodeStatus.STATE_SUCCESS, EpisodeStatus.STATE_COLLISION,
                              EpisodeStatus.STATE_TIMEOUT)
@@ -58,6 +72,8 @@ def _collector_class():
             self.gt: dict[int, tuple[np.ndarray, np.ndarray]] = {}
             self.preds: dict[int, list] = {}
             self.timings: dict[int, dict] = {}
+            self.t_obs: dict[int, int] = {}  # step -> DDS source timestamp [ns] of the observation (first sent)
+            self.t_preds: dict[int, int] = {}  # ... of the predictions
 
         def _on_gt(self, msg) -> None:
             veh = [a for a in msg.agents if a.kind == self.kind_vehicle]
@@ -68,12 +84,25 @@ def _collector_class():
             if int(msg.seed) == self.seed and bool(msg.reactive) == self.reactive:
                 self.status = msg
 
-        def _on_preds(self, msg) -> None:
+        def _on_obs(self, msg, info) -> None:
+            self.t_obs.setdefault(int(msg.step), int(info["source_timestamp"]))
+
+        def _on_preds(self, msg, info) -> None:
             self.preds[int(msg.step)] = [p for p in predictions_from_msg(msg) if not p.is_pedestrian]
+            self.t_preds.setdefault(int(msg.step), int(info["source_timestamp"]))
 
         def _on_decision(self, msg) -> None:
             self.timings[int(msg.step)] = {"spot_selection_time": float(msg.spot_selection_time),
                                            "path_planning_time": float(msg.path_planning_time)}
+
+        def step_timings(self, k: int) -> dict:
+            """The planner's timings of step k with the perception's critical path (see the module docstring)
+            added to the spot-selection time."""
+            t = dict(self.timings[k])
+            if k in self.t_obs and k in self.t_preds:
+                t["perception_time"] = max(0.0, (self.t_preds[k] - self.t_obs[k]) * 1e-9)
+                t["spot_selection_time"] += t["perception_time"]
+            return t
 
         @property
         def ended(self) -> bool:
@@ -109,7 +138,7 @@ def _collector_class():
                        "parking_time": float(m.parking_time), "steps": n}
             return episode_record(method=method, seed=self.seed, reactive=self.reactive,
                                   status=STATE_NAMES.get(int(s.state), str(s.state)), metrics=metrics, min_ade=ade,
-                                  min_fde=fde, step_timings=[self.timings[k] for k in range(n)], horizon=horizon,
+                                  min_fde=fde, step_timings=[self.step_timings(k) for k in range(n)], horizon=horizon,
                                   transport="ros", wall_s=wall_s)
 
     return EpisodeCollector
@@ -124,6 +153,8 @@ def run_ros(keys: list[Key], cfg: RunConfig, on_record: Callable[[dict], None], 
     from avp_bringup.graph import Graph, method_graph
     from avp_msgs.srv import ResetEpisode
 
+    if not cfg.message_precision:
+        raise ValueError("--float64-messages applies to --transport inproc only (the graph's messages are float32)")
     sim_p = sim_values(cfg)
     sim_extra = {k: sim_p[k] for k in ("t_final", "dt", "t_hist")} | dict(cfg.sim_overrides)
     by_method: dict[str, list[Key]] = {}
@@ -136,9 +167,10 @@ def run_ros(keys: list[Key], cfg: RunConfig, on_record: Callable[[dict], None], 
     client = collector.create_client(ResetEpisode, "reset_episode")
     try:
         for method, mkeys in by_method.items():
-            nodes = method_graph(method, sim_extra=sim_extra, ego_extra={
-                "deterministic": True, "intent_weights": cfg.intent_weights, "intent_seed": cfg.intent_seed,
-                "message_precision": cfg.message_precision}, min_debug_subscribers=1)
+            nodes = method_graph(method, deterministic=True, intent_weights=cfg.intent_weights,
+                                 intent_seed=cfg.intent_seed, sim_extra={
+                                     **sim_extra, "autostart": False, "publish_markers": False,
+                                     "min_debug_subscribers": 1})
             graph = Graph(nodes, Path(log_dir) / method, env=env)
             graph.start()
             try:
@@ -149,7 +181,7 @@ def run_ros(keys: list[Key], cfg: RunConfig, on_record: Callable[[dict], None], 
                     executor.spin_once(timeout_sec=0.05)
                     _check_alive(graph, log_dir, method)
                     if time.monotonic() - t0 > 60:
-                        raise RuntimeError(f"graph not up after 60 s (reset_episode service, method_ego publishers);"
+                        raise RuntimeError(f"graph not up after 60 s (reset_episode service, pipeline publishers);"
                                            f" logs in {log_dir}/{method}")
                 t1 = time.monotonic()
                 while time.monotonic() - t1 < 0.5:

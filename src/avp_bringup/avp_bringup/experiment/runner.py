@@ -111,7 +111,9 @@ def profile_digest(profile: MethodProfile) -> str:
 
 
 def run_identity(cfg: RunConfig, profiles: Iterable[MethodProfile]) -> dict:
-    return {"config": asdict(cfg), "intent": intent_identity(cfg),
+    """What OUT/run.json must match: the run config, the intent weights, every avp_sim parameter value (so that
+    a change of the shipped scenario defaults is not mixed with earlier episodes) and the method profiles."""
+    return {"config": asdict(cfg), "intent": intent_identity(cfg), "sim": sim_values(cfg),
             "methods": {p.name: profile_digest(p) for p in profiles}}
 
 
@@ -120,10 +122,17 @@ def check_run_file(out: Path, ident: dict) -> dict:
     path = out / RUN_FILE
     if path.is_file():
         old = json.loads(path.read_text())
-        for k in ("config", "intent"):
+        for k in ("sim", "intent", "config"):  # sim first: it names the parameters that differ
             if old.get(k) != ident[k]:
-                raise ValueError(f"{path}: the results there were made with {k} = {old.get(k)!r}, this command "
-                                 f"uses {ident[k]!r}; use another --out (or delete {out})")
+                if k == "sim" and isinstance(old.get(k), dict):
+                    diff = sorted(n for n in set(old[k]) | set(ident[k]) if old[k].get(n) != ident[k].get(n))
+                    what = f"other avp_sim parameters ({', '.join(diff)})"
+                elif k == "sim":
+                    what = "avp_sim parameters that were not recorded (an older run)"
+                else:
+                    what = f"{k} = {old.get(k)!r}, this command uses {ident[k]!r}"
+                raise ValueError(f"{path}: the results there were made with {what}; use another --out "
+                                 f"(or delete {out})")
         for name, digest in ident["methods"].items():
             if old.get("methods", {}).get(name, digest) != digest:
                 raise ValueError(f"{path}: method profile {name!r} changed since its episodes there were run; "
@@ -259,7 +268,7 @@ def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callabl
 
 def valid_seeds(n: int, seed_base: int, sim_p: dict, cache: Path | None = None) -> tuple[list[int], list[int]]:
     """The first ``n`` seeds >= ``seed_base`` for which the §VI-A generator builds a scenario, and the seeds
-    skipped on the way (no collision-free plans for the dynamic vehicles, e.g. 162, 253, 448 and 476 below 500).
+    skipped on the way (no collision-free plans for the dynamic vehicles, e.g. 53, 162, 253, 448 and 476 below 500).
     ``cache`` (a JSON file {seed: valid}) saves the ~40 ms per seed of a re-run."""
     from avp_sim.core.factory import scenario_params
     from avp_sim.core.scenario import ScenarioError, generate_paper_scenario
@@ -311,7 +320,8 @@ def run_experiment(args: argparse.Namespace) -> dict:
         raise ValueError(f"--scenarios must be >= 1, got {args.scenarios}")
     out = Path(args.out)
     cfg = RunConfig(t_final=args.t_final, ade_horizon=args.ade_horizon, intent_weights=args.intent_weights,
-                    intent_seed=args.intent_seed, message_precision=not args.float64_messages)
+                    intent_seed=args.intent_seed, message_precision=not args.float64_messages,
+                    sim_overrides=parse_sim_params(args.sim_param))
     profiles, skipped = resolve_methods(args.methods)
     for name, why in skipped.items():
         print(f"[avp experiment] skipping method {name!r}: {why}", file=sys.stderr)
@@ -358,9 +368,32 @@ def run_experiment(args: argparse.Namespace) -> dict:
     wanted = set(keys)
     summary = write_summary(out, [r for r in records if record_key(r) in wanted], skipped,
                             {"ade_horizon": cfg.ade_horizon, "t_final": cfg.t_final, "intent": ident["intent"],
-                             "seeds_without_scenario": bad_seeds})
+                             "seeds_without_scenario": bad_seeds, "sim_overrides": cfg.sim_overrides})
     print(f"[avp experiment] ran {n_run} episodes; summary: {out / 'summary.md'}, plots in {out / 'plots'}/")
     return {"ran": n_run, "skipped_methods": skipped, "summary": summary}
+
+
+def parse_sim_params(items: list[str] | None) -> dict[str, Any]:
+    """``KEY=VALUE`` items of ``--sim-param`` (VALUE parsed as YAML) -> {key: value}, checked against the avp_sim
+    parameter specs (ValueError naming the item)."""
+    import yaml
+
+    from avp_common.params import ParameterError, check_value
+    from avp_sim.params import SIM_PARAMS
+
+    specs = {s.name: s for s in SIM_PARAMS}
+    out: dict[str, Any] = {}
+    for item in items or []:
+        key, sep, raw = item.partition("=")
+        key = key.strip()
+        if not sep or key not in specs:
+            raise ValueError(f"--sim-param {item!r}: expected KEY=VALUE with KEY an avp_sim parameter "
+                             f"(`avp params avp_sim`)")
+        try:
+            out[key] = check_value(specs[key], yaml.safe_load(raw), "--sim-param")
+        except (ParameterError, yaml.YAMLError) as exc:
+            raise ValueError(f"--sim-param {item!r}: {exc}") from None
+    return out
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -380,6 +413,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ade-horizon", type=float, default=DEFAULT_HORIZON, help="minADE/minFDE horizon H [s]")
     p.add_argument("--intent-weights", default="", help="intent CNN weights (default: shipped, else random)")
     p.add_argument("--intent-seed", type=int, default=0, help="seed of random intent weights")
+    p.add_argument("--sim-param", action="append", metavar="KEY=VALUE",
+                   help="override an avp_sim parameter for every episode (repeatable), e.g. the earlier scenario "
+                   "reading: --sim-param scenario.maneuver_max_speed=2.0 --sim-param scenario.outer_row_max=9")
     p.add_argument("--float64-messages", action="store_true",
                    help="do not round beliefs/intentions to the float32 of the messages (inproc only differs)")
     p.add_argument("--episode-timeout", type=float, default=600.0, help="ros: wall seconds per episode")

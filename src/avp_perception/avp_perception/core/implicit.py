@@ -23,6 +23,7 @@ from avp_perception.core.belief import BeliefMap
 from avp_perception.core.bev import EGO_GROUP
 from avp_perception.core.intent_model import IntentPredictor
 from avp_perception.core.intention import Intention
+from avp_planner.core.decision import priority_from_probabilities
 from avp_world.types import Observation, ObservedVehicle
 
 EGO_ID = EGO_GROUP  # the ego's id in the BEV scene (its trail group)
@@ -47,8 +48,6 @@ def ego_intention(intent: IntentPredictor, obs: Observation, beliefs: BeliefMap,
 
 
 def spot_priority(intention: Intention) -> np.ndarray:
-    """Spot ids in decreasing intention probability (ties: smaller spot id first)."""
-    ids = np.asarray(intention.spot_ids, dtype=np.int64)
-    p = np.asarray(intention.spot_probabilities, dtype=float)
-    order = np.lexsort((ids, -p))
-    return ids[order]
+    """Spot ids in decreasing intention probability (ties: smaller spot id first); the planner node orders the
+    ``ego_intention`` message with the same function."""
+    return priority_from_probabilities(intention.spot_ids, intention.spot_probabilities)

@@ -49,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from avp_perception.core.belief import BeliefMap
+from avp_perception.core.prediction import ConstantVelocityPredictor
 from avp_world.lot import LotMap
 from avp_world.types import Observation, PredictedTrajectory
 
@@ -289,3 +290,13 @@ class NawazOccupancy:
             b[vac] = self.vacant_probabilities(obs, predictions, vac)
         beliefs.values = b
         return b.copy()
+
+    def constant_velocity_predictions(self, obs: Observation) -> list[PredictedTrajectory]:
+        """§VI-B-2: the constant-velocity predictions Chung et al. feed Nawaz's rule (every observed dynamic
+        vehicle and pedestrian, over the horizon T h that the rule samples)."""
+        return ConstantVelocityPredictor(self.lot).predict(obs, (), horizon=self.config.n_steps * self.config.step)
+
+    def update_constant_velocity(self, beliefs: BeliefMap, obs: Observation) -> np.ndarray:
+        """:meth:`update` with :meth:`constant_velocity_predictions` — the "Explicit, future" method's b_t, as the
+        belief node (``belief_source: nawaz``) and the in-process runner compute it."""
+        return self.update(beliefs, obs, self.constant_velocity_predictions(obs))

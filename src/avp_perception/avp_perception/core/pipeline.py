@@ -6,6 +6,10 @@
     eq. (8)  b_t from b~_t and the intentions
     §V-C     predicted trajectories (Bezier conditioned on intentions >= mu, or constant velocity)
 
+:meth:`PerceptionCore.believe` is the belief node's step for every method of Table I: after eq. (7) either
+eq. (8) (``intent``, the paper), Nawaz et al.'s occupancy from constant-velocity predictions (``nawaz``,
+§VI-B-2) or nothing (``observation``), and optionally the intent CNN on the ego's own BEV (§VI-B-3).
+
 The ego's own recent poses are kept here (the observation carries only the current one) so that the
 ego appears in the other vehicles' BEVs with a trail like every observed vehicle.
 """
@@ -20,8 +24,10 @@ import numpy as np
 
 from avp_perception.core.belief import BELIEF_INIT, BeliefMap
 from avp_perception.core.bev import BEVConfig, VehicleBEV
+from avp_perception.core.implicit import ego_intention
 from avp_perception.core.intent_model import IntentPredictor
 from avp_perception.core.intention import Intention
+from avp_perception.core.nawaz import NawazOccupancy
 from avp_perception.core.prediction import PredictionConfig, make_predictor
 from avp_world.lot import LotMap
 from avp_world.types import Observation, PredictedTrajectory
@@ -36,6 +42,20 @@ class PerceptionOutput:
     beliefs: np.ndarray  # (N_S,) b_t after eq. (8)
     intentions: list[Intention]
     trajectories: list[PredictedTrajectory]
+    bevs: list[VehicleBEV] = field(default_factory=list)  # only with keep_bevs=True
+
+
+BELIEF_SOURCES = ("intent", "nawaz", "observation")
+
+
+@dataclass(frozen=True)
+class BeliefStep:
+    """What the belief node publishes for one observation (:meth:`PerceptionCore.believe`)."""
+
+    step: int
+    beliefs: np.ndarray  # (N_S,) b_t
+    intentions: list[Intention]  # the observed dynamic vehicles' (source "intent" only)
+    ego_intention: Intention | None  # eta_0,i of the ego's own BEV (ego_intent only)
     bevs: list[VehicleBEV] = field(default_factory=list)  # only with keep_bevs=True
 
 
@@ -83,6 +103,34 @@ class PerceptionCore:
         beliefs = self.beliefs.apply_intentions(intentions)  # eq. (8)
         return PerceptionOutput(step=obs.step, b_tilde=b_tilde, beliefs=beliefs, intentions=intentions,
                                 trajectories=[], bevs=bevs if self.keep_bevs else [])
+
+    def believe(self, obs: Observation, source: str = "intent", nawaz: NawazOccupancy | None = None,
+                ego_intent: bool = False) -> BeliefStep:
+        """One belief-node step of any Table I method.
+
+        ``source``: ``intent`` — :meth:`perceive` (eq. 7, BEVs, intent CNN, eq. 8); ``nawaz`` — eq. (7), then
+        Nawaz et al.'s P_T on the observed vacant spots from constant-velocity predictions (``nawaz``, §VI-B-2);
+        ``observation`` — eq. (7) only. ``ego_intent``: then the intent CNN on the ego's own BEV (§VI-B-3,
+        :func:`~avp_perception.core.implicit.ego_intention`).
+        """
+        if source not in BELIEF_SOURCES:
+            raise ValueError(f"belief source must be one of {BELIEF_SOURCES}, got {source!r}")
+        intentions: list[Intention] = []
+        bevs: list[VehicleBEV] = []
+        if source == "intent":
+            out = self.perceive(obs)
+            b, intentions, bevs = out.beliefs, out.intentions, out.bevs
+            hist = self.ego_history(obs)  # the same observation again: the history is unchanged
+        else:
+            hist = self.ego_history(obs)
+            b = self.beliefs.observe(obs.vacant_spot_ids, obs.occupied_spot_ids)  # eq. (7)
+            if source == "nawaz":
+                if nawaz is None:
+                    raise ValueError("belief source 'nawaz' needs a NawazOccupancy")
+                b = nawaz.update_constant_velocity(self.beliefs, obs)
+        ego = ego_intention(self.intent, obs, self.beliefs, hist) if ego_intent else None
+        return BeliefStep(step=obs.step, beliefs=np.asarray(b, dtype=float), intentions=intentions,
+                          ego_intention=ego, bevs=bevs)
 
     def step(self, obs: Observation) -> PerceptionOutput:
         """:meth:`perceive`, then the predicted trajectories of §V-C."""

@@ -106,6 +106,16 @@ class Decision:
     stats: dict = field(default_factory=dict)
 
 
+def priority_from_probabilities(spot_ids: Sequence[int], probabilities: Sequence[float]) -> np.ndarray:
+    """Spot ids in decreasing probability, ties smaller id first: the ``spot_priority`` of the "Implicit" method
+    (§VI-B-3) from the ego's own intention eta_0,i (avp_perception.core.implicit, the ``ego_intention`` topic)."""
+    ids = np.asarray(spot_ids, dtype=np.int64).reshape(-1)
+    p = np.asarray(probabilities, dtype=float).reshape(-1)
+    if len(ids) != len(p):
+        raise ValueError(f"{len(ids)} spot ids but {len(p)} probabilities")
+    return ids[np.lexsort((ids, -p))]
+
+
 @dataclass
 class _Plan:
     mode: str

@@ -6,7 +6,7 @@ from dataclasses import replace
 from typing import Any
 
 from avp_sim.core.observation import SensorConfig
-from avp_sim.core.scenario import ScenarioParams, generate_paper_scenario, load_scenario_file
+from avp_sim.core.scenario import ScenarioParams, generate_paper_scenario, load_scenario_file, outer_rows
 from avp_sim.core.world import World, WorldConfig
 from avp_world.lot import LotMap, load_bundled_lot, load_lot
 
@@ -30,11 +30,15 @@ def scenario_params(p: dict[str, Any]) -> ScenarioParams:
         raise ValueError("parameter 'scenario.passiveness_min' must be <= 'scenario.passiveness_max'")
     if p["scenario.n_dynamic_min"] > p["scenario.n_dynamic_max"]:
         raise ValueError("parameter 'scenario.n_dynamic_min' must be <= 'scenario.n_dynamic_max'")
+    if p["scenario.outer_row_min"] > p["scenario.outer_row_max"]:
+        raise ValueError("parameter 'scenario.outer_row_min' must be <= 'scenario.outer_row_max'")
     return replace(
         ScenarioParams(),
         dt=p["dt"], t_hist=p["t_hist"], t_final=p["t_final"],
         passiveness=(p["scenario.passiveness_min"], p["scenario.passiveness_max"]),
         n_dynamic=(p["scenario.n_dynamic_min"], p["scenario.n_dynamic_max"]),
+        outer_spot_groups=outer_rows(p["scenario.outer_row_min"], p["scenario.outer_row_max"]),
+        maneuver_max_speed=p["scenario.maneuver_max_speed"],
     )
 
 

@@ -25,9 +25,11 @@ built in three steps (all deterministic):
    reverse for tail-in. Candidates are ranked by length + 3 m per cusp; the first one whose footprints,
    sampled every 5 cm, keep clearance + 0.05 m from every parked car and from the geofence wins.
 2. **Time parameterisation.** The path is split at its cusps into pieces of one driving direction.
-   On each piece the speed is the largest that |v| <= 2 m/s and |dv/dt| <= 2 m/s^2 (ParkSim's parking
-   limits) allow while still stopping exactly at the piece's end in whole steps of dt; one control with
-   v = 0 is issued at every cusp and at the end.
+   On each piece the speed is the largest that |v| <= max_speed and |dv/dt| <= max_accel allow while
+   still stopping exactly at the piece's end in whole steps of dt; one control with v = 0 is issued at
+   every cusp and at the end. Defaults 2 m/s, 2 m/s^2 (ParkSim's parking limits); the §VI-A scenario
+   generator uses 1.1 m/s, which gives ParkSim's pace: its H-OBCA horizon N is the number of Hybrid A*
+   warm-start samples (0.1 m apart) at dt = 0.1 s, so a maneuver of L metres lasts about L seconds.
 3. **Tracking.** The controls are produced while simulating eq. (1) itself (``step_vehicle``). An Euler
    step moves the car along its current heading, so the steering works one step ahead: omega_k sets
    theta_{k+1} to the reference heading at the middle of the next step (the chord direction of the
@@ -459,12 +461,12 @@ def _track(start: np.ndarray, pieces: list[_Piece], vehicle: VehicleSpec, dt: fl
     """Controls (T, 2) that drive eq. (1) along the pieces, stopping (v = 0) at the end of each.
 
     Speed: the largest of the discrete accelerate / cruise / brake-to-stop profile (see
-    :func:`_brake_speed`, at most ``max_speed``), never changing by more than ``max_accel`` dt per step. Steering: an Euler step
-    moves the car along its *current* heading, so the heading is set one step ahead: omega_k makes
-    theta_{k+1} equal to the reference heading at the middle of step k + 1 (the chord direction of the
-    reference arc there, which removes the Euler drift off curves) minus d atan(e_lat / L) to steer the
-    lateral error e_lat of the already-determined position p_{k+1} back over L = 1 m; omega is clipped to
-    |v| / R_min.
+    :func:`_brake_speed`, at most ``max_speed``), never changing by more than ``max_accel`` dt per step.
+    Steering: an Euler step moves the car along its *current* heading, so the heading is set one step
+    ahead: omega_k makes theta_{k+1} equal to the reference heading at the middle of step k + 1 (the chord
+    direction of the reference arc there, which removes the Euler drift off curves) minus d atan(e_lat / L)
+    to steer the lateral error e_lat of the already-determined position p_{k+1} back over L = 1 m; omega is
+    clipped to |v| / R_min.
     """
     kmax = (1.0 / vehicle.min_turning_radius) * (1.0 - 1e-12)
     dv = max_accel * dt * (1.0 - 1e-12)

@@ -71,18 +71,42 @@ class Scenario:
         return tuple(v for v in self.vehicles if not v.parked)
 
 
+OUTER_COLUMNS = (0, 30)  # id of row 0 of the paper lot's outer columns c0 and c3 (ids count upwards)
+
+
+def outer_rows(row_min: int, row_max: int, columns: tuple[int, ...] = OUTER_COLUMNS) -> tuple[tuple[int, ...], ...]:
+    """Spot ids of rows ``row_min..row_max`` (0 = bottom) of each outer column: one group per column."""
+    if not 0 <= row_min <= row_max:
+        raise ValueError(f"outer rows: need 0 <= row_min <= row_max, got {row_min}, {row_max}")
+    return tuple(tuple(c + r for r in range(row_min, row_max + 1)) for c in columns)
+
+
+#: the fallback ("2 vacant spots on the sides", §VI-A) is drawn from the bottom 5 rows of each outer column,
+#: the rows of the contested spots (docs/world.md); ``outer_rows(0, 9)`` (anywhere in the outer columns) is the
+#: earlier reading.
+OUTER_ROWS_BOTTOM: tuple[tuple[int, ...], ...] = outer_rows(0, 4)
+
+
 @dataclass(frozen=True)
 class ScenarioParams:
-    """Knobs of the §VI-A generator (defaults: the paper's lot, see docs/world.md)."""
+    """Knobs of the §VI-A generator (defaults: our reading of the paper's protocol, see docs/world.md).
+
+    ``outer_spot_groups``: one vacant fallback spot is drawn from each group (default
+    :data:`OUTER_ROWS_BOTTOM`). ``maneuver_max_speed`` / ``maneuver_max_accel``: bounds of the time
+    parameterisation of ParkSim's 8 maneuvers; 1.1 m/s with 2 m/s^2 gives the library a mean speed of
+    1.0 m/s, the pace of ParkSim's H-OBCA library (its horizon N is the number of Hybrid A* warm-start
+    samples, 0.1 m apart, at dt = 0.1 s, so a maneuver of L metres lasts about L seconds). 2.0 m/s was the
+    earlier reading (ParkSim's speed bound used as the pace).
+    """
 
     contested_spot_ids: tuple[int, ...] = (10, 11, 12, 13, 14, 20, 21, 22, 23, 24)
-    outer_spot_groups: tuple[tuple[int, ...], ...] = (tuple(range(0, 10)), tuple(range(30, 40)))
+    outer_spot_groups: tuple[tuple[int, ...], ...] = OUTER_ROWS_BOTTOM
     n_dynamic: tuple[int, int] = (1, 2)
     passiveness: tuple[int, int] = (2, 6)
     cruise_speed: tuple[float, float] = (1.5, 2.5)  # m/s before braking for the maneuver start
     approach_distance: tuple[float, float] = (0.0, 8.0)  # m left to the maneuver start at t = 0
     braking_decel: float = 1.5  # m/s^2 when stopping at the maneuver start
-    maneuver_max_speed: float = 2.0  # m/s, |v| bound of the maneuvers' time parameterisation
+    maneuver_max_speed: float = 1.1  # m/s, |v| bound of the maneuvers' time parameterisation (mean 1.0 m/s)
     maneuver_max_accel: float = 2.0  # m/s^2, |dv/dt| bound of the maneuvers (ParkSim a_max_parking)
     ego_start: tuple[float, float, float] = (21.5, 38.0, -math.pi / 2)
     ego_clearance: float = 1.0  # m between a dynamic vehicle at t = 0 and the ego's start footprint

@@ -1,0 +1,197 @@
+"""``avp train-intent`` and ``avp gen-intent-data``: the intent CNN from scratch on this machine (issue #4).
+
+``avp train-intent`` generates the data (training, validation and test episodes on the DLP-derived and random
+lots, and the paper-lot test set), trains (:mod:`.train`), evaluates on both test sets beside the
+nearest-spot baselines, and writes the weights (``avp_perception/models/intent_cnn.pt`` unless ``--weights``
+says otherwise) with a JSON card beside them (data, sizes, command, commit, wall times, accuracy). Same seed,
+same thread count and same library versions => the same weights. docs/intent_model.md is the model card.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shlex
+import sys
+import time
+from dataclasses import asdict, replace
+from pathlib import Path
+
+import numpy as np
+
+SCALES = {
+    # episodes per split: train, val, test, paper; max epochs
+    "full": (320, 30, 60, 160, 6),
+    "quick": (40, 8, 10, 20, 2),
+    "tiny": (4, 2, 2, 3, 1),
+}
+
+
+def add_train_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scale", choices=sorted(SCALES), default="full",
+                   help="data and epoch budget (full: the shipped weights; quick/tiny: smoke runs)")
+    p.add_argument("--out", default="out/intent", help="work folder: data, weights copy, metrics")
+    p.add_argument("--weights", default=None,
+                   help="where to write the weights (default: the package's models/intent_cnn.pt for --scale full, "
+                        "else OUT/intent_cnn.pt)")
+    p.add_argument("--workers", type=int, default=2, help="processes generating episodes")
+    p.add_argument("--threads", type=int, default=2, help="torch threads for training")
+    p.add_argument("--seed", type=int, default=0, help="training seed (data seeds are fixed per split)")
+    p.add_argument("--epochs", type=int, default=None, help="override the scale's maximum number of epochs")
+    p.add_argument("--reuse-data", action="store_true", help="reuse OUT/data/*.npz made with the same scale")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def add_gen_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("split", choices=["train", "val", "test", "paper"])
+    p.add_argument("--episodes", type=int, required=True)
+    p.add_argument("--out", required=True, help="output .npz")
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--quiet", action="store_true")
+
+
+def _commit(root: Path) -> str:
+    """The checked-out commit, read from .git (no git process)."""
+    try:
+        git = root / ".git"
+        head = (git / "HEAD").read_text().strip()
+        if not head.startswith("ref:"):
+            return head
+        ref = head.split(" ", 1)[1]
+        f = git / ref
+        if f.is_file():
+            return f.read_text().strip()
+        for line in (git / "packed-refs").read_text().splitlines():
+            if line.endswith(" " + ref):
+                return line.split(" ", 1)[0]
+    except OSError:
+        pass
+    return "unknown"
+
+
+def _split(name: str, n: int, spec, args, data_dir: Path, log):
+    from avp_perception.training.dataset import Samples, generate_split
+
+    path = data_dir / f"{name}.npz"
+    meta = data_dir / f"{name}.json"
+    key = {"split": name, "episodes": n, "spec": repr(spec)}
+    if args.reuse_data and path.is_file() and meta.is_file() and json.loads(meta.read_text()) == key:
+        log(f"[train-intent] reusing {path}")
+        return Samples.load(path), 0.0
+    t0 = time.monotonic()
+    s = generate_split(name, n, spec, workers=args.workers, progress=not args.quiet)
+    dt = time.monotonic() - t0
+    s.save(path)
+    meta.write_text(json.dumps(key))
+    log(f"[train-intent] {name}: {n} episodes -> {len(s)} samples in {dt:.0f} s")
+    return s, dt
+
+
+def cmd_train_intent(args: argparse.Namespace) -> int:
+    import torch
+
+    from avp_perception.core.intent_model import default_weights_path
+    from avp_perception.training.dataset import DataSpec
+    from avp_perception.training.train import TrainConfig, evaluate, train
+
+    def log(msg: str) -> None:
+        print(msg, flush=True)
+
+    t_start = time.monotonic()
+    n_train, n_val, n_test, n_paper, epochs = SCALES[args.scale]
+    out = Path(args.out)
+    data_dir = out / "data"
+    data_dir.mkdir(parents=True, exist_ok=True)
+    weights = Path(args.weights) if args.weights else (
+        default_weights_path() if args.scale == "full" else out / "intent_cnn.pt")
+    spec = DataSpec()
+    config = replace(TrainConfig(), seed=args.seed, threads=args.threads,
+                     epochs=args.epochs if args.epochs is not None else epochs)
+    log(f"[train-intent] scale {args.scale}: episodes train {n_train}, val {n_val}, test {n_test}, paper {n_paper}; "
+        f"{args.workers} workers, {args.threads} torch threads; load average {os.getloadavg()[0]:.2f}")
+    timings: dict[str, float] = {}
+    sets = {}
+    for name, n in (("train", n_train), ("val", n_val), ("test", n_test), ("paper", n_paper)):
+        sets[name], timings[f"data_{name}_s"] = _split(name, n, spec, args, data_dir, log)
+    t0 = time.monotonic()
+    model, history = train(sets["train"], sets["val"], config, progress=not args.quiet, log=log)
+    timings["train_s"] = time.monotonic() - t0
+    t0 = time.monotonic()
+    metrics = {name: evaluate(model, sets[name], threads=args.threads, with_baselines=True)
+               for name in ("test", "paper", "val")}
+    timings["eval_s"] = time.monotonic() - t0
+    timings["total_s"] = time.monotonic() - t_start
+    weights.parent.mkdir(parents=True, exist_ok=True)
+    torch.save(model.state_dict(), weights)
+    if weights.resolve() != (out / "intent_cnn.pt").resolve():
+        torch.save(model.state_dict(), out / "intent_cnn.pt")
+    root = Path(__file__).resolve().parents[4]
+    card = {
+        "model": "SmallRegularizedCNN (ParkPredict+), 100 x 100 px BEV at 0.4 m/px, 5 features",
+        "parameters": int(sum(p.numel() for p in model.parameters())),
+        "weights_bytes": weights.stat().st_size,
+        "command": "avp train-intent " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if len(sys.argv) > 1 else "",
+        "commit": _commit(root),
+        "scale": args.scale,
+        "data": {name: {"episodes": n, "samples": len(sets[name]),
+                        "mean_options": float(sets[name].n_candidates.mean() + 1) if len(sets[name]) else 0.0,
+                        "none_share": float((sets[name].labels == 0).mean()) if len(sets[name]) else 0.0}
+                 for name, n in (("train", n_train), ("val", n_val), ("test", n_test), ("paper", n_paper))},
+        "data_spec": {k: (v if not hasattr(v, "__dataclass_fields__") else asdict(v)) for k, v in asdict(spec).items()},
+        "train_config": asdict(config),
+        "history": history,
+        "metrics": metrics,
+        "timings_s": {k: round(v, 1) for k, v in timings.items()},
+        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "torch": torch.__version__,
+                    "numpy": np.__version__, "load_average_end": round(os.getloadavg()[0], 2)},
+    }
+    card_path = weights.with_suffix(".json")
+    card_path.write_text(json.dumps(card, indent=1))
+    (out / "metrics.json").write_text(json.dumps(card, indent=1))
+    log(f"[train-intent] wrote {weights} ({card['weights_bytes'] / 1e6:.2f} MB) and {card_path}")
+    log(summary_table(metrics))
+    log(f"[train-intent] wall time {timings['total_s'] / 60:.1f} min "
+        f"(data {sum(v for k, v in timings.items() if k.startswith('data_')) / 60:.1f}, "
+        f"training {timings['train_s'] / 60:.1f}, evaluation {timings['eval_s'] / 60:.1f})")
+    return 0
+
+
+def summary_table(metrics: dict) -> str:
+    rows = ["| test set | instances | mean options | CNN top-1 | CNN top-3 | nearest ahead top-1 | top-3 | "
+            "nearest top-1 | top-3 |", "|---|---|---|---|---|---|---|---|---|"]
+    for name in ("test", "paper"):
+        m = metrics[name]
+        if not m.get("n"):
+            continue
+        rows.append(f"| {name} | {m['n']} | {m['mean_options']:.2f} | {m['top1']:.3f} | {m['top3']:.3f} | "
+                    f"{m['nearest_ahead']['top1']:.3f} | {m['nearest_ahead']['top3']:.3f} | "
+                    f"{m['nearest']['top1']:.3f} | {m['nearest']['top3']:.3f} |")
+    return "\n".join(rows)
+
+
+def cmd_gen_intent_data(args: argparse.Namespace) -> int:
+    from avp_perception.training.dataset import DataSpec, generate_split
+
+    t0 = time.monotonic()
+    s = generate_split(args.split, args.episodes, DataSpec(), workers=args.workers, progress=not args.quiet)
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    s.save(args.out)
+    print(f"[gen-intent-data] {args.split}: {args.episodes} episodes -> {len(s)} samples in "
+          f"{time.monotonic() - t0:.0f} s; wrote {args.out}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m avp_perception.training.run train-intent|gen-intent-data ...`` (the same as ``avp ...``)."""
+    parser = argparse.ArgumentParser(prog="avp")
+    sub = parser.add_subparsers(dest="cmd", required=True)
+    add_train_arguments(sub.add_parser("train-intent", help="train the intent CNN from scratch"))
+    add_gen_arguments(sub.add_parser("gen-intent-data", help="generate intent samples of one split"))
+    args = parser.parse_args(argv)
+    return cmd_train_intent(args) if args.cmd == "train-intent" else cmd_gen_intent_data(args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

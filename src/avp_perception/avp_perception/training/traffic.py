@@ -1,0 +1,564 @@
+"""Seeded parking-lot traffic for the intent model's training data (issue #4), as plans of eq. (1).
+
+Every car is a :class:`~avp_sim.core.scenario.VehicleAgent` (initial state + control plan), so the existing
+:class:`~avp_sim.core.world.World` simulates it (reactive braking for the ego included, §III-B). Kinds:
+
+* **parkers** wait 12 m outside the entrance (outside the lot: rays stop at its boundary, §III-A, so the
+  ego never sees them), drive in at 2 m/s and then cruise (speed ~ U[1.8, 3.5] m/s) along the right-hand
+  lanes (:mod:`.lanes`), exploring: at every node they pick a next lane (no U-turns, no dead ends), less
+  likely one driven before, more likely one along which spots are free. Passing a free, unreserved spot they
+  take it with probability 1 - (1 - p) exp(-tau / 60 s) (p ~ U[0.3, 0.85] per driver, tau: time spent
+  searching; x 0.7 for spots across the aisle), so drivers skip spots at random, take spots near the
+  entrance more often and become less picky with time. A taken spot is parked in with one of ParkSim's 8
+  maneuvers (:mod:`avp_sim.core.maneuvers`): the side (near/far) follows from the spot's side of the lane,
+  stop before (60 %) or after the spot, head-in or tail-in (50 %); having picked it the driver slows to
+  U[1.2, 2] m/s over the last U[5, 12] m, stops at the maneuver's start pose on its lane, waits U[0, 1.5] s
+  and runs the maneuver. Label: that spot. A driver who has searched
+  U[150, 400] m without taking a spot drives to the exit ("wanderer", label none).
+* **leavers** sit in an occupied spot, unpark at a random time (a maneuver played backwards, ParkSim's
+  unparking) and drive the shortest way out (label none).
+* the other occupied spots hold parked cars (random facing, as the §VI-A generator).
+
+Occupancy ~ U[0.5, 0.95]; arrivals and departures are Poisson processes (mean gaps drawn per lot). Traffic
+starts ``t_pre`` = 40 s before the episode's history, so cars are already on their way at t = 0. A new plan
+that comes within 0.3 m of an accepted one (0.02 m when both stand still) at the same step is re-drawn
+(agents do not react to each other in the World, §III-B), then delayed, then dropped. Labels come from the
+plans: the spot each car actually ends in.
+
+The observer (ego) drives a random tour of the lanes (:func:`plan_ego`); the episode runner
+(:mod:`.dataset`) lets it hold while its next footprints would meet another car.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+import shapely
+
+from avp_perception.training.lanes import A_DEC, LaneGraph, Path, follow, rollout
+from avp_perception.training.lots import spot_aisles
+from avp_sim.core.maneuvers import ManeuverKey, SceneGeometry, generate_maneuver, maneuver_to_world
+from avp_sim.core.scenario import Scenario, VehicleAgent
+from avp_world.geometry import polygon_contains_points, rect_corners, rect_inside_rect, rects_overlap, wrap_angle
+from avp_world.lot import LotMap
+from avp_world.vehicle import VehicleSpec
+
+PARK, LEAVE, WANDER = "park", "leave", "wander"
+AGENT_ID0 = 10000  # ids of the traffic agents (parked cars keep their spot's row)
+
+
+@dataclass(frozen=True)
+class TrafficParams:
+    """Knobs of the traffic generator (module docstring); times in s, distances in m, speeds in m/s."""
+
+    dt: float = 0.1
+    t_hist: float = 4.0
+    t_final: float = 60.0  # episode length after t = 0
+    t_pre: float = 40.0  # traffic simulated before t = -t_hist
+    occupancy: tuple[float, float] = (0.5, 0.95)
+    arrival_gap: tuple[float, float] = (4.0, 12.0)  # mean gap between arrivals, drawn per episode
+    departure_gap: tuple[float, float] = (10.0, 30.0)
+    min_arrival_gap: float = 3.0
+    cruise_speed: tuple[float, float] = (1.8, 3.5)
+    approach_speed: float = 2.0
+    p_take: tuple[float, float] = (0.3, 0.85)
+    patience: float = 60.0
+    far_factor: float = 0.7
+    give_up: tuple[float, float] = (150.0, 400.0)
+    p_stop_before: float = 0.6
+    p_head_in: float = 0.5
+    slow_distance: tuple[float, float] = (5.0, 12.0)  # a parker rolls the last metres to its maneuver start ...
+    slow_speed: tuple[float, float] = (1.2, 2.0)  # ... at this speed
+    pause: tuple[float, float] = (0.0, 1.5)
+    queue_distance: float = 12.0
+    exit_distance: float = 15.0
+    moving_margin: float = 0.3
+    still_margin: float = 0.02
+    tries: int = 4
+    delays: int = 3
+    delay: float = 3.0
+    passiveness: tuple[int, int] = (2, 6)
+    parked_length: float = 4.6
+    parked_width: float = 1.85
+    ego_speed: tuple[float, float] = (1.5, 3.0)
+    ego_clearance: float = 1.0
+
+
+@dataclass
+class AgentPlan:
+    """One traffic car on the generation timeline (index 0 = t_0 = -t_pre - t_hist)."""
+
+    kind: str
+    spot_row: int  # target (park) or start (leave) spot row; -1 for wanderers
+    maneuver: str
+    states: np.ndarray  # (K + 1, 3)
+    controls: np.ndarray  # (K, 2)
+    moving: np.ndarray  # (K + 1,) bool: moved into or out of this state
+    drive_end: int = -1  # parkers: timeline index where the maneuver starts (the car stopped on its lane)
+    end_lane: int = -1  # parkers: lane and lane coordinate of that stop
+    end_t: float = 0.0
+
+
+@dataclass
+class Traffic:
+    """A generated episode: the World scenario, a label per dynamic agent and the ego's plan."""
+
+    scenario: Scenario
+    labels: dict[int, int]  # vehicle id -> spot id it parks in, -1 = none (leaving, wandering)
+    kinds: dict[int, str]
+    ego_controls: np.ndarray  # (T, 2) the ego's tour; the runner holds it while blocked
+    ego_states: np.ndarray  # (T + 1, 3)
+    n_parked: int = 0
+    stats: dict = field(default_factory=dict)
+
+
+class ManeuverLibrary:
+    """The 8 maneuvers per scene geometry (cached) and their world versions per spot, checked to stay inside
+    the lot boundary."""
+
+    _canon: dict = {}
+
+    def __init__(self, lot: LotMap, graph: LaneGraph, spot_road: np.ndarray, vehicle: VehicleSpec):
+        self.lot, self.graph, self.vehicle = lot, graph, vehicle
+        self.spot_road = spot_road
+        self._world: dict[tuple[int, ManeuverKey], tuple | None] = {}
+
+    def scene(self, row: int) -> SceneGeometry:
+        road = self.lot.roads[int(self.spot_road[row])]
+        return SceneGeometry(aisle_width=round(road.width, 6), spot_length=round(float(self.lot.spot_dims[row, 0]), 6),
+                             spot_width=round(float(self.lot.spot_dims[row, 1]), 6))
+
+    def canonical(self, key: ManeuverKey, scene: SceneGeometry, dt: float):
+        k = (key, scene, self.vehicle, dt)
+        if k not in self._canon:
+            try:
+                self._canon[k] = generate_maneuver(key, scene, self.vehicle, dt)
+            except RuntimeError:
+                self._canon[k] = None
+        return self._canon[k]
+
+    def world(self, row: int, key: ManeuverKey, dt: float):
+        """(start pose, states, controls) of maneuver ``key`` into spot ``row`` in world coordinates, or None if
+        it leaves the lot or does not exist."""
+        if (row, key) not in self._world:
+            out = None
+            scene = self.scene(row)
+            man = self.canonical(key, scene, dt)
+            if man is not None:
+                start, states = maneuver_to_world(man, self.lot.spot_poses[row], scene.aisle_width, key.side)
+                fp = rect_corners(states, self.vehicle.length, self.vehicle.width)
+                if polygon_contains_points(self.lot.boundary, fp.reshape(-1, 2)).all():
+                    out = (start, states, np.asarray(man.controls))
+            self._world[(row, key)] = out
+        return self._world[(row, key)]
+
+
+def slow_tail(pieces: list[tuple[float, float, float]], distance: float, speed: float
+              ) -> list[tuple[float, float, float]]:
+    """Cap the speed at ``speed`` over the last ``distance`` metres of a path (splitting a piece if needed):
+    a driver who has picked a spot rolls up to the maneuver start slowly."""
+    out: list[tuple[float, float, float]] = []
+    left = distance
+    for length, kappa, cap in reversed(pieces):
+        if left <= 0.0:
+            out.append((length, kappa, cap))
+        elif length <= left:
+            out.append((length, kappa, min(cap, speed)))
+            left -= length
+        else:
+            out.append((left, kappa, min(cap, speed)))
+            out.append((length - left, kappa, cap))
+            left = 0.0
+    return out[::-1]
+
+
+def _moving(states: np.ndarray) -> np.ndarray:
+    step = np.abs(np.diff(states, axis=0)).max(axis=1) > 1e-9
+    m = np.zeros(len(states), dtype=bool)
+    m[1:] |= step
+    m[:-1] |= step
+    return m
+
+
+class TrafficGenerator:
+    """Builds :class:`Traffic` episodes on one lot (module docstring)."""
+
+    def __init__(self, lot: LotMap, params: TrafficParams = TrafficParams(), vehicle: VehicleSpec = VehicleSpec()):
+        self.lot, self.p, self.vehicle = lot, params, vehicle
+        self.spot_road = spot_aisles(lot)
+        self.graph = LaneGraph.build(lot, self.spot_road)
+        self.lib = ManeuverLibrary(lot, self.graph, self.spot_road, vehicle)
+        self.n_total = int(round((params.t_pre + params.t_hist + params.t_final) / params.dt))
+        self.k_hist = int(round(params.t_pre / params.dt))  # index of t = -t_hist
+        grown = shapely.Polygon(lot.boundary).buffer(2.5, join_style="mitre")
+        self.grown = np.asarray(grown.exterior.coords)[:-1]
+        self.walk_lanes = {ln.id for ln in self.graph.lanes if ln.road >= 0 and ln.v not in self.graph.dead_ends}
+        self.why: Counter = Counter()  # why plans were discarded (statistics)
+        self.spot_lanes: dict[int, list[tuple[int, float, str]]] = {}
+        for lane, items in self.graph.spot_lanes.items():
+            for row, t, side in items:
+                self.spot_lanes.setdefault(row, []).append((lane, t, side))
+
+    # ------------------------------------------------------------------ helpers
+    def _time(self, k: int) -> float:
+        return (k - self.k_hist) * self.p.dt - self.p.t_hist
+
+    def _pad(self, k0: int, start: np.ndarray, controls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Full-timeline controls and states: hold ``start`` until index k0, then ``controls``, then hold."""
+        n = self.n_total
+        u = np.zeros((n, 2))
+        m = max(0, min(len(controls), n - k0))
+        if k0 < n:
+            u[k0:k0 + m] = controls[:m]
+        return u, rollout(start, u, self.p.dt)
+
+    def _inside(self, states: np.ndarray) -> np.ndarray:
+        return polygon_contains_points(self.grown, states[:, :2])
+
+    def _conflict(self, plan: AgentPlan, accepted: list[AgentPlan], inside: np.ndarray,
+                  accepted_inside: list[np.ndarray]) -> bool:
+        length, width = self.vehicle.length, self.vehicle.width
+        reach = math.hypot(length, width) + self.p.moving_margin + 0.01
+        for other, o_in in zip(accepted, accepted_inside, strict=True):
+            d = np.hypot(*(plan.states[:, :2] - other.states[:, :2]).T)
+            idx = np.nonzero((d < reach) & inside & o_in)[0]
+            if len(idx) == 0:
+                continue
+            a = rect_corners(plan.states[idx], length, width)
+            b = rect_corners(other.states[idx], length, width)
+            moving = plan.moving[idx] | other.moving[idx]
+            hit = np.where(moving, rects_overlap(a, b, self.p.moving_margin), rects_overlap(a, b, self.p.still_margin))
+            if hit.any():
+                return True
+        return False
+
+    def _available(self, row: int, t: float, free_from: np.ndarray, reserved: np.ndarray) -> bool:
+        return not reserved[row] and free_from[row] <= t
+
+    # ------------------------------------------------------------------ parkers and wanderers
+    def _parker(self, rng: np.random.Generator, k0: int, free_from: np.ndarray, reserved: np.ndarray
+                ) -> AgentPlan | None:
+        p, g = self.p, self.graph
+        v_c = float(rng.uniform(*p.cruise_speed))
+        p_driver = float(rng.uniform(*p.p_take))
+        give_up = float(rng.uniform(*p.give_up))
+        t0 = self._time(k0) + p.queue_distance / p.approach_speed  # time at the entrance
+        brake_d = v_c**2 / (2.0 * A_DEC) + 0.5
+        lanes = [g.entry]
+        visits = {g.entry: 1}
+        t_in = 0.0  # lane coordinate where the car joins the current lane
+        dist = 0.0  # driven since the entrance (to the joining point)
+        chosen = None
+        while chosen is None:
+            cur = g.lanes[lanes[-1]]
+            if cur.road >= 0:
+                for row, t_k, side in g.spot_lanes[cur.id]:
+                    if t_k < t_in + 2.0:
+                        continue
+                    travelled = dist + t_k - t_in
+                    t_arrive = t0 + travelled / (0.8 * v_c)
+                    if not self._available(row, t_arrive, free_from, reserved):
+                        continue
+                    prob = 1.0 - (1.0 - p_driver) * math.exp(-(travelled / v_c) / p.patience)
+                    if side == "far":
+                        prob *= p.far_factor
+                    if rng.random() >= prob:
+                        continue
+                    stops = ["before", "after"] if rng.random() < p.p_stop_before else ["after", "before"]
+                    entries = ["head_in", "tail_in"] if rng.random() < p.p_head_in else ["tail_in", "head_in"]
+                    for stop in stops:
+                        for entry in entries:
+                            key = ManeuverKey(side, stop, entry)
+                            man = self.lib.world(row, key, p.dt)
+                            if man is None:
+                                continue
+                            t_s = float((man[0][:2] - cur.a) @ cur.d)
+                            if t_in + brake_d <= t_s <= cur.length + 1.0:
+                                chosen = (row, key, man, t_s)
+                                break
+                        if chosen:
+                            break
+                    if chosen:
+                        break
+            if chosen:
+                break
+            dist += cur.length - t_in
+            if dist > give_up:
+                break
+            opts = [n for n in g.nexts[cur.id] if n in self.walk_lanes]
+            if not opts:
+                self.why["no_lane"] += 1
+                return None
+            w = np.ones(len(opts))
+            for i, n in enumerate(opts):
+                w[i] *= 0.25 ** visits.get(n, 0)
+                t_est = t0 + dist / (0.8 * v_c)
+                if any(self._available(r, t_est, free_from, reserved) for r, _, _ in g.spot_lanes[n]):
+                    w[i] *= 2.5
+            nxt = int(opts[int(rng.choice(len(opts), p=w / w.sum()))])
+            t_in = g.turns[(cur.id, nxt)].t2
+            lanes.append(nxt)
+            visits[nxt] = visits.get(nxt, 0) + 1
+        caps = {g.entry: p.approach_speed}
+        queue = np.asarray(g.lanes[g.entry].point(-p.queue_distance))
+        start = np.array([queue[0], queue[1], g.lanes[g.entry].heading])
+        if chosen is None:  # wanderer: leave by the shortest way
+            lanes = lanes[:-1] + g.shortest(lanes[-1], g.exit)
+            try:
+                s, pieces = g.route_pieces(lanes, -p.queue_distance, g.lanes[g.exit].length + p.exit_distance, v_c,
+                                           caps)
+            except (ValueError, KeyError):
+                self.why["wander_route"] += 1
+                return None
+            u, _ = follow(Path.build(s, pieces), start, p.dt, self.vehicle)
+            u_full, x_full = self._pad(k0, start, u)
+            return AgentPlan(WANDER, -1, "", x_full, u_full, _moving(x_full))
+        row, key, man, t_s = chosen
+        try:
+            s, pieces = g.route_pieces(lanes, -p.queue_distance, t_s, v_c, caps)
+        except ValueError:
+            self.why["park_route"] += 1
+            return None
+        pieces = slow_tail(pieces, float(rng.uniform(*p.slow_distance)), float(rng.uniform(*p.slow_speed)))
+        u_drive, x_drive = follow(Path.build(s, pieces), start, p.dt, self.vehicle)
+        pause = np.zeros((int(round(rng.uniform(*p.pause) / p.dt)), 2))
+        controls = np.concatenate([u_drive, pause, man[2]])
+        u_full, x_full = self._pad(k0, start, controls)
+        end = rect_corners(rollout(x_drive[-1], man[2], p.dt)[-1], self.vehicle.length, self.vehicle.width)
+        if not rect_inside_rect(end[None], self.lot.spot_corners[row][None])[0]:  # (the episode may end first)
+            self.why["not_in_spot"] += 1
+            return None
+        return AgentPlan(PARK, row, "/".join(key), x_full, u_full, _moving(x_full), drive_end=k0 + len(u_drive) - 1,
+                         end_lane=lanes[-1], end_t=t_s)
+
+    # ------------------------------------------------------------------ leavers
+    def _leaver(self, rng: np.random.Generator, row: int, k0: int) -> AgentPlan | None:
+        p, g = self.p, self.graph
+        v_c = float(rng.uniform(*p.cruise_speed))
+        options = [(lane, t, side, stop, entry) for lane, t, side in self.spot_lanes.get(row, [])
+                   for stop in ("before", "after") for entry in ("head_in", "tail_in")]
+        for i in rng.permutation(len(options)):
+            lane, _, side, stop, entry = options[int(i)]
+            key = ManeuverKey(side, stop, entry)
+            man = self.lib.world(row, key, p.dt)
+            if man is None:
+                continue
+            ln = g.lanes[lane]
+            t_s = float((man[0][:2] - ln.a) @ ln.d)
+            if not 0.0 <= t_s <= ln.length + 1.0:
+                continue
+            parked = man[1][-1]
+            unpark = -man[2][::-1]
+            x_un = rollout(parked, unpark, p.dt)
+            try:
+                seq = g.shortest(lane, g.exit)
+                s, pieces = g.route_pieces(seq, t_s, g.lanes[g.exit].length + p.exit_distance, v_c)
+            except (ValueError, KeyError):
+                continue
+            u_out, _ = follow(Path.build(s, pieces), x_un[-1], p.dt, self.vehicle)
+            u_full, x_full = self._pad(k0, parked, np.concatenate([unpark, u_out]))
+            return AgentPlan(LEAVE, row, "/".join(key), x_full, u_full, _moving(x_full))
+        return None
+
+    # ------------------------------------------------------------------ ego
+    def plan_ego(self, rng: np.random.Generator, accepted: list[AgentPlan], start_pose=None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """The observer's plan (controls, states from t = 0). From ``start_pose`` (merging into the lane it lies
+        beside): a random tour of the lanes at U[1.5, 3] m/s. Otherwise one of three modes, so that it meets
+        the traffic in a large lot: *follow* (40 %) — it starts 3-6 s behind a parker on that car's path,
+        replays its driving controls up to the parker's maneuver start (holding behind it while it parks),
+        then tours on; *meet* (40 %) — it starts on a lane 10-40 m from the spot a parker will take in the
+        first 40 s; *random* — anywhere; the last two clear of the traffic at t = 0, then a random tour."""
+        p = self.p
+        v = float(rng.uniform(*p.ego_speed))
+        k_zero = self.k_hist + int(round(p.t_hist / p.dt))
+        if start_pose is not None:
+            lane, t0, pre = self._merge(np.asarray(start_pose, float))
+            return self._tour(rng, np.asarray(start_pose, float), lane, t0, v, pre)
+        mode = rng.choice(3, p=[0.4, 0.4, 0.2])
+        parkers = [a for a in accepted if a.kind == PARK and a.drive_end > k_zero]
+        if mode == 0:
+            k_back = int(round(rng.uniform(3.0, 6.0) / p.dt))
+            kb = k_zero - k_back
+            ok = [a for a in parkers
+                  if a.drive_end - k_zero > 30 and a.moving[kb] and self._inside(a.states[kb:kb + 1])[0]]
+            for _ in range(3 if ok else 0):
+                a = ok[int(rng.integers(len(ok)))]
+                u0 = a.controls[k_zero - k_back:a.drive_end]
+                x0 = rollout(a.states[k_zero - k_back], u0, p.dt)
+                try:
+                    u1, x1 = self._tour(rng, x0[-1], a.end_lane, a.end_t, v)
+                except ValueError:  # the stop lies beyond the next turn's start: no tour from there
+                    continue
+                return np.concatenate([u0, u1]), np.concatenate([x0, x1[1:]])
+        spots = np.array([self.lot.spot_poses[a.spot_row, :2] for a in parkers
+                          if a.drive_end < k_zero + int(round(40.0 / p.dt))]).reshape(-1, 2)
+        others = np.array([a.states[k_zero] for a in accepted]).reshape(-1, 3)
+        walk = sorted(self.walk_lanes)
+        for attempt in range(400):
+            lane = int(rng.choice(walk))
+            t0 = float(rng.uniform(3.0, max(3.5, self.graph.lanes[lane].length - 3.0)))
+            pt = self.graph.lanes[lane].point(t0)
+            start = np.array([pt[0], pt[1], self.graph.lanes[lane].heading])
+            if mode == 1 and len(spots) and attempt < 300:
+                gap = np.hypot(*(spots - start[:2]).T).min()
+                if not 10.0 <= gap <= 40.0:
+                    continue
+            fp = rect_corners(start, self.vehicle.length, self.vehicle.width)
+            if len(others) and rects_overlap(rect_corners(others, self.vehicle.length, self.vehicle.width),
+                                             fp[None], p.ego_clearance).any():
+                continue
+            try:
+                return self._tour(rng, start, lane, t0, v)
+            except ValueError:
+                continue
+        raise RuntimeError("no start for the observer")
+
+    def _tour(self, rng: np.random.Generator, state: np.ndarray, lane: int, t0: float, v: float,
+              pre: list | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """A random walk over the lanes from ``state`` (on ``lane`` at t0, after the optional ``pre`` pieces),
+        long enough for the episode, driven by :func:`follow`. ValueError where the first turn starts behind t0."""
+        p, g = self.p, self.graph
+        lanes = [lane]
+        total = g.lanes[lane].length - t0
+        visits = {lane: 1}
+        while total < v * p.t_final + 30.0:
+            opts = [n for n in g.nexts[lanes[-1]] if n in self.walk_lanes]
+            w = np.array([0.2 ** visits.get(n, 0) for n in opts])
+            nxt = int(opts[int(rng.choice(len(opts), p=w / w.sum()))])
+            lanes.append(nxt)
+            visits[nxt] = visits.get(nxt, 0) + 1
+            total += g.lanes[nxt].length
+        _, pieces = g.route_pieces(lanes, t0, g.lanes[lanes[-1]].length / 2.0, v)
+        pre = [(ln, k, min(c, v)) for ln, k, c in (pre or [])]
+        return follow(Path.build(state, pre + pieces), state, p.dt, self.vehicle)
+
+    def _merge(self, pose: np.ndarray) -> tuple[int, float, list]:
+        """Lane beside ``pose`` (same heading, lateral offset <= 2.5 m) and an S-curve (two opposite arcs of
+        6 m radius) onto it: (lane, lane coordinate where the S-curve ends, pieces)."""
+        g = self.graph
+        for ln in g.lanes:
+            if ln.road < 0 or abs(wrap_angle(pose[2] - ln.heading)) > 1e-3:
+                continue
+            t = float((pose[:2] - ln.a) @ ln.d)
+            lat = float((pose[:2] - ln.a) @ np.array([-ln.d[1], ln.d[0]]))
+            if abs(lat) <= 2.5 and -ln.width / 2 <= t <= ln.length - 8.0:
+                if abs(lat) < 1e-6:
+                    return ln.id, t, []
+                r = 6.0
+                phi = math.acos(1.0 - abs(lat) / (2.0 * r))
+                k = -math.copysign(1.0 / r, lat)  # pose left of the lane (lat > 0): turn right first
+                return ln.id, t + 2.0 * r * math.sin(phi), [(r * phi, k, 9.9), (r * phi, -k, 9.9)]
+        raise ValueError(f"no lane beside the pose {pose.tolist()}")
+
+    # ------------------------------------------------------------------ episode
+    def generate(self, seed: int, ego_start=None) -> Traffic:
+        """One seeded episode (same seed => same traffic)."""
+        p = self.p
+        rng = np.random.default_rng(int(seed))
+        n_s = self.lot.n_spots
+        occ = rng.random(n_s) < rng.uniform(*p.occupancy)
+        free_from = np.where(occ, np.inf, -np.inf)
+        reserved = np.zeros(n_s, dtype=bool)
+        accepted: list[AgentPlan] = []
+        inside: list[np.ndarray] = []
+        stats = {"rejected": 0, "dropped": 0}
+
+        def accept(plan: AgentPlan) -> None:
+            accepted.append(plan)
+            inside.append(self._inside(plan.states))
+
+        t_end = p.t_final - 10.0
+        # leavers: departures of parked cars
+        gap = float(rng.uniform(*p.departure_gap))
+        t = self._time(0) + float(rng.exponential(gap))
+        while t < t_end:
+            rows = np.nonzero(occ & ~reserved & np.isinf(free_from))[0]
+            if len(rows) == 0:
+                break
+            row = int(rng.choice(rows))
+            k0 = int(round((t - self._time(0)) / p.dt))
+            plan = self._leaver(rng, row, k0)
+            if plan is not None and not self._conflict(plan, accepted, self._inside(plan.states), inside):
+                accept(plan)
+                clear = int(np.nonzero(plan.moving)[0].min()) + 1
+                out = np.nonzero(~rects_overlap(rect_corners(plan.states[clear:], self.vehicle.length,
+                                                             self.vehicle.width),
+                                                self.lot.spot_corners[row][None]))[0]
+                free_from[row] = self._time(clear + (int(out[0]) if len(out) else 0)) + 2.0
+            else:
+                stats["rejected"] += 1
+            t += float(rng.exponential(gap))
+        # parkers and wanderers, in order of their start from the queue
+        gap = float(rng.uniform(*p.arrival_gap))
+        t = self._time(0) + float(rng.exponential(gap))
+        while t < t_end:
+            k0 = int(round((t - self._time(0)) / p.dt))
+            done = False
+            for delay in range(p.delays + 1):
+                kd = k0 + delay * int(round(p.delay / p.dt))
+                for _ in range(p.tries):
+                    plan = self._parker(rng, kd, free_from, reserved)
+                    if plan is None:
+                        continue
+                    plan_in = self._inside(plan.states)
+                    if self._conflict(plan, accepted, plan_in, inside):
+                        stats["rejected"] += 1
+                        continue
+                    accept(plan)
+                    if plan.kind == PARK:
+                        reserved[plan.spot_row] = True
+                    done = True
+                    break
+                if done:
+                    break
+            if not done:
+                stats["dropped"] += 1
+            t += max(p.min_arrival_gap, float(rng.exponential(gap)))
+
+        ego_u, ego_x = self.plan_ego(rng, accepted, ego_start)
+        return self._assemble(seed, rng, occ, accepted, ego_u, ego_x, stats)
+
+    def _assemble(self, seed: int, rng: np.random.Generator, occ: np.ndarray, accepted: list[AgentPlan],
+                  ego_u: np.ndarray, ego_x: np.ndarray, stats: dict) -> Traffic:
+        p, kh = self.p, self.k_hist
+        vehicles: list[VehicleAgent] = []
+        labels: dict[int, int] = {}
+        kinds: dict[int, str] = {}
+        leaving_rows = {a.spot_row for a in accepted if a.kind == LEAVE}
+        for row in np.nonzero(occ)[0]:
+            if int(row) in leaving_rows:
+                continue
+            s = self.lot.spots[int(row)]
+            heading = s.heading + (math.pi if rng.random() < 0.5 else 0.0)
+            pose = np.array([s.x, s.y, math.atan2(math.sin(heading), math.cos(heading))])
+            vehicles.append(VehicleAgent(id=int(row), length=p.parked_length, width=p.parked_width,
+                                         initial_state=pose, controls=np.zeros((0, 2)), parked=True))
+        n_parked = len(vehicles)
+        for j, a in enumerate(accepted):
+            later = a.moving[kh:]
+            if not later.any():
+                fp = rect_corners(a.states[kh], self.vehicle.length, self.vehicle.width)
+                if not polygon_contains_points(self.grown, a.states[kh:kh + 1, :2])[0]:
+                    continue  # left the lot before the episode
+                if a.kind == PARK and rect_inside_rect(fp[None], self.lot.spot_corners[a.spot_row][None])[0]:
+                    vehicles.append(VehicleAgent(id=AGENT_ID0 + j, length=self.vehicle.length,
+                                                 width=self.vehicle.width, initial_state=a.states[kh].copy(),
+                                                 controls=np.zeros((0, 2)), parked=True))
+                    n_parked += 1
+                    continue
+            vid = AGENT_ID0 + j
+            label = int(self.lot.spot_ids[a.spot_row]) if a.kind == PARK else -1
+            vehicles.append(VehicleAgent(
+                id=vid, length=self.vehicle.length, width=self.vehicle.width, initial_state=a.states[kh].copy(),
+                controls=a.controls[kh:].copy(), passiveness=int(rng.integers(p.passiveness[0], p.passiveness[1] + 1)),
+                target_spot_id=label, maneuver=a.maneuver))
+            labels[vid] = label
+            kinds[vid] = a.kind
+        stats.update({k: sum(a.kind == k for a in accepted) for k in (PARK, LEAVE, WANDER)})
+        scenario = Scenario(seed=int(seed), reactive=True, ego_start=ego_x[0].copy(), ego=self.vehicle,
+                            vehicles=tuple(vehicles), dt=p.dt, t_hist=p.t_hist)
+        return Traffic(scenario, labels, kinds, ego_u, ego_x, n_parked, stats)
