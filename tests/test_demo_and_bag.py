@@ -166,7 +166,8 @@ def test_replay_republishes_the_recorded_bytes(ros_env, monkeypatch):
     node.create_subscription(Observation, "/avp/observation", got.append, deep, raw=True)
     node.create_subscription(LotMap, "/avp/lot_map", lots.append, LATCHED, raw=True)
     proc = subprocess.Popen([sys.executable, "-m", "avp_bringup.cli", "replay", str(EXAMPLE), "--rate", "0",
-                             "--delay", "1", "--wait-subscribers", "--topics", "/avp/observation", "/avp/lot_map"], env=ros_env,
+                             "--delay", "1", "--wait-subscribers", "--topics", "/avp/observation", "/avp/lot_map"],
+                            env=ros_env,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         t0 = time.monotonic()
