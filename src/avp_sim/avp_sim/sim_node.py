@@ -82,6 +82,7 @@ class SimNode(Node):
         self.seed, self.reactive = seed, reactive
         self.started = False
         self.latest_cmd = None
+        self.debug_step = -1  # last step whose ground truth went out (a re-send repeats only the observation)
         dyn = [(v.id, v.target_spot_id, v.maneuver, v.passiveness) for v in self.world.scenario.dynamic_vehicles()]
         self.get_logger().info(f"episode seed={seed} reactive={reactive}: dynamic vehicles {dyn}")
         return self.world
@@ -104,11 +105,13 @@ class SimNode(Node):
         stamp = step_to_time(w.step_index, self.dt)
         self.pub_clock.publish(Clock(clock=stamp))
         obs = w.observe()
-        self.pub_gt.publish(self._ground_truth_msg(w, stamp))
+        if w.step_index != self.debug_step:  # one ground-truth record per step, even when the step is re-sent
+            self.debug_step = w.step_index
+            self.pub_gt.publish(self._ground_truth_msg(w, stamp))
+            if self.p["publish_markers"]:
+                self.pub_markers.publish(world_markers(self.lot, w, obs, stamp))
+                self.pub_scan.publish(self._scan_msg(obs, stamp))
         self.pub_status.publish(self._status_msg(w, stamp))
-        if self.p["publish_markers"]:
-            self.pub_markers.publish(world_markers(self.lot, w, obs, stamp))
-            self.pub_scan.publish(self._scan_msg(obs, stamp))
         if not w.done:
             self.pub_obs.publish(observation_to_msg(obs))
         self.last_pub_wall = time.monotonic()
