@@ -360,11 +360,16 @@ def test_sigkill_pipeline_nodes_in_realtime(ros, tmp_path):
             k_kill = probe.last()
             graph.kill_node(spec.name)
             graph.procs[spec.name].wait(5)
+            t_kill = time.monotonic()
             probe.spin(2.0)
+            # a reliable stream that lost a datagram on a loaded machine (CI) holds later steps back until the
+            # writer's next heartbeat repairs it: the steps then arrive late, but they are the sim's real steps
+            probe.spin(8.0, lambda k0=k_kill: probe.last() >= k0 + 15)
             assert graph.procs["avp_sim"].poll() is None
             k_restart = probe.last()
             arrivals = np.diff([probe.arrival[k] for k in sorted(probe.arrival) if k >= k_kill])
-            assert k_restart >= k_kill + 12, ("the simulator stopped stepping", spec.name, arrivals.round(2))
+            assert k_restart >= k_kill + 12, ("the simulator stopped stepping", spec.name, arrivals.round(2),
+                                              round(time.monotonic() - t_kill, 2), graph.log_tail("avp_sim"))
             graph.start_node(spec)
             kills.append((spec.name, k_kill, k_restart))
         probe.spin(200 - (time.monotonic() - t0), lambda: probe.finished)

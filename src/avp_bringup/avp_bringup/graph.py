@@ -138,6 +138,13 @@ class Graph:
     def poll(self) -> dict[str, int | None]:
         return {name: p.poll() for name, p in self.procs.items()}
 
+    def log_tail(self, name: str, n_lines: int = 20) -> str:
+        """The last ``n_lines`` lines of node ``name``'s log (for error messages)."""
+        path = self.log_dir / f"{name}.log"
+        if not path.is_file():
+            return f"(no log {path})"
+        return "\n".join(path.read_text(errors="replace").splitlines()[-n_lines:])
+
     def kill_node(self, name: str, sig: int = signal.SIGKILL) -> None:
         self.procs[name].send_signal(sig)
 
