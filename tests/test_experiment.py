@@ -18,6 +18,7 @@ from avp_bringup.experiment.profiles import (
     ProfileError,
     available_names,
     load_profile,
+    methods_dir,
     planner_profile_yaml,
     planner_settings,
 )
@@ -54,11 +55,11 @@ def records(out: Path) -> dict:
 def test_every_table_row_has_a_profile():
     assert available_names() == list(TABLE_ORDER)
     profiles = {n: load_profile(n) for n in TABLE_ORDER}
-    assert [n for n, p in profiles.items() if not p.available] == ["learned"]
+    assert [n for n, p in profiles.items() if not p.available] == []
     assert profiles["implicit"].ego_intent and profiles["implicit"].beliefs == "observation"
     assert profiles["nawaz"].beliefs == "nawaz" and profiles["nawaz"].predictor == "constant_velocity"
-    assert {profiles[n].predictor for n in ("bezier", "constant_velocity", "hybrid_astar")} == {
-        "bezier", "constant_velocity", "hybrid_astar"}
+    assert {profiles[n].predictor for n in ("bezier", "constant_velocity", "hybrid_astar", "learned")} == {
+        "bezier", "constant_velocity", "hybrid_astar", "learned"}
     # the planner block is a planner profile; the runner lifts the wall-clock caps
     text = planner_profile_yaml(profiles["bezier"])
     assert yaml.safe_load(text)["/**"]["ros__parameters"] == {"use_beliefs": True, "use_predictions": True}
@@ -66,7 +67,16 @@ def test_every_table_row_has_a_profile():
     assert use_b and use_p and settings.search.time_cap >= 100 and settings.decision.decision_time_cap >= 100
 
 
-def test_profiles_map_onto_the_four_node_graph():
+def unavailable_learned(tmp_path: Path) -> Path:
+    """A copy of the learned profile marked unavailable (the runner lists it with the paper's numbers only)."""
+    data = yaml.safe_load((methods_dir() / "learned.yaml").read_text())
+    data.update(available=False, unavailable_reason="switched off for this test")
+    path = tmp_path / "learned.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def test_profiles_map_onto_the_four_node_graph(tmp_path):
     """One mapping (method_node_params) puts a profile on the same 4 nodes as the default graph: written out here
     for the implicit and Nawaz rows; the Bézier row changes nothing the node defaults do not already say."""
     from avp_bringup.experiment.profiles import BELIEF_SOURCES, method_node_params
@@ -97,8 +107,9 @@ def test_profiles_map_onto_the_four_node_graph():
         values = load_yaml_params(spec.default_params(), spec.name, specs)
         default_extra = next(n for n in base if n.name == spec.name).extra_params
         assert all(values[k] == v or default_extra.get(k) == v for k, v in spec.extra_params.items()), spec.name
+    assert method_node_params(load_profile("learned"))["avp_prediction"] == {"method": "learned"}
     with pytest.raises(ProfileError, match="not available"):
-        method_graph("learned")
+        method_graph(unavailable_learned(tmp_path))
 
 
 @pytest.mark.parametrize("mutate,needle", [
@@ -160,7 +171,7 @@ def test_wilson_interval_known_values():
 
 def test_resumable_and_summary(tmp_path):
     out = tmp_path / "run"
-    cmd = ("--methods", "nawaz,implicit,learned", "--mode", "both", "--workers", "0")
+    cmd = ("--methods", f"nawaz,implicit,{unavailable_learned(tmp_path)}", "--mode", "both", "--workers", "0")
     assert ran(out, *cmd) == 8
     first = records(out)
     assert len(first) == 2 * 2 * 2  # 2 methods x 2 seeds x 2 modes; 'learned' is not available

@@ -220,7 +220,7 @@ def check_occupancy(msg: OccupancyGrid, lot, beliefs: np.ndarray, seen: np.ndarr
     np.testing.assert_array_equal(np.asarray(msg.data, dtype=int).reshape(info.height, info.width), expect)
 
 
-@pytest.mark.parametrize("method", ["bezier", "hybrid_astar"])
+@pytest.mark.parametrize("method", ["bezier", "hybrid_astar", "learned"])
 def test_nodes_over_dds_match_the_cores(paper_lot, ros, tmp_path, method):
     lot = paper_lot
     obs, ref = episode_observations(lot, method)

@@ -14,13 +14,17 @@
   avp experiment [--scenarios N] [--seed-base S] [--mode reactive|non-reactive|both] [--methods M,...|all]
                  [--workers W] [--out DIR] [--transport inproc|ros]
                                                    the Table I runner (docs/experiment.md); resumable
-  avp bench sensing|planner|perception|soak|live_latency [ARGS...]
+  avp bench sensing|planner|perception|soak|live_latency|learned [ARGS...]
                                                    run a benchmark script of bench/ (figures in docs/benchmarks.md)
   avp params [NODE]                                print the parameter tables (Markdown)
   avp train-intent [--scale full|quick|tiny] [--out DIR] [--workers W] [--threads T]
                                                    the intent CNN from scratch: data, training, evaluation,
                                                    weights (docs/intent_model.md)
   avp gen-intent-data SPLIT --episodes N --out FILE.npz   intent samples of one split (train|val|test|paper)
+  avp train-trajectory [--scale full|dev|tiny] [--out DIR] [--workers W] [--threads T]
+                                                   the learned trajectory predictor from scratch: data, training,
+                                                   evaluation beside Bezier / constant velocity, weights
+                                                   (docs/trajectory_model.md)
 """
 
 from __future__ import annotations
@@ -379,6 +383,12 @@ def cmd_gen_intent_data(args: argparse.Namespace) -> int:
     return run(args)
 
 
+def cmd_train_trajectory(args: argparse.Namespace) -> int:
+    from avp_perception.training.run_trajectory import cmd_train_trajectory as run
+
+    return run(args)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="avp", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -386,8 +396,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--params", help="extra ROS 2 parameter file applied after the defaults")
     p.add_argument("--log-dir")
     p.add_argument("--ego", choices=("planner", "scripted"), default="planner", help="the ego's node")
-    p.add_argument("--method", help="a Table I method profile (bezier, constant_velocity, hybrid_astar, implicit, "
-                   "nawaz or a profile file): the same 4 nodes with the profile's parameters")
+    p.add_argument("--method", help="a Table I method profile (bezier, constant_velocity, hybrid_astar, learned, "
+                   "implicit, nawaz or a profile file): the same 4 nodes with the profile's parameters")
     p.set_defaults(func=cmd_launch)
     p = sub.add_parser("demo", help="run one seeded episode through the live graph")
     p.add_argument("--seed", type=int, default=1, help="scenario seed (1: a car in view early; parks at ~17 s)")
@@ -443,7 +453,7 @@ def main(argv: list[str] | None = None) -> int:
     add_arguments(p)
     p.set_defaults(func=cmd_experiment)
     p = sub.add_parser("bench", help="run a benchmark script of bench/")
-    p.add_argument("which", choices=("sensing", "planner", "perception", "soak", "live_latency"))
+    p.add_argument("which", choices=("sensing", "planner", "perception", "soak", "live_latency", "learned"))
     p.add_argument("rest", nargs=argparse.REMAINDER)
     p.set_defaults(func=cmd_bench)
     p = sub.add_parser("params", help="print parameter tables")
@@ -457,6 +467,11 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("gen-intent-data", help="generate intent-model samples of one split")
     add_gen_arguments(p)
     p.set_defaults(func=cmd_gen_intent_data)
+    from avp_perception.training.run_trajectory import add_arguments as add_trajectory_arguments
+
+    p = sub.add_parser("train-trajectory", help="train the learned trajectory predictor (docs/trajectory_model.md)")
+    add_trajectory_arguments(p)
+    p.set_defaults(func=cmd_train_trajectory)
     args = parser.parse_args(argv)
     return args.func(args)
 

@@ -93,8 +93,8 @@ BELIEF_PARAMS: list[ParamSpec] = (BELIEF_NODE_PARAMS + _annotate(specs_from_data
 
 PREDICTION_NODE_PARAMS = [
     ParamSpec("method", str, "Trajectory predictor: the paper's intention-conditioned Bezier curves, constant "
-              "velocity, or Hybrid A* paths to the intended goals.", "", "§V-C", choices=PREDICTOR_NAMES,
-              default="bezier"),
+              "velocity, Hybrid A* paths to the intended goals, or the learned transformer (learned.*, §VI-B-1).",
+              "", "§V-C", choices=PREDICTOR_NAMES, default="bezier"),
 ]
 _PRED_NOTES: dict[str, dict[str, Any]] = {
     "zeta": {"symbol": "ζ", "section": "eqs. (11)-(12), §VI-A", "min": 0.0, "max": 100.0},
@@ -107,6 +107,10 @@ _PRED_NOTES: dict[str, dict[str, Any]] = {
     "hybrid_astar.max_length": {"min": 0.1},
     "hybrid_astar.min_speed": {"symbol": "v_hat", "section": "§V-C", "min": 0.0, "max": 10.0},
     "hybrid_astar.footprint_margin": {"min": 0.0, "max": 2.0},
+    "learned.weights": {"section": "§VI-B-1"},
+    "learned.seed": {"section": "§VI-B-1", "min": 0, "max": 2**31 - 1},
+    "learned.threads": {"min": 1, "max": 64},
+    "learned.t_hist": {"symbol": "t_hist", "section": "§III-A", "min": 0.0, "max": 20.0},
 }
 PREDICTION_PARAMS: list[ParamSpec] = PREDICTION_NODE_PARAMS + _annotate(specs_from_dataclass(PredictionConfig()),
                                                                       _PRED_NOTES)

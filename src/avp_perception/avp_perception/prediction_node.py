@@ -4,9 +4,11 @@ Topics (relative; the launcher puts every node in namespace /avp):
   subscribes lot_map (latched), observation, intentions (from the belief node)
   publishes  predictions (avp_msgs/PredictedTrajectoryArray, stamped like the observation it answers)
 
-``method``: ``bezier`` (the paper's intention-conditioned cubic Bezier curves, eqs. 9-12), ``constant_velocity``
-or ``hybrid_astar`` (paths to the intended goals planned with the ego planner's Hybrid A*); pedestrians are
-always predicted at constant velocity. Each trajectory carries its intention's probability, spot id and goal.
+``method``: ``bezier`` (the paper's intention-conditioned cubic Bezier curves, eqs. 9-12), ``constant_velocity``,
+``hybrid_astar`` (paths to the intended goals planned with the ego planner's Hybrid A*) or ``learned``
+(ParkPredict+'s trajectory transformer conditioned on the same goals, issue #5, ``learned.*``; the node logs which
+weights it runs); pedestrians are always predicted at constant velocity. Each trajectory carries its intention's
+probability, spot id and goal.
 
 Lock-step: the observation and the intentions of step k are matched by step (either may come first) and
 answered once; an observation of a step already answered (re-sent by the simulator) gets the same message
@@ -63,7 +65,14 @@ class PredictionNode(Node):
         except ValueError as exc:
             self.get_logger().error(f"lot_map: {exc}")
             return
-        self.predictor = make_predictor(self.method, self.lot, self.config)
+        try:
+            self.predictor = make_predictor(self.method, self.lot, self.config)
+        except ValueError as exc:  # e.g. learned.weights that cannot be loaded: one error, no predictions
+            self.get_logger().error(f"method '{self.method}': {exc}")
+            self.predictor = None
+            return
+        if getattr(self.predictor, "info", ""):
+            self.get_logger().info(self.predictor.info)  # which weights the learned predictor runs
         self.last_step, self.cache = -1, None
         for k in sorted(self.obs):
             self._try(k)

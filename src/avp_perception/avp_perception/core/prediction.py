@@ -28,6 +28,8 @@ Every predictor has ``predict(obs, intentions=(), horizon=None) -> list[Predicte
 * ``"hybrid_astar"`` (:class:`~avp_perception.core.prediction_astar.HybridAStarPredictor`, issue #4): for
   every intention >= mu a path from the vehicle to the goal planned with the ego planner's Hybrid A*
   (§V-D), followed at v_hat; constant velocity when no path is found (see that module).
+* ``"learned"`` (:class:`~avp_perception.core.learned_prediction.LearnedPredictor`, issue #5): ParkPredict+'s
+  trajectory transformer conditioned on the same goals as the Bezier curves (§VI-B-1 "Learned Model").
 
 Pedestrians are always predicted at constant velocity from their two positions, v_hat = |p_t - p_t-dt| / dt
 (§V-C), with theta = 0.
@@ -75,6 +77,25 @@ class HybridAStarPredictionSettings:
 
 
 @dataclass(frozen=True)
+class LearnedPredictionSettings:
+    """The ``"learned"`` predictor (:mod:`.learned_prediction`, issue #5): weights and inference settings."""
+
+    weights: str = ""  # trajectory transformer file; empty: the shipped models/trajectory_transformer.pt, else random
+    seed: int = 0  # seed of the random weights (used only without a weights file)
+    threads: int = 1  # torch.set_num_threads at start-up (1: deterministic and fastest on a shared CPU)
+    t_hist: float = 4.0  # s of ego poses kept for the ego's trail in the BEVs (as the belief node's t_hist)
+
+    def validate(self) -> LearnedPredictionSettings:
+        if int(self.seed) != self.seed or self.seed < 0:
+            raise ValueError(f"learned.seed must be an integer >= 0, got {self.seed!r}")
+        if int(self.threads) != self.threads or self.threads < 1:
+            raise ValueError(f"learned.threads must be an integer >= 1, got {self.threads!r}")
+        if not (math.isfinite(self.t_hist) and self.t_hist >= 0):
+            raise ValueError(f"learned.t_hist must be a finite number >= 0, got {self.t_hist!r}")
+        return self
+
+
+@dataclass(frozen=True)
 class PredictionConfig:
     """Parameters of §V-C (defaults: §VI-A where the paper gives them)."""
 
@@ -85,6 +106,7 @@ class PredictionConfig:
     start_tangent: str = "motion"  # "motion", "paper" (eq. 11 as printed) or "heading"
     samples: int = 128  # points of the arc-length table of each curve
     hybrid_astar: HybridAStarPredictionSettings = field(default_factory=HybridAStarPredictionSettings)
+    learned: LearnedPredictionSettings = field(default_factory=LearnedPredictionSettings)
 
     def validate(self) -> PredictionConfig:
         for name in ("zeta", "t_pred"):
@@ -100,6 +122,7 @@ class PredictionConfig:
         if self.samples < 4:
             raise ValueError(f"samples must be >= 4, got {self.samples!r}")
         self.hybrid_astar.validate()
+        self.learned.validate()
         return self
 
 
@@ -317,19 +340,24 @@ class BezierPredictor(ConstantVelocityPredictor):
 
 
 PREDICTORS = {BezierPredictor.name: BezierPredictor, ConstantVelocityPredictor.name: ConstantVelocityPredictor}
-PREDICTOR_NAMES = ("bezier", "constant_velocity", "hybrid_astar")
+PREDICTOR_NAMES = ("bezier", "constant_velocity", "hybrid_astar", "learned")
 
 
 def make_predictor(name: str, lot: LotMap | None = None, config: PredictionConfig = PredictionConfig()
                    ) -> TrajectoryPredictor:
     """The predictor called ``name`` (one of :data:`PREDICTOR_NAMES`); ValueError lists the names.
 
-    ``"hybrid_astar"`` is imported on demand (it pulls in the planner core, :mod:`avp_planner.core`).
+    ``"hybrid_astar"`` is imported on demand (it pulls in the planner core, :mod:`avp_planner.core`), so is
+    ``"learned"`` (torch; :mod:`.learned_prediction`).
     """
     if name == "hybrid_astar":
         from avp_perception.core.prediction_astar import HybridAStarPredictor
 
         return HybridAStarPredictor(lot, config)
+    if name == "learned":
+        from avp_perception.core.learned_prediction import LearnedPredictor
+
+        return LearnedPredictor(lot, config)
     try:
         cls = PREDICTORS[name]
     except KeyError:

@@ -216,8 +216,10 @@ def label_index(candidate_spot_ids: np.ndarray, target_spot_id: int) -> int:
 
 def run_episode(lot: LotMap, world: World, labels: dict[int, int], kinds: dict[int, str], ego_controls: np.ndarray,
                 ego_states: np.ndarray, spec: DataSpec, episode: int, lot_code: int, t_final: float,
-                rng: np.random.Generator, stop_when_parked: bool = False, builder: _Builder | None = None) -> _Builder:
-    """Run one episode and collect its samples (module docstring)."""
+                rng: np.random.Generator, stop_when_parked: bool = False, builder: _Builder | None = None,
+                collect=None) -> _Builder:
+    """Run one episode and collect its samples (module docstring). ``collect(k, obs, core, ego_history, dynamic)``,
+    when given, is called every step instead of the intent sampling (the trajectory data of issue #5)."""
     b = builder if builder is not None else _Builder()
     intent = IntentPredictor(lot, spec.bev, seed=0)  # weights unused: only inputs() is called
     core = PerceptionCore(lot, spec.bev, intent=intent, t_hist=world.scenario.t_hist)
@@ -233,7 +235,9 @@ def run_episode(lot: LotMap, world: World, labels: dict[int, int], kinds: dict[i
         dyn = [v for v in obs.vehicles if not v.is_static]
         for v in dyn:
             intent.time_in_lot(obs, v)
-        if k % spec.stride == 0:
+        if collect is not None:
+            collect(k, obs, core, hist, dyn)
+        elif k % spec.stride == 0:
             sel = [v for v in dyn if int(v.id) in labels]
             if sel:
                 bevs, feats = intent.inputs(obs, sel, core.beliefs, ego_history=hist)

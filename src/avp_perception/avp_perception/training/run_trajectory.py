@@ -1,0 +1,160 @@
+"""``avp train-trajectory``: the learned trajectory predictor from scratch on this machine (issue #5).
+
+Generates the data (:mod:`.trajectory`: training / validation / held-out test episodes on the DLP-derived and
+random lots, and the paper-lot test set), trains, evaluates learned vs Bezier vs constant velocity on both test
+sets (:func:`~.trajectory.evaluate`) and writes the weights (``avp_perception/models/trajectory_transformer.pt``
+for ``--scale full`` unless ``--weights`` says otherwise) with a JSON card beside them. Same seed, thread count
+and library versions => the same weights. Model card: docs/trajectory_model.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shlex
+import sys
+import time
+from dataclasses import asdict, replace
+from pathlib import Path
+
+SCALES = {
+    # episodes per split: train, val, test, paper; epochs
+    "full": (360, 24, 50, 60, 12),
+    "dev": (40, 4, 8, 8, 8),
+    "tiny": (2, 1, 1, 1, 1),
+}
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scale", choices=sorted(SCALES), default="full",
+                   help="data and epoch budget (full: the shipped weights; dev/tiny: development runs)")
+    p.add_argument("--out", default="out/trajectory", help="work folder: data, weights copy, metrics")
+    p.add_argument("--weights", default=None, help="where to write the weights (default: the package's "
+                   "models/trajectory_transformer.pt for --scale full, else OUT/trajectory_transformer.pt)")
+    p.add_argument("--workers", type=int, default=2, help="processes generating episodes")
+    p.add_argument("--threads", type=int, default=2, help="torch threads for training")
+    p.add_argument("--seed", type=int, default=0, help="training seed (data seeds are fixed per split)")
+    p.add_argument("--epochs", type=int, default=None, help="override the scale's number of epochs")
+    p.add_argument("--reuse-data", action="store_true", help="reuse OUT/data/*.npz made with the same settings")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def _split(name: str, n: int, spec, args, data_dir: Path, log):
+    from avp_perception.training.trajectory import TrajSamples, generate
+
+    path, meta = data_dir / f"{name}.npz", data_dir / f"{name}.json"
+    key = {"split": name, "episodes": n, "spec": repr(spec)}
+    if args.reuse_data and path.is_file() and meta.is_file() and json.loads(meta.read_text()) == key:
+        log(f"[train-trajectory] reusing {path}")
+        return TrajSamples.load(path), 0.0
+    t0 = time.monotonic()
+    s = generate(name, n, spec, workers=args.workers, progress=not args.quiet)
+    dt = time.monotonic() - t0
+    s.save(path)
+    meta.write_text(json.dumps(key))
+    log(f"[train-trajectory] {name}: {n} episodes -> {len(s)} samples in {dt:.0f} s")
+    return s, dt
+
+
+def cmd_train_trajectory(args: argparse.Namespace) -> int:
+    import numpy as np
+    import torch
+
+    from avp_perception.core.learned_prediction import default_weights_path, save_model
+    from avp_perception.training.run import _commit
+    from avp_perception.training.trajectory import TRAJ_SEED0, TrajDataSpec, TrajTrainConfig, evaluate, train
+
+    def log(msg: str) -> None:
+        print(msg, flush=True)
+
+    t_start = time.monotonic()
+    n_train, n_val, n_test, n_paper, epochs = SCALES[args.scale]
+    out = Path(args.out)
+    data_dir = out / "data"
+    data_dir.mkdir(parents=True, exist_ok=True)
+    weights = Path(args.weights) if args.weights else (
+        default_weights_path() if args.scale == "full" else out / "trajectory_transformer.pt")
+    spec = TrajDataSpec()
+    config = replace(TrajTrainConfig(), seed=args.seed, threads=args.threads,
+                     epochs=args.epochs if args.epochs is not None else epochs)
+    torch.set_num_threads(args.threads)
+    log(f"[train-trajectory] scale {args.scale}: episodes train {n_train}, val {n_val}, test {n_test}, paper "
+        f"{n_paper}; {args.workers} workers, {args.threads} torch threads; load average {os.getloadavg()[0]:.2f}")
+    timings: dict[str, float] = {}
+    sets = {}
+    for name, n in (("train", n_train), ("val", n_val), ("test", n_test), ("paper", n_paper)):
+        sets[name], timings[f"data_{name}_s"] = _split(name, n, spec, args, data_dir, log)
+    t0 = time.monotonic()
+    model, history = train(sets["train"], sets["val"], config, progress=not args.quiet, log=log)
+    timings["train_s"] = time.monotonic() - t0
+    t0 = time.monotonic()
+    torch.set_num_threads(1)
+    metrics = {name: evaluate(model, sets[name]) for name in ("test", "paper")}
+    timings["eval_s"] = time.monotonic() - t0
+    timings["total_s"] = time.monotonic() - t_start
+    weights.parent.mkdir(parents=True, exist_ok=True)
+    save_model(model, weights)
+    if weights.resolve() != (out / "trajectory_transformer.pt").resolve():
+        save_model(model, out / "trajectory_transformer.pt")
+    root = Path(__file__).resolve().parents[4]
+    card = {
+        "model": "TrajectoryTransformer (ParkPredict+ decoder with intent cross-attention), 0.4 s step, "
+                 "10 history / 10 future poses, 100 x 100 px BEV",
+        "parameters": int(sum(p.numel() for p in model.parameters())),
+        "weights_bytes": weights.stat().st_size,
+        "command": "avp train-trajectory " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if len(sys.argv) > 1
+        else "",
+        "commit": _commit(root),
+        "scale": args.scale,
+        "seeds": {name: [TRAJ_SEED0[name], TRAJ_SEED0[name] + n - 1] for name, n in
+                  (("train", n_train), ("val", n_val), ("test", n_test), ("paper", n_paper))},
+        "data": {name: {"episodes": n, "samples": len(sets[name]),
+                        "goal_kinds": np.bincount(sets[name].goal_kind, minlength=3).tolist()}
+                 for name, n in (("train", n_train), ("val", n_val), ("test", n_test), ("paper", n_paper))},
+        "data_spec": repr(spec),
+        "train_config": asdict(config),
+        "history": history,
+        "metrics": metrics,
+        "timings_s": {k: round(v, 1) for k, v in timings.items()},
+        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "torch": torch.__version__,
+                    "numpy": np.__version__, "load_average_end": round(os.getloadavg()[0], 2)},
+    }
+    card_path = weights.with_suffix(".json")
+    card_path.write_text(json.dumps(card, indent=1))
+    (out / "metrics.json").write_text(json.dumps(card, indent=1))
+    log(f"[train-trajectory] wrote {weights} ({card['weights_bytes'] / 1e6:.2f} MB) and {card_path}")
+    log(summary_table(metrics))
+    log(f"[train-trajectory] wall time {timings['total_s'] / 60:.1f} min "
+        f"(data {sum(v for k, v in timings.items() if k.startswith('data_')) / 60:.1f}, "
+        f"training {timings['train_s'] / 60:.1f}, evaluation {timings['eval_s'] / 60:.1f})")
+    return 0
+
+
+def summary_table(metrics: dict) -> str:
+    """minADE / minFDE (m) table of :func:`~.trajectory.evaluate` results."""
+
+    def f(v) -> str:
+        return f"{v[0]:.2f} / {v[1]:.2f}" if v else "-"
+
+    rows = ["| test set | group | n | learned (true goal) | Bezier (true goal) | learned (intent CNN) | "
+            "Bezier (intent CNN) | constant velocity |", "|---|---|---|---|---|---|---|---|"]
+    for name, m in metrics.items():
+        for g, e in m.items():
+            if not isinstance(e, dict) or not e.get("n"):
+                continue
+            rows.append(f"| {name} | {g} | {e['n']} | {f(e['oracle_learned'])} | {f(e['oracle_bezier'])} | "
+                        f"{f(e['intent_learned'])} | {f(e['intent_bezier'])} | {f(e['cv'])} |")
+    return "\n".join(rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m avp_perception.training.run_trajectory ...`` (the same as ``avp train-trajectory ...``)."""
+    parser = argparse.ArgumentParser(prog="avp train-trajectory")
+    add_arguments(parser)
+    return cmd_train_trajectory(parser.parse_args(argv))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
