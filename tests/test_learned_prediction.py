@@ -37,7 +37,7 @@ from avp_world.types import Observation, ObservedPedestrian, ObservedVehicle
 _NO_WEIGHTS = pytest.mark.skipif(not default_weights_path().is_file(),
                                  reason="no shipped trajectory weights (run `avp train-trajectory --scale full`)")
 DT = 0.1
-MARGIN = 0.15  # the shipped weights: minADE (true goal) at least 15 % below constant velocity (dev scale: 28 %)
+MARGIN = 0.15  # shipped weights: minADE (true goal) >= 15 % below constant velocity (dev-scale weights: 19 %)
 
 
 def straight_vehicle(vid: int = 5, x: float = 21.5, y: float = 30.0, speed: float = 3.0) -> ObservedVehicle:
@@ -265,8 +265,8 @@ def test_shipped_weights_beat_constant_velocity_on_fresh_episodes():
     from avp_perception.core.learned_prediction import load_model as load
     from avp_perception.training.trajectory import TRAJ_SEED0, TrajDataSpec, TrajSamples, _episode, evaluate
 
-    seeds = [TRAJ_SEED0["test"] + 90_000 + i for i in range(3)]
+    seeds = [TRAJ_SEED0["test"] + 90_000 + i for i in range(8)]  # some episodes see no traffic car
     s = TrajSamples.concat([_episode(("val", sd, TrajDataSpec())) for sd in seeds])
-    assert len(s) > 50
+    assert len(s) > 100
     res = evaluate(load(default_weights_path()), s)["all"]
     assert res["oracle_learned"][0] <= (1 - MARGIN) * res["cv"][0], res

@@ -107,7 +107,15 @@ def check_method(profile: MethodProfile) -> str:
 
 
 def profile_digest(profile: MethodProfile) -> str:
-    return hashlib.sha256(Path(profile.source).read_bytes()).hexdigest()[:16]
+    """Hash of the profile file; for the learned predictor also of the shipped trajectory weights it loads (so
+    episodes of other weights are never mixed into one results folder)."""
+    h = hashlib.sha256(Path(profile.source).read_bytes())
+    if profile.predictor == "learned":
+        from avp_perception.core.learned_prediction import default_weights_path
+
+        w = default_weights_path()
+        h.update(w.read_bytes() if w.is_file() else b"random weights")
+    return h.hexdigest()[:16]
 
 
 def run_identity(cfg: RunConfig, profiles: Iterable[MethodProfile]) -> dict:
