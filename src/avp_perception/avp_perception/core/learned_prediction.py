@@ -44,7 +44,6 @@ once per observation, in order (the prediction node answers a re-sent observatio
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -56,6 +55,7 @@ from torch import nn
 
 from avp_perception.core.belief import BELIEF_INIT, BeliefMap
 from avp_perception.core.bev import BEVConfig, BEVRenderer
+from avp_perception.core.ego_trail import EgoTrail
 from avp_perception.core.intent_model import CHANNELS, KERNELS, SmallRegularizedCNN, conv_output_size, images_to_tensor
 from avp_perception.core.intention import Intention
 from avp_perception.core.prediction import (
@@ -373,29 +373,19 @@ class LearnedPredictor(BezierPredictor):
         self.model = model.eval()
         self.renderer = BEVRenderer(lot, bev_config)
         self.beliefs = BeliefMap.from_lot(lot, BELIEF_INIT)
-        self.t_hist = float(s.t_hist)
-        self._ego: deque[np.ndarray] = deque()
-        self._last_step = -1
+        self.trail = EgoTrail(s.t_hist)
 
     def reset(self) -> None:
         self.beliefs.reset()
-        self._ego.clear()
-        self._last_step = -1
+        self.trail.clear()
 
     def _observe(self, obs: Observation) -> np.ndarray:
         """Eq. (7) on the predictor's own belief and the ego trail; returns the ego history (H, 3)."""
-        if obs.step < self._last_step:
+        if self.trail.went_back(obs):  # a new episode
             self.reset()
-        if obs.step == self._last_step and self._ego:
-            self._ego.pop()
-        else:
+        if not self.trail.repeats(obs):  # a re-sent observation changes nothing
             self.beliefs.observe(obs.vacant_spot_ids, obs.occupied_spot_ids)
-        self._last_step = obs.step
-        self._ego.append(np.asarray(obs.ego_pose, dtype=float).copy())
-        keep = int(round(self.t_hist / obs.dt)) + 1 if obs.dt > 0 else 1
-        while len(self._ego) > keep:
-            self._ego.popleft()
-        return np.array(self._ego)
+        return self.trail.update(obs)
 
     @torch.inference_mode()
     def infer(self, images: np.ndarray, histories: np.ndarray, goals: np.ndarray, owner: np.ndarray) -> np.ndarray:

@@ -16,7 +16,6 @@ ego appears in the other vehicles' BEVs with a trail like every observed vehicle
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -24,6 +23,7 @@ import numpy as np
 
 from avp_perception.core.belief import BELIEF_INIT, BeliefMap
 from avp_perception.core.bev import BEVConfig, VehicleBEV
+from avp_perception.core.ego_trail import EgoTrail
 from avp_perception.core.implicit import ego_intention
 from avp_perception.core.intent_model import IntentPredictor
 from avp_perception.core.intention import Intention
@@ -69,29 +69,19 @@ class PerceptionCore:
         self.beliefs = BeliefMap.from_lot(lot, belief_init)
         self.intent = intent if intent is not None else IntentPredictor(lot, bev_config, seed=seed)
         self.predictor = make_predictor(predictor, lot, prediction_config)
-        self.t_hist = float(t_hist)
         self.keep_bevs = bool(keep_bevs)
-        self._ego: deque[np.ndarray] = deque()
-        self._last_step = -1
+        self.trail = EgoTrail(t_hist)
 
     def reset(self) -> None:
         self.beliefs.reset()
         self.intent.reset()
-        self._ego.clear()
-        self._last_step = -1
+        self.trail.clear()
 
     def ego_history(self, obs: Observation) -> np.ndarray:
         """(H, 3) ego poses over the last t_hist, oldest first, ending with ``obs.ego_pose``."""
-        if obs.step < self._last_step:  # time went back: a new episode
+        if self.trail.went_back(obs):  # a new episode
             self.reset()
-        if obs.step == self._last_step and self._ego:  # the same observation again (re-sent)
-            self._ego.pop()
-        self._last_step = obs.step
-        self._ego.append(np.asarray(obs.ego_pose, dtype=float).copy())
-        keep = int(round(self.t_hist / obs.dt)) + 1 if obs.dt > 0 else 1
-        while len(self._ego) > keep:
-            self._ego.popleft()
-        return np.array(self._ego)
+        return self.trail.update(obs)
 
     def perceive(self, obs: Observation) -> PerceptionOutput:
         """eq. (7) -> BEVs -> intent CNN -> eq. (8): what the belief node publishes (no trajectories)."""

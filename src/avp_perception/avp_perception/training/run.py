@@ -71,29 +71,63 @@ def _commit(root: Path) -> str:
     return "unknown"
 
 
-def _split(name: str, n: int, spec, args, data_dir: Path, log):
-    from avp_perception.training.dataset import Samples, generate_split
-
-    path = data_dir / f"{name}.npz"
-    meta = data_dir / f"{name}.json"
+def cached_split(prog: str, name: str, n: int, spec, args, data_dir: Path, generate, load, log):
+    """Split ``name`` of ``n`` episodes, made by ``generate(name, n, spec, workers=..., progress=...)`` and saved
+    under ``data_dir`` — or, with ``--reuse-data``, read back with ``load`` when it was made with the same
+    settings. Returns (samples, seconds spent generating). Shared by ``avp train-intent`` and
+    ``avp train-trajectory``."""
+    path, meta = data_dir / f"{name}.npz", data_dir / f"{name}.json"
     key = {"split": name, "episodes": n, "spec": repr(spec)}
     if args.reuse_data and path.is_file() and meta.is_file() and json.loads(meta.read_text()) == key:
-        log(f"[train-intent] reusing {path}")
-        return Samples.load(path), 0.0
+        log(f"[{prog}] reusing {path}")
+        return load(path), 0.0
     t0 = time.monotonic()
-    s = generate_split(name, n, spec, workers=args.workers, progress=not args.quiet)
+    s = generate(name, n, spec, workers=args.workers, progress=not args.quiet)
     dt = time.monotonic() - t0
     s.save(path)
     meta.write_text(json.dumps(key))
-    log(f"[train-intent] {name}: {n} episodes -> {len(s)} samples in {dt:.0f} s")
+    log(f"[{prog}] {name}: {n} episodes -> {len(s)} samples in {dt:.0f} s")
     return s, dt
+
+
+def card_provenance(prog: str, model, weights: Path, scale: str) -> dict:
+    """The model card fields every training command records: size, command line, commit, scale."""
+    return {
+        "parameters": int(sum(p.numel() for p in model.parameters())),
+        "weights_bytes": weights.stat().st_size,
+        "command": f"avp {prog} " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if len(sys.argv) > 1 else "",
+        "commit": _commit(Path(__file__).resolve().parents[4]),
+        "scale": scale,
+    }
+
+
+def card_machine() -> dict:
+    """Machine and library versions of a training run."""
+    import torch
+
+    return {"cpus": os.cpu_count(), "python": platform.python_version(), "torch": torch.__version__,
+            "numpy": np.__version__, "load_average_end": round(os.getloadavg()[0], 2)}
+
+
+def write_card(prog: str, card: dict, weights: Path, out: Path, log) -> None:
+    """Write the card beside the weights and as OUT/metrics.json."""
+    card_path = weights.with_suffix(".json")
+    card_path.write_text(json.dumps(card, indent=1))
+    (out / "metrics.json").write_text(json.dumps(card, indent=1))
+    log(f"[{prog}] wrote {weights} ({card['weights_bytes'] / 1e6:.2f} MB) and {card_path}")
+
+
+def log_wall_time(prog: str, timings: dict[str, float], log) -> None:
+    log(f"[{prog}] wall time {timings['total_s'] / 60:.1f} min "
+        f"(data {sum(v for k, v in timings.items() if k.startswith('data_')) / 60:.1f}, "
+        f"training {timings['train_s'] / 60:.1f}, evaluation {timings['eval_s'] / 60:.1f})")
 
 
 def cmd_train_intent(args: argparse.Namespace) -> int:
     import torch
 
     from avp_perception.core.intent_model import default_weights_path
-    from avp_perception.training.dataset import DataSpec
+    from avp_perception.training.dataset import DataSpec, Samples, generate_split
     from avp_perception.training.train import TrainConfig, evaluate, train
 
     def log(msg: str) -> None:
@@ -114,7 +148,8 @@ def cmd_train_intent(args: argparse.Namespace) -> int:
     timings: dict[str, float] = {}
     sets = {}
     for name, n in (("train", n_train), ("val", n_val), ("test", n_test), ("paper", n_paper)):
-        sets[name], timings[f"data_{name}_s"] = _split(name, n, spec, args, data_dir, log)
+        sets[name], timings[f"data_{name}_s"] = cached_split("train-intent", name, n, spec, args, data_dir,
+                                                             generate_split, Samples.load, log)
     t0 = time.monotonic()
     model, history = train(sets["train"], sets["val"], config, progress=not args.quiet, log=log)
     timings["train_s"] = time.monotonic() - t0
@@ -127,14 +162,9 @@ def cmd_train_intent(args: argparse.Namespace) -> int:
     torch.save(model.state_dict(), weights)
     if weights.resolve() != (out / "intent_cnn.pt").resolve():
         torch.save(model.state_dict(), out / "intent_cnn.pt")
-    root = Path(__file__).resolve().parents[4]
     card = {
         "model": "SmallRegularizedCNN (ParkPredict+), 100 x 100 px BEV at 0.4 m/px, 5 features",
-        "parameters": int(sum(p.numel() for p in model.parameters())),
-        "weights_bytes": weights.stat().st_size,
-        "command": "avp train-intent " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if len(sys.argv) > 1 else "",
-        "commit": _commit(root),
-        "scale": args.scale,
+        **card_provenance("train-intent", model, weights, args.scale),
         "data": {name: {"episodes": n, "samples": len(sets[name]),
                         "mean_options": float(sets[name].n_candidates.mean() + 1) if len(sets[name]) else 0.0,
                         "none_share": float((sets[name].labels == 0).mean()) if len(sets[name]) else 0.0}
@@ -144,17 +174,11 @@ def cmd_train_intent(args: argparse.Namespace) -> int:
         "history": history,
         "metrics": metrics,
         "timings_s": {k: round(v, 1) for k, v in timings.items()},
-        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "torch": torch.__version__,
-                    "numpy": np.__version__, "load_average_end": round(os.getloadavg()[0], 2)},
+        "machine": card_machine(),
     }
-    card_path = weights.with_suffix(".json")
-    card_path.write_text(json.dumps(card, indent=1))
-    (out / "metrics.json").write_text(json.dumps(card, indent=1))
-    log(f"[train-intent] wrote {weights} ({card['weights_bytes'] / 1e6:.2f} MB) and {card_path}")
+    write_card("train-intent", card, weights, out, log)
     log(summary_table(metrics))
-    log(f"[train-intent] wall time {timings['total_s'] / 60:.1f} min "
-        f"(data {sum(v for k, v in timings.items() if k.startswith('data_')) / 60:.1f}, "
-        f"training {timings['train_s'] / 60:.1f}, evaluation {timings['eval_s'] / 60:.1f})")
+    log_wall_time("train-intent", timings, log)
     return 0
 
 

@@ -10,11 +10,7 @@ and library versions => the same weights. Model card: docs/trajectory_model.md.
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import platform
-import shlex
-import sys
 import time
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -41,30 +37,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
-def _split(name: str, n: int, spec, args, data_dir: Path, log):
-    from avp_perception.training.trajectory import TrajSamples, generate
-
-    path, meta = data_dir / f"{name}.npz", data_dir / f"{name}.json"
-    key = {"split": name, "episodes": n, "spec": repr(spec)}
-    if args.reuse_data and path.is_file() and meta.is_file() and json.loads(meta.read_text()) == key:
-        log(f"[train-trajectory] reusing {path}")
-        return TrajSamples.load(path), 0.0
-    t0 = time.monotonic()
-    s = generate(name, n, spec, workers=args.workers, progress=not args.quiet)
-    dt = time.monotonic() - t0
-    s.save(path)
-    meta.write_text(json.dumps(key))
-    log(f"[train-trajectory] {name}: {n} episodes -> {len(s)} samples in {dt:.0f} s")
-    return s, dt
-
-
 def cmd_train_trajectory(args: argparse.Namespace) -> int:
     import numpy as np
     import torch
 
     from avp_perception.core.learned_prediction import default_weights_path, save_model
-    from avp_perception.training.run import _commit
-    from avp_perception.training.trajectory import TRAJ_SEED0, TrajDataSpec, TrajTrainConfig, evaluate, train
+    from avp_perception.training.run import cached_split, card_machine, card_provenance, log_wall_time, write_card
+    from avp_perception.training.trajectory import (
+        TRAJ_SEED0,
+        TrajDataSpec,
+        TrajSamples,
+        TrajTrainConfig,
+        evaluate,
+        generate,
+        train,
+    )
 
     def log(msg: str) -> None:
         print(msg, flush=True)
@@ -85,7 +72,8 @@ def cmd_train_trajectory(args: argparse.Namespace) -> int:
     timings: dict[str, float] = {}
     sets = {}
     for name, n in (("train", n_train), ("val", n_val), ("test", n_test), ("paper", n_paper)):
-        sets[name], timings[f"data_{name}_s"] = _split(name, n, spec, args, data_dir, log)
+        sets[name], timings[f"data_{name}_s"] = cached_split("train-trajectory", name, n, spec, args, data_dir,
+                                                             generate, TrajSamples.load, log)
     t0 = time.monotonic()
     model, history = train(sets["train"], sets["val"], config, progress=not args.quiet, log=log)
     timings["train_s"] = time.monotonic() - t0
@@ -98,16 +86,10 @@ def cmd_train_trajectory(args: argparse.Namespace) -> int:
     save_model(model, weights)
     if weights.resolve() != (out / "trajectory_transformer.pt").resolve():
         save_model(model, out / "trajectory_transformer.pt")
-    root = Path(__file__).resolve().parents[4]
     card = {
         "model": "TrajectoryTransformer (ParkPredict+ decoder with intent cross-attention), 0.4 s step, "
                  "10 history / 10 future poses, 100 x 100 px BEV",
-        "parameters": int(sum(p.numel() for p in model.parameters())),
-        "weights_bytes": weights.stat().st_size,
-        "command": "avp train-trajectory " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if len(sys.argv) > 1
-        else "",
-        "commit": _commit(root),
-        "scale": args.scale,
+        **card_provenance("train-trajectory", model, weights, args.scale),
         "seeds": {name: [TRAJ_SEED0[name], TRAJ_SEED0[name] + n - 1] for name, n in
                   (("train", n_train), ("val", n_val), ("test", n_test), ("paper", n_paper))},
         "data": {name: {"episodes": n, "samples": len(sets[name]),
@@ -118,17 +100,11 @@ def cmd_train_trajectory(args: argparse.Namespace) -> int:
         "history": history,
         "metrics": metrics,
         "timings_s": {k: round(v, 1) for k, v in timings.items()},
-        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "torch": torch.__version__,
-                    "numpy": np.__version__, "load_average_end": round(os.getloadavg()[0], 2)},
+        "machine": card_machine(),
     }
-    card_path = weights.with_suffix(".json")
-    card_path.write_text(json.dumps(card, indent=1))
-    (out / "metrics.json").write_text(json.dumps(card, indent=1))
-    log(f"[train-trajectory] wrote {weights} ({card['weights_bytes'] / 1e6:.2f} MB) and {card_path}")
+    write_card("train-trajectory", card, weights, out, log)
     log(summary_table(metrics))
-    log(f"[train-trajectory] wall time {timings['total_s'] / 60:.1f} min "
-        f"(data {sum(v for k, v in timings.items() if k.startswith('data_')) / 60:.1f}, "
-        f"training {timings['train_s'] / 60:.1f}, evaluation {timings['eval_s'] / 60:.1f})")
+    log_wall_time("train-trajectory", timings, log)
     return 0
 
 
