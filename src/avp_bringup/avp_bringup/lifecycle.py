@@ -39,6 +39,10 @@ class SwapError(RuntimeError):
     """The swap could not be done (the message says which node and why)."""
 
 
+#: the node name rmw reports for an endpoint whose node has not been discovered yet
+UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
+
+
 def fq_name(namespace: str, name: str) -> str:
     return f"{namespace.rstrip('/')}/{name}"
 
@@ -181,10 +185,19 @@ class LifecycleClient:
     def is_lifecycle(self, target: str) -> bool:
         return any(name == f"{target}/get_state" for name, _ in self.node.get_service_names_and_types())
 
-    def cmd_publishers(self, namespace: str) -> list[str]:
-        """Fully qualified names of the nodes publishing on ``<namespace>/cmd`` (the planners)."""
-        infos = self.node.get_publishers_info_by_topic(f"{namespace.rstrip('/')}/cmd")
-        return sorted({fq_name(i.node_namespace, i.node_name) for i in infos})
+    def cmd_publishers(self, namespace: str, wait: float = 3.0) -> list[str]:
+        """Fully qualified names of the nodes publishing on ``<namespace>/cmd`` (the planners).
+
+        DDS can discover a publisher before the node that owns it: rmw then names the node
+        ``_NODE_NAME_UNKNOWN_``. Such names are waited for (up to ``wait`` s of discovery) rather than returned
+        as a node that is not there; after that they are returned as they are."""
+        t0 = time.monotonic()
+        while True:
+            infos = self.node.get_publishers_info_by_topic(f"{namespace.rstrip('/')}/cmd")
+            names = sorted({fq_name(i.node_namespace, i.node_name) for i in infos})
+            if not any(UNKNOWN_NODE in n for n in names) or time.monotonic() - t0 > wait:
+                return names
+            self.spin(0.1)
 
     def lifecycle_nodes(self, namespace: str) -> list[str]:
         ns = namespace.rstrip("/")
