@@ -183,6 +183,10 @@ def test_resumable_and_summary(tmp_path):
     assert records(out) == first
     assert ran(out, *cmd) == 0  # nothing left
     assert len(path.read_text().splitlines()) == 8
+    # every invocation that runs episodes is logged (the wall time of a resumed run is their sum)
+    runs = [json.loads(line) for line in (out / "runs.jsonl").read_text().splitlines()]
+    assert [r["episodes_run"] for r in runs] == [8, 1] and all(r["wall_s"] >= 0 for r in runs)
+    assert runs[0]["options"]["methods"] == cmd[1] and runs[0]["options"]["workers"] == 0 and runs[0]["commit"]
     # the summary: every method x mode (learned with the paper's numbers only)
     md = (out / "summary.md").read_text()
     nr, rr = md.index("Non-Reactive Agents"), md.index("| **Reactive Agents**")
@@ -196,6 +200,28 @@ def test_resumable_and_summary(tmp_path):
         assert (out / "plots" / png).stat().st_size > 1000
     # other settings into the same folder are refused
     assert run(out, "--methods", "nawaz", "--workers", "0", "--ade-horizon", "2.0") == 2
+
+
+def test_summary_lists_every_failed_episode():
+    from avp_bringup.experiment.summary import compute_section, failures_section
+
+    def rec(method, seed, mode, status, with_="", wall=1.0):
+        return {"method": method, "seed": seed, "mode": mode, "status": status, "success": status == "success",
+                "collision_with": with_, "spot_stolen": status == "spot_stolen", "steps": 100,
+                "interrupted_steps": 3, "timings": {"wall_s": wall}}
+
+    recs = [rec("bezier", 1, "reactive", "success", wall=2.0),
+            rec("nawaz", 7, "non_reactive", "collision", "vehicle:1000"), rec("implicit", 7, "non_reactive", "timeout"),
+            rec("nawaz", 3, "reactive", "spot_stolen"),
+            rec("bezier", 7, "reactive", "success", wall=4.0)]
+    text = "\n".join(failures_section(recs, ["bezier", "implicit", "nawaz"]))
+    assert "3 of 5 episodes failed, in 2 (seed, mode) cases over 2 seeds; per method: implicit 1, nawaz 2." in text
+    rows = [line for line in text.splitlines() if line.startswith("| 3 ") or line.startswith("| 7 ")]
+    assert rows == ["| 3 | reactive | nawaz | spot_stolen | — | 100 | 3 |",
+                    "| 7 | non_reactive | implicit | timeout | — | 100 | 3 |",
+                    "| 7 | non_reactive | nawaz | collision | vehicle:1000 | 100 | 3 |"]
+    assert failures_section(recs[:1], ["bezier"])[-2] == "None."
+    assert "Median episode: bezier 3.00 s" in "\n".join(compute_section(recs, ["bezier", "implicit", "nawaz"]))
 
 
 def test_sim_param_overrides_are_checked_and_part_of_the_run_identity(tmp_path):

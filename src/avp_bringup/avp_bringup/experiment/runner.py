@@ -7,7 +7,9 @@ setup), reactive and/or non-reactive agents, and the chosen method profiles. Eac
 interrupted and the same command continues where it stopped (episodes already in the file are skipped; a
 line cut off by the interruption is dropped). ``OUT/run.json`` records what the results depend on (t_f, the
 minADE horizon, the intent weights, the method profiles); re-running into the same folder with different
-values is refused. At the end ``OUT/summary.md``, ``OUT/summary.json`` and ``OUT/plots/*.png`` are written
+values is refused. Each invocation appends a line to ``OUT/runs.jsonl`` (start, wall time, episodes run, workers,
+commit, options, load average) so that the wall time of a run split over several invocations can be stated. At
+the end ``OUT/summary.md``, ``OUT/summary.json`` and ``OUT/plots/*.png`` are written
 (:mod:`.summary`).
 
 Transports: ``inproc`` runs each episode in a worker process (``concurrent.futures``, spawn, one torch
@@ -36,6 +38,7 @@ from avp_bringup.experiment.profiles import MethodProfile, ProfileError, availab
 MODES = {"reactive": (True,), "non-reactive": (False,), "both": (False, True)}
 RESULTS_FILE = "episodes.jsonl"
 RUN_FILE = "run.json"
+RUNS_LOG = "runs.jsonl"
 SEEDS_FILE = "seeds.json"
 DEFAULT_HORIZON = 4.0  # s: t_pred of the predictors (ParkPredict+'s horizon; the paper does not state one)
 
@@ -349,6 +352,7 @@ def run_experiment(args: argparse.Namespace) -> dict:
           f"already in {path}, {len(todo)} to run over --transport {args.transport}; intent CNN: {ident['intent']}",
           flush=True)
     n_run = 0
+    started, t0 = time.strftime("%Y-%m-%dT%H:%M:%S%z"), time.perf_counter()
     if todo and not args.summary_only:
         from tqdm import tqdm
 
@@ -373,12 +377,26 @@ def run_experiment(args: argparse.Namespace) -> dict:
         finally:
             bar.close()
             writer.close()
+            log_invocation(out, args, started, time.perf_counter() - t0, n_run, len(todo))
     wanted = set(keys)
     summary = write_summary(out, [r for r in records if record_key(r) in wanted], skipped,
                             {"ade_horizon": cfg.ade_horizon, "t_final": cfg.t_final, "intent": ident["intent"],
                              "seeds_without_scenario": bad_seeds, "sim_overrides": cfg.sim_overrides})
     print(f"[avp experiment] ran {n_run} episodes; summary: {out / 'summary.md'}, plots in {out / 'plots'}/")
     return {"ran": n_run, "skipped_methods": skipped, "summary": summary}
+
+
+def log_invocation(out: Path, args: argparse.Namespace, started: str, wall_s: float, ran: int, todo: int) -> None:
+    """Append this invocation to ``OUT/runs.jsonl`` (see the module docstring)."""
+    from avp_perception.training.run import git_commit
+
+    line = {"started": started, "wall_s": round(wall_s, 1), "episodes_run": ran, "episodes_todo": todo,
+            "workers": args.workers, "transport": args.transport, "cpu_count": os.cpu_count(),
+            "loadavg_end": [round(x, 2) for x in os.getloadavg()],
+            "commit": git_commit(Path(__file__).resolve().parents[4]),
+            "options": {k: v for k, v in sorted(vars(args).items()) if isinstance(v, (str, int, float, bool, list))}}
+    with open(out / RUNS_LOG, "a") as f:
+        f.write(json.dumps(line) + "\n")
 
 
 def parse_sim_params(items: list[str] | None) -> dict[str, Any]:

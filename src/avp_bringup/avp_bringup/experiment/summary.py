@@ -114,6 +114,7 @@ def write_summary(out: Path, records: Sequence[Mapping], skipped: Mapping[str, s
     ]
     if skipped:
         text += ["Not run: " + "; ".join(f"`{k}`: {v}" for k, v in skipped.items()), ""]
+    text += failures_section(records, methods) + compute_section(records, methods)
     (out / "summary.md").write_text("\n".join(text))
     js = {f"{m}/{mode}": s for (m, mode), s in sorted(stats.items())}
     (out / "summary.json").write_text(json.dumps({"info": dict(info), "skipped": dict(skipped), "stats": js},
@@ -126,6 +127,42 @@ def write_summary(out: Path, records: Sequence[Mapping], skipped: Mapping[str, s
     plot_bars(plots / "min_ade.png", "minADE (m) - mean +- std", methods, labels, stats, "min_ade", rate=False)
     plot_timings(plots / "timings.png", methods, labels, records)
     return stats
+
+
+def failures_section(records: Sequence[Mapping], methods: Sequence[str]) -> list[str]:
+    """Markdown lines listing every failed episode, one row per (seed, mode), so that what the failures have in
+    common (one scenario failing several methods, or one method failing many scenarios) shows at a glance."""
+    failed = [r for r in records if not r["success"]]
+    lines = ["## Failed episodes", ""]
+    if not failed:
+        return lines + ["None.", ""]
+    by_case: dict[tuple[int, str], list[Mapping]] = {}
+    for r in failed:
+        by_case.setdefault((int(r["seed"]), r["mode"]), []).append(r)
+    per_method = {m: sum(1 for r in failed if r["method"] == m) for m in methods}
+    lines += [f"{len(failed)} of {len(records)} episodes failed, in {len(by_case)} (seed, mode) cases over "
+              f"{len({s for s, _ in by_case})} seeds; per method: "
+              + ", ".join(f"{m} {n}" for m, n in per_method.items() if n) + ".", "",
+              "| seed | mode | method | status | with | steps | interrupted steps |", "|--:|---|---|---|---|--:|--:|"]
+    order = {m: i for i, m in enumerate(methods)}
+    for (seed, mode), rs in sorted(by_case.items()):
+        for r in sorted(rs, key=lambda r: order.get(r["method"], len(order))):
+            why = r["status"] + (" (spot stolen)" if r.get("spot_stolen") and r["status"] != "spot_stolen" else "")
+            lines.append(f"| {seed} | {mode} | {r['method']} | {why} | {r.get('collision_with') or '—'} | "
+                         f"{r['steps']} | {r['interrupted_steps']} |")
+    return lines + [""]
+
+
+def compute_section(records: Sequence[Mapping], methods: Sequence[str]) -> list[str]:
+    """Markdown lines with the compute the episodes took (sum of each episode's wall time in its worker)."""
+    walls = {m: [float(r["timings"]["wall_s"]) for r in records if r["method"] == m] for m in methods}
+    total = sum(sum(w) for w in walls.values())
+    if not total:
+        return []
+    cells = ", ".join(f"{m} {np.median(w):.2f} s" for m, w in walls.items() if w)
+    return ["## Compute", "",
+            f"Sum of the episodes' wall times (each in one worker process): {total / 3600:.2f} h, i.e. "
+            f"{total / 7200:.2f} h of wall time with 2 workers on 2 free cores. Median episode: {cells}.", ""]
 
 
 # ------------------------------------------------------------------------------------------ plotting

@@ -52,7 +52,7 @@ def add_gen_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true")
 
 
-def _commit(root: Path) -> str:
+def git_commit(root: Path) -> str:
     """The checked-out commit, read from .git (no git process)."""
     try:
         git = root / ".git"
@@ -96,7 +96,7 @@ def card_provenance(prog: str, model, weights: Path, scale: str) -> dict:
         "parameters": int(sum(p.numel() for p in model.parameters())),
         "weights_bytes": weights.stat().st_size,
         "command": f"avp {prog} " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if len(sys.argv) > 1 else "",
-        "commit": _commit(Path(__file__).resolve().parents[4]),
+        "commit": git_commit(Path(__file__).resolve().parents[4]),
         "scale": scale,
     }
 
