@@ -179,3 +179,22 @@ def test_margin_relaxed_for_an_agent_already_that_close():
     assert dyn.first_collision(closer) == 1
     far_start = np.array([[0.0, -5.0, 0.0]] + [[0.0, 0.0, 0.0]] * 5)
     assert dyn.first_collision(far_start) == 1  # 0.2 m < 0.3 m nominal: a collision when arriving there
+
+
+def test_overlapping_obstacles_raster_as_their_union(paper_lot):
+    """Obstacles that overlap (a car sticking out of its spot, two crossing rectangles) are one obstacle in the
+    raster: every grid cell whose centre lies in the union (shapely) is occupied — fillPoly with several contours
+    fills even-odd, which would leave the overlaps as free holes."""
+    k = paper_lot.spot_index(21)
+    sp = paper_lot.spot_poses[k]
+    poses = np.array([sp, [sp[0] + 1.0, sp[1] + 0.5, sp[2]], [20.0, 20.0, 0.0], [20.0, 20.0, math.pi / 2]])
+    dims = np.array([paper_lot.spot_dims[k], [L, W], [6.0, 2.0], [6.0, 2.0]])
+    world = StaticWorld(paper_lot, poses, dims, L, W, CollisionSettings())
+    union = unary_union([footprint(*p, *d) for p, d in zip(poses, dims, strict=True)])
+    h, w = world.grid.shape
+    jj, ii = np.meshgrid(np.arange(w), np.arange(h))
+    cx, cy = world.origin[0] + (jj + 0.5) * world.res, world.origin[1] + (ii + 0.5) * world.res
+    x0, y0, x1, y1 = union.bounds
+    box_cells = (cx > x0) & (cx < x1) & (cy > y0) & (cy < y1)
+    inside = np.array([union.contains(Point(x, y)) for x, y in zip(cx[box_cells], cy[box_cells], strict=True)])
+    assert inside.sum() > 1000 and world.grid[box_cells][inside].all()

@@ -240,3 +240,33 @@ def test_evasive_when_standing_still_is_hit(paper_lot, planner):
     calm = EgoPlanner(paper_lot, replace(settings, decision=replace(settings.decision, evasive=False)))
     d = calm.decide(make_obs(paper_lot, ego), predictions=[pred])
     assert d.mode == "idle"
+
+
+def test_parked_cars_inside_occupied_spots_leave_the_static_world_unchanged(paper_lot, planner):
+    """The world is built without static vehicles lying inside believed-occupied spots (a speed-up): its raster,
+    signed distance field and exact answers equal those of a world built with every vehicle (the oracle), and
+    a vehicle sticking out of its spot is kept."""
+    from avp_planner.core.collision import StaticWorld
+
+    s21, s22 = paper_lot.spots[paper_lot.spot_index(21)], paper_lot.spots[paper_lot.spot_index(22)]
+    inside = static_car(1, s21.x, s21.y, s21.heading)  # a 4.6 x 1.85 car centred in its spot
+    out = static_car(2, s22.x + 2.0 * math.cos(s22.heading), s22.y + 2.0 * math.sin(s22.heading), s22.heading)
+    obs = make_obs(paper_lot, (21.5, 30, -math.pi / 2), vacant=[], vehicles=(inside, out))
+    b = planner.update_beliefs(obs).copy()
+    world = planner._static_world(obs, b)
+    assert len(world.obstacle_poses) == int((b >= 0.5).sum()) + 1  # the car sticking out is kept
+    occ = np.nonzero(b >= 0.5)[0]
+    full = StaticWorld(paper_lot, np.r_[paper_lot.spot_poses[occ], [inside.pose, out.pose]],
+                       np.r_[paper_lot.spot_dims[occ], [[L, W], [L, W]]], L, W, planner.settings.collision)
+    assert np.array_equal(world.grid, full.grid) and np.array_equal(world._sdf_flat, full._sdf_flat)
+    rng = np.random.default_rng(0)
+    x0, y0, x1, y1 = paper_lot.bounds()
+    xs, ys, th = rng.uniform(x0, x1, 4000), rng.uniform(y0, y1, 4000), rng.uniform(-math.pi, math.pi, 4000)
+    c, s = np.cos(th), np.sin(th)
+    assert np.array_equal(world.free_xyc(xs, ys, c, s, 0.1), full.free_xyc(xs, ys, c, s, 0.1))
+    assert np.array_equal(world.exact_free_xyc(xs, ys, c, s, 0.1), full.free_xyc(xs, ys, c, s, 0.1))
+    # the cache: the same inputs give the same world; world.key names every input, the contained car included
+    key = world.key
+    assert planner._static_world(obs, b) is world and world.key == key
+    obs2 = make_obs(paper_lot, (21.5, 30, -math.pi / 2), vacant=[], vehicles=(out,))
+    assert planner._static_world(obs2, b) is world and world.key != key

@@ -145,3 +145,33 @@ def test_metrics_recomputed_from_logged_ground_truth_equal_live(paper_lot):
     assert status == w.status
     assert m.as_dict() == pytest.approx(w.metrics.as_dict(), nan_ok=True)
     assert m.interrupted_steps > 0
+
+
+def test_reactive_brakes_skip_only_agents_that_cannot_reach_the_ego(paper_lot):
+    """The reach bound (circumradii + the farthest an agent's plan carries it in n_pass steps) only skips work:
+    brakes equal those of the full check (every agent rolled out) at every step of paper-protocol episodes
+    in which the ego drives through the agents."""
+    from pathlib import Path
+
+    import avp_sim.params
+    from avp_common.params import load_yaml_params
+    from avp_sim.core.factory import make_world
+
+    cfg = Path(__file__).resolve().parents[1] / "src/avp_sim/config/sim.param.yaml"
+    p = load_yaml_params(cfg, "avp_sim", avp_sim.params.SIM_PARAMS)
+    n_braking = 0
+    for seed in (1, 3, 5):
+        w = make_world(paper_lot, p, seed, True)
+        full = make_world(paper_lot, p, seed, True)
+        full._brake_reach = np.full_like(full._brake_reach, np.inf)
+        for k in range(250):
+            cmd = (2.0, 0.0) if k % 80 < 40 else (2.0, 0.15)
+            b, pb = w._reactive_brakes()
+            bf, pbf = full._reactive_brakes()
+            assert np.array_equal(b, bf) and np.array_equal(pb, pbf), (seed, k)
+            n_braking += int(b.any())
+            w.step(*cmd)
+            full.step(*cmd)
+            if w.done:
+                break
+    assert n_braking > 0  # the comparison covered steps where agents do brake

@@ -195,7 +195,8 @@ class StaticWorld:
             cv2.fillPoly(grid, [px(ring)], 0, lineType=cv2.LINE_8, shift=shift)
         if len(self.rect_poses):
             grown = rect_corners(self.rect_poses, self.rect_dims[:, 0] + 2 * grow, self.rect_dims[:, 1] + 2 * grow)
-            cv2.fillPoly(grid, [px(c) for c in grown], 1, lineType=cv2.LINE_8, shift=shift)
+            for c in grown:  # one call each: fillPoly fills several contours even-odd (overlaps would be holes)
+                cv2.fillPoly(grid, [px(c)], 1, lineType=cv2.LINE_8, shift=shift)
         self.grid = grid
         free = (grid == 0).astype(np.uint8)
         self.edt = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE).astype(np.float32) * res

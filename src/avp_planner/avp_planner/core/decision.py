@@ -78,6 +78,8 @@ from avp_world.types import Observation, PredictedTrajectory
 PARK, EXPLORE, IDLE = "park", "explore", "idle"
 STILL_SPEED = 0.3  # m/s: an agent slower than this counts as standing still (detour instead of waiting)
 EXPLORE_BACK_AFTER = 3.0  # s the road ahead must stay blocked by agents only before turning back (§V-D-2)
+WORLD_CACHE_SIZE = 8  # static worlds kept (see EgoPlanner._static_world)
+CONTAINED_MARGIN = 0.3  # m: a static vehicle this far inside an occupied spot is left out of the raster
 
 
 @dataclass
@@ -164,7 +166,7 @@ class EgoPlanner:
         """Forget the internal beliefs and the plan being executed."""
         self.beliefs = np.full(self.lot.n_spots, 0.5)
         self._plan: _Plan | None = None
-        self._world_cache: tuple | None = None
+        self._world_cache: dict[tuple, StaticWorld] = {}
         self._last_park_attempt: tuple | None = None
         self._park_attempt_step = -(10**9)
         self._front_blocked_step: int | None = None  # since when the road ahead is blocked by agents only
@@ -211,27 +213,57 @@ class EgoPlanner:
 
     # --------------------------------------------------------------------------------------- worlds
     def _static_world(self, obs: Observation, beliefs: np.ndarray, extra: np.ndarray | None = None) -> StaticWorld:
+        """The static obstacles: believed-occupied spots (b >= beta), observed static vehicles, and ``extra``.
+
+        Built worlds are cached by what they are built from (the last ``WORLD_CACHE_SIZE``: parked cars at the
+        sensor's edge flicker in and out of view). A static vehicle lying inside a believed-occupied spot with
+        ``CONTAINED_MARGIN`` to spare adds nothing to the union of obstacles, nor to its raster, so it is left
+        out of what the world is built from. ``world.key`` still names every input (the parking retry logic
+        compares it), so decisions are those of a world built from everything.
+        """
         d = self.settings.decision
         occ = np.nonzero(beliefs >= d.belief_threshold)[0]
         poses = [self.lot.spot_poses[occ]]
         dims = [self.lot.spot_dims[occ]]
         stat = [v for v in obs.vehicles if v.is_static]
+        kept = []
         if stat:
-            poses.append(np.array([v.pose for v in stat], dtype=float))
-            dims.append(np.array([[v.length, v.width] for v in stat], dtype=float))
+            sp = np.array([v.pose for v in stat], dtype=float)
+            sd = np.array([[v.length, v.width] for v in stat], dtype=float)
+            poses.append(sp)
+            dims.append(sd)
+            kept = self._not_inside_occupied(sp, sd, occ)
         if extra is not None and len(extra):
             poses.append(extra[:, :3])
             dims.append(extra[:, 3:5])
         poses_a, dims_a = np.concatenate(poses), np.concatenate(dims)
         key = (float(obs.ego_length), float(obs.ego_width), np.round(poses_a, 6).tobytes(),
                np.round(dims_a, 6).tobytes())
-        if extra is None and self._world_cache is not None and self._world_cache[0] == key:
-            return self._world_cache[1]
-        world = StaticWorld(self.lot, poses_a, dims_a, obs.ego_length, obs.ego_width, self.settings.collision)
+        if stat:  # build from the spots, the vehicles not inside them, and extra
+            keep = np.r_[np.ones(len(occ), bool), kept, np.ones(len(poses_a) - len(occ) - len(stat), bool)]
+            poses_a, dims_a = poses_a[keep], dims_a[keep]
+        build = (key[0], key[1], np.round(poses_a, 6).tobytes(), np.round(dims_a, 6).tobytes())
+        world = self._world_cache.get(build) if extra is None else None
+        if world is None:
+            world = StaticWorld(self.lot, poses_a, dims_a, obs.ego_length, obs.ego_width, self.settings.collision)
+            if extra is None:
+                self._world_cache[build] = world
+                while len(self._world_cache) > WORLD_CACHE_SIZE:
+                    self._world_cache.pop(next(iter(self._world_cache)))
+        else:
+            self._world_cache[build] = self._world_cache.pop(build)  # most recently used last
         world.key = key
-        if extra is None:
-            self._world_cache = (key, world)
         return world
+
+    def _not_inside_occupied(self, poses: np.ndarray, dims: np.ndarray, occ: np.ndarray) -> np.ndarray:
+        """(N,) bool: the vehicle rectangles not inside the nearest believed-occupied spot with
+        ``CONTAINED_MARGIN`` to spare on every side."""
+        if not len(occ):
+            return np.ones(len(poses), bool)
+        centres = self.lot.spot_poses[occ, :2]
+        near = occ[np.argmin(((poses[:, None, :2] - centres[None]) ** 2).sum(-1), axis=1)]
+        grown = rect_corners(poses, dims[:, 0] + 2 * CONTAINED_MARGIN, dims[:, 1] + 2 * CONTAINED_MARGIN)
+        return ~rect_inside_rect(grown, self.lot.spot_corners[near])
 
     def _dynamic(self, obs: Observation, predictions: Sequence[PredictedTrajectory]) -> DynamicObstacles:
         dt = self.settings.control.dt

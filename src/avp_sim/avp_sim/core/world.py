@@ -57,6 +57,11 @@ class World:
             self.plans[i, :m] = v.controls[:m]
         self.plan_index = np.zeros(n, dtype=np.int64)
         self.states = np.array([v.initial_state for v in sc.vehicles], dtype=float).reshape(n, 3)
+        # how far an agent's centre may be from the ego's for A_tau to meet V_0 within its n_pass steps: the
+        # two circumradii plus the farthest its plan can carry it (|v| dt per step, eq. 1)
+        self._brake_reach = (np.abs(self.plans[:, :, 0]).max(axis=1, initial=0.0) * self.passiveness * self.dt
+                             + 0.5 * np.hypot(self.vehicle_dims[:, 0], self.vehicle_dims[:, 1])
+                             + 0.5 * math.hypot(sc.ego.length, sc.ego.width) + 1e-6)
         # pedestrians
         p = len(sc.pedestrians)
         self.ped_ids = np.array([q.id for q in sc.pedestrians], dtype=np.int64)
@@ -109,10 +114,13 @@ class World:
         """§III-B: agent A brakes iff A_tau meets V_0,t for some tau = t + dt, ..., t + n_pass,A dt."""
         n = len(self.states)
         ego_fp = rect_corners(self.ego, self.scenario.ego.length, self.scenario.ego.width)
-        max_pass = int(self.passiveness.max(initial=0))
         brake = np.zeros(n, dtype=bool)
-        if max_pass > 0 and n:
-            cand = np.nonzero(self.passiveness > 0)[0]
+        cand = np.nonzero(self.passiveness > 0)[0]
+        if len(cand):  # agents that cannot reach the ego within their n_pass steps cannot brake
+            gap = np.hypot(self.states[cand, 0] - self.ego[0], self.states[cand, 1] - self.ego[1])
+            cand = cand[gap <= self._brake_reach[cand]]
+        max_pass = int(self.passiveness[cand].max(initial=0))
+        if max_pass > 0 and len(cand):
             s = self.states[cand]
             for j in range(max_pass):
                 idx = np.minimum(self.plan_index[cand] + j, self.plans.shape[1] - 1)
