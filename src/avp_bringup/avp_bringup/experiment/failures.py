@@ -1,0 +1,138 @@
+"""What the failed episodes of a Table I run have in common (issue #6: "say what the episodes that failed have
+in common").
+
+For every failed record of ``OUT/episodes.jsonl`` the episode is run again in this process exactly as the runner
+ran it (same seed, mode, method profile, intent weights and deterministic settings — the record is checked to come
+out equal) while the ego's decisions are logged. Reported per failure: the dynamic vehicles of the scenario
+(ParkSim maneuver ``side/stop/entry`` and target spot, :mod:`avp_sim.core.scenario`), the spot the ego was heading
+for at the end, whether that is a dynamic vehicle's target, and the closest approach (centre distance) between the
+ego and each dynamic vehicle. Beside it, how often each maneuver occurs in all scenarios of the run, so that a
+maneuver over-represented among the failures stands out.
+
+Usage: ``python -m avp_bringup.experiment.failures OUT [--markdown FILE]`` (``OUT`` as given to ``avp experiment``;
+the run settings are read from ``OUT/run.json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from avp_bringup.experiment.metrics import comparable
+from avp_bringup.experiment.profiles import load_profile
+from avp_bringup.experiment.runner import RESULTS_FILE, RUN_FILE, RunConfig, read_results, sim_values
+
+
+def _config(out: Path) -> RunConfig:
+    run = json.loads((out / RUN_FILE).read_text())["config"]
+    return RunConfig(t_final=run["t_final"], ade_horizon=run["ade_horizon"], intent_weights=run["intent_weights"],
+                     intent_seed=run["intent_seed"], message_precision=run["message_precision"],
+                     sim_overrides=run.get("sim_overrides", {}))
+
+
+def replay_failure(lot, sim_p: dict, record: dict, cfg: RunConfig) -> dict:
+    """Run the record's episode again, logging the ego's decisions; returns what :func:`main` reports."""
+    from avp_bringup.experiment.ego import MethodEgo
+    from avp_bringup.experiment.metrics import episode_record, prediction_errors
+    from avp_sim.core.factory import make_world
+
+    reactive = record["mode"] == "reactive"
+    world = make_world(lot, sim_p, record["seed"], reactive)
+    ego = MethodEgo(lot, load_profile(record["method"]), deterministic=True, intent_weights=cfg.intent_weights,
+                    intent_seed=cfg.intent_seed, message_precision=cfg.message_precision)
+    dyn = [v for v in world.scenario.vehicles if not v.parked]
+    dyn_idx = [int(np.nonzero(world.vehicle_ids == v.id)[0][0]) for v in dyn]
+    closest = np.full(len(dyn), np.inf)
+    targets, preds = [], {}
+    while not world.done:
+        obs = world.observe()
+        out = ego.step(obs)
+        preds[out.step] = [p for p in out.predictions if not p.is_pedestrian]
+        if out.decision.mode == "park":
+            targets.append(int(out.decision.spot_id))
+        world.step(*out.command)
+        if dyn_idx:
+            d = np.hypot(*(world.states[dyn_idx, :2] - world.ego[:2]).T)
+            closest = np.minimum(closest, d)
+    ade, fde = prediction_errors(preds, world.log_vehicles, world.vehicle_ids, world.dt, cfg.ade_horizon)
+    again = episode_record(method=record["method"], seed=record["seed"], reactive=reactive, status=world.status,
+                           metrics=world.metrics.as_dict(), min_ade=ade, min_fde=fde, step_timings=[],
+                           horizon=cfg.ade_horizon, transport="inproc", wall_s=0.0)
+    same = comparable(again) == comparable(record)
+    last = targets[-1] if targets else -1
+    return {"seed": record["seed"], "mode": record["mode"], "method": record["method"], "status": record["status"],
+            "reproduced": bool(same), "ego_target": last,
+            "ego_target_is_agents": bool(last >= 0 and any(v.target_spot_id == last for v in dyn)),
+            "agents": [{"id": int(v.id), "maneuver": v.maneuver, "target": int(v.target_spot_id),
+                        "closest_m": round(float(c), 2)} for v, c in zip(dyn, closest, strict=True)]}
+
+
+def maneuver_counts(lot, sim_p: dict, seeds: list[int]) -> Counter:
+    """How many dynamic vehicles of the run's scenarios do each maneuver (the setup does not depend on the mode)."""
+    from avp_sim.core.factory import scenario_params
+    from avp_sim.core.scenario import generate_paper_scenario
+
+    params = scenario_params(sim_p)
+    c: Counter = Counter()
+    for s in seeds:
+        sc = generate_paper_scenario(lot, s, True, params)
+        c.update(v.maneuver for v in sc.vehicles if not v.parked)
+    return c
+
+
+def markdown(rows: list[dict], counts: Counter, n_seeds: int) -> str:
+    lines = ["| seed | mode | method | status | reproduced | ego heading for | an agent's target | agents "
+             "(maneuver → target, closest approach) |", "|--:|---|---|---|---|--:|---|---|"]
+    for r in rows:
+        agents = "; ".join(f"{a['id']}: {a['maneuver']} → {a['target']}, {a['closest_m']:.1f} m" for a in r["agents"])
+        again = "yes" if r["reproduced"] else "NO"
+        lines.append(f"| {r['seed']} | {r['mode']} | {r['method']} | {r['status']} | {again}"
+                     f" | {r['ego_target'] if r['ego_target'] >= 0 else '—'} | "
+                     f"{'yes' if r['ego_target_is_agents'] else 'no'} | {agents} |")
+    failed = Counter(a["maneuver"] for r in rows for a in r["agents"])
+    total = sum(counts.values())
+    lines += ["", f"Maneuvers of the dynamic vehicles: in the failed episodes vs in all {n_seeds} scenarios of the run",
+              "", "| maneuver | in failed episodes | in all scenarios |", "|---|--:|--:|"]
+    for m, n in sorted(counts.items(), key=lambda kv: -kv[1]):
+        lines.append(f"| {m} | {failed.get(m, 0)} | {n} ({100 * n / total:.1f} %) |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m avp_bringup.experiment.failures", description=__doc__.split("\n")[0])
+    ap.add_argument("out", help="the folder given to avp experiment --out")
+    ap.add_argument("--markdown", help="also write the tables to this Markdown file")
+    args = ap.parse_args(argv)
+    import torch
+
+    from avp_world.lot import load_bundled_lot
+
+    torch.set_num_threads(1)
+    out = Path(args.out)
+    try:
+        cfg = _config(out)
+        records = read_results(out / RESULTS_FILE)
+    except (OSError, KeyError, ValueError) as e:
+        print(f"[failures] cannot read the run in {out}: {e}", file=sys.stderr)
+        return 2
+    lot, sim_p = load_bundled_lot(), sim_values(cfg)
+    failed = sorted((r for r in records if not r["success"]), key=lambda r: (r["seed"], r["mode"], r["method"]))
+    rows = []
+    for r in failed:
+        rows.append(replay_failure(lot, sim_p, r, cfg))
+        print(json.dumps(rows[-1]), flush=True)
+    seeds = sorted({int(r["seed"]) for r in records})
+    text = markdown(rows, maneuver_counts(lot, sim_p, seeds), len(seeds))
+    print(text)
+    if args.markdown:
+        Path(args.markdown).write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
