@@ -256,6 +256,28 @@ def test_failure_analysis_reruns_failed_episodes(tmp_path):
         assert f"| {v.maneuver} | 1 | 1 (" in text
 
 
+def test_an_episode_that_raises_is_reported_and_the_others_recorded(tmp_path, monkeypatch, capsys):
+    """One episode's bug must not stop (or silently hang) the sweep: it is named on stderr, left out of the
+    results so the same command retries it, the other episodes are recorded and the exit status is 1."""
+    import avp_bringup.experiment.runner as runner
+
+    real = runner._worker_episode
+
+    def flaky(key):
+        if key == ("nawaz", 2, "reactive"):
+            raise RuntimeError("kernel size can't be greater than actual input size")
+        return real(key)
+
+    monkeypatch.setattr(runner, "_worker_episode", flaky)
+    out = tmp_path / "run"
+    assert run(out, "--methods", "nawaz", "--mode", "reactive", "--workers", "0") == 1
+    err = capsys.readouterr().err
+    assert "episode nawaz seed 2 reactive raised RuntimeError: kernel size" in err and "retry" in err
+    assert set(records(out)) == {("nawaz", 1, "reactive")}
+    monkeypatch.setattr(runner, "_worker_episode", real)
+    assert ran(out, "--methods", "nawaz", "--mode", "reactive", "--workers", "0") == 1  # the retry
+
+
 def test_sim_param_overrides_are_checked_and_part_of_the_run_identity(tmp_path):
     from avp_bringup.experiment.profiles import load_profile
     from avp_bringup.experiment.runner import RunConfig, check_run_file, parse_sim_params, run_identity

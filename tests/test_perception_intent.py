@@ -125,6 +125,43 @@ def test_incremental_and_fused_logits_equal_reference(cfg):
     assert np.ptp(ref[: 1 + len(bevs[0].candidate_spot_ids)]) > 1e-6
 
 
+def test_incremental_logits_with_marks_outside_the_read_region():
+    """A candidate marked only in the last rows / cols (beyond the 94 px the pooled stack reads) or at the image
+    corner: incremental = reference (the implicit method met such a box on the ego's BEV, seed 156)."""
+    from dataclasses import replace
+
+    obs = two_vehicle_obs()
+    dyn = [v for v in obs.vehicles if not v.is_static]
+    bm = BeliefMap.from_lot(LOT)
+    bm.observe(obs.vacant_spot_ids, obs.occupied_spot_ids)
+    preds = {m: IntentPredictor(LOT, BEVConfig(), seed=3, mode=m) for m in ("reference", "incremental")}
+    _, bevs = preds["reference"].predict_all(obs, dyn, bm, return_bevs=True)
+    b = bevs[0]
+    img = b.image
+    boxes = np.array([[49, 62, 94, 99], [95, 99, 10, 30], [0, 6, 0, 6], [90, 99, 88, 99]], dtype=np.int64)
+    marks = []
+    for r0, r1, c0, c1 in boxes:
+        m = img.copy()
+        m[r0:r1 + 1, c0:c1 + 1] = (200, 0, 200)
+        marks.append(m)
+    k = len(boxes)
+    b = replace(b, candidate_boxes=boxes, candidate_images=np.stack(marks), candidate_spot_ids=np.arange(k),
+                candidate_idx=np.arange(k))
+    feats = [intent_features(b.pose, b.speed, LOT.spot_poses[b.candidate_idx, :2], LOT.entrance, 0.1)]
+    ref = preds["reference"].logits([b], feats)
+    np.testing.assert_allclose(preds["incremental"].logits([b], feats), ref, atol=1e-4)
+    # marks no output reads change nothing: the same logits as the unmarked image with the same features
+    unmarked = replace(b, candidate_images=np.stack([img] * k))
+    same = preds["reference"].logits([unmarked], feats)
+    assert np.allclose(ref[1:3], same[1:3], atol=1e-6) and np.abs(ref[3:] - same[3:]).max() > 1e-6
+    # the case met in the sweep: every candidate of the batch marked outside the read region
+    only = replace(b, candidate_boxes=boxes[:1], candidate_images=np.stack(marks[:1]), candidate_spot_ids=np.arange(1),
+                   candidate_idx=np.arange(1))
+    f1 = [intent_features(b.pose, b.speed, LOT.spot_poses[:1, :2], LOT.entrance, 0.1)]
+    np.testing.assert_allclose(preds["incremental"].logits([only], f1), preds["reference"].logits([only], f1),
+                               atol=1e-4)
+
+
 def test_predict_gives_a_distribution_over_candidates_and_exploration():
     for obs in snapshots(1) + snapshots(2, seed=5):
         dyn = [v for v in obs.vehicles if not v.is_static]

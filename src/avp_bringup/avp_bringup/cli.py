@@ -59,19 +59,9 @@ def _ego_graph(args: argparse.Namespace, deterministic: bool = False):
 
 
 def cmd_experiment(args: argparse.Namespace) -> int:
-    from avp_bringup.experiment.profiles import ProfileError
-    from avp_bringup.experiment.runner import run_experiment
+    from avp_bringup.experiment.runner import run_command
 
-    try:
-        run_experiment(args)
-    except (ValueError, ProfileError, RuntimeError) as exc:
-        print(f"[avp experiment] {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"[avp experiment] interrupted; the finished episodes are in {args.out}/episodes.jsonl: run the same "
-              "command to continue", file=sys.stderr)
-        return 130
-    return 0
+    return run_command(args)
 
 
 def cmd_launch(args: argparse.Namespace) -> int:

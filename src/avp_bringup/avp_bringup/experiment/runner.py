@@ -28,6 +28,7 @@ import sys
 import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import asdict, dataclass, field
 from multiprocessing import get_context
 from pathlib import Path
@@ -247,22 +248,46 @@ def _worker_episode(key: Key) -> dict:
                               _WORKER["cfg"])
 
 
-def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callable[[dict], None]) -> None:
-    """Run ``keys`` in ``workers`` processes (0: in this process), calling ``on_record`` as each finishes."""
+def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callable[[dict], None]) -> list[str]:
+    """Run ``keys`` in ``workers`` processes (0: in this process), calling ``on_record`` as each finishes.
+
+    An episode that raises is reported on stderr (method, seed, mode and the error, one line) and left out of
+    the results, so the same command retries it; the others go on. Returns those error lines.
+    """
+    errors: list[str] = []
+
+    def failed(key: Key, exc: BaseException) -> None:
+        line = f"episode {key[0]} seed {key[1]} {key[2]} raised {type(exc).__name__}: {exc}"
+        errors.append(line)
+        print(f"[avp experiment] {line}", file=sys.stderr, flush=True)
+
     if workers <= 0:
         _init_worker(cfg)
         for k in keys:
-            on_record(_worker_episode(k))
-        return
+            try:
+                r = _worker_episode(k)
+            except Exception as exc:  # noqa: BLE001 - one episode's bug must not stop the sweep
+                failed(k, exc)
+                continue
+            on_record(r)
+        return errors
     ctx = get_context("spawn")
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
                              initargs=(cfg, True)) as pool:
-        pending = {pool.submit(_worker_episode, k) for k in keys}
+        pending = {pool.submit(_worker_episode, k): k for k in keys}
         try:
             while pending:
-                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
                 for f in done:
-                    on_record(f.result())
+                    key = pending.pop(f)
+                    try:
+                        r = f.result()
+                    except BrokenProcessPool:
+                        raise
+                    except Exception as exc:  # noqa: BLE001 - see the docstring
+                        failed(key, exc)
+                        continue
+                    on_record(r)
         except KeyboardInterrupt:
             running = {f for f in pending if not f.cancel()}
             print(f"\n[avp experiment] interrupted: finishing the {len(running)} running episode(s)", file=sys.stderr)
@@ -272,6 +297,10 @@ def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callabl
                 except Exception:  # noqa: BLE001 - keep what finished, report the interruption
                     pass
             raise
+        except BaseException:
+            pool.shutdown(wait=False, cancel_futures=True)  # never wait for the whole queue to run unrecorded
+            raise
+    return errors
 
 
 # ------------------------------------------------------------------------------------------ command
@@ -339,6 +368,12 @@ def run_experiment(args: argparse.Namespace) -> dict:
     if not profiles:
         raise ValueError(f"no runnable method in --methods {args.methods!r}")
     ident = run_identity(cfg, profiles)
+    if cfg.intent_weights:  # one clear error here rather than one per episode in the workers
+        from avp_perception.core.bev import BEVConfig
+        from avp_perception.core.pipeline import make_intent_predictor
+        from avp_world.lot import load_bundled_lot
+
+        make_intent_predictor(load_bundled_lot(), BEVConfig(), cfg.intent_weights, cfg.intent_seed)
     check_run_file(out, ident)
     path = out / RESULTS_FILE
     records = read_results(path)
@@ -352,6 +387,7 @@ def run_experiment(args: argparse.Namespace) -> dict:
           f"already in {path}, {len(todo)} to run over --transport {args.transport}; intent CNN: {ident['intent']}",
           flush=True)
     n_run = 0
+    errors: list[str] = []
     started, t0 = time.strftime("%Y-%m-%dT%H:%M:%S%z"), time.perf_counter()
     if todo and not args.summary_only:
         from tqdm import tqdm
@@ -369,7 +405,7 @@ def run_experiment(args: argparse.Namespace) -> dict:
 
         try:
             if args.transport == "inproc":
-                run_inproc(todo, cfg, args.workers, on_record)
+                errors = run_inproc(todo, cfg, args.workers, on_record)
             else:
                 from avp_bringup.experiment.ros_transport import run_ros
 
@@ -383,7 +419,10 @@ def run_experiment(args: argparse.Namespace) -> dict:
                             {"ade_horizon": cfg.ade_horizon, "t_final": cfg.t_final, "intent": ident["intent"],
                              "seeds_without_scenario": bad_seeds, "sim_overrides": cfg.sim_overrides})
     print(f"[avp experiment] ran {n_run} episodes; summary: {out / 'summary.md'}, plots in {out / 'plots'}/")
-    return {"ran": n_run, "skipped_methods": skipped, "summary": summary}
+    if errors:
+        print(f"[avp experiment] {len(errors)} episode(s) raised and are not in the results (listed above); "
+              "run the same command to retry them", file=sys.stderr)
+    return {"ran": n_run, "skipped_methods": skipped, "summary": summary, "errors": errors}
 
 
 def log_invocation(out: Path, args: argparse.Namespace, started: str, wall_s: float, ran: int, todo: int) -> None:
@@ -449,20 +488,26 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="avp experiment", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_arguments(p)
-    args = p.parse_args(argv)
+def run_command(args: argparse.Namespace) -> int:
+    """``avp experiment`` with its exit status: 0 done, 1 some episodes raised (not recorded; the same command
+    retries them), 2 bad arguments or run folder (one line naming what), 130 interrupted."""
     try:
-        run_experiment(args)
+        report = run_experiment(args)
     except (ValueError, ProfileError, RuntimeError) as exc:
         print(f"[avp experiment] {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"[avp experiment] interrupted; run the same command to continue ({args.out})", file=sys.stderr)
+        print(f"[avp experiment] interrupted; the finished episodes are in {args.out}/{RESULTS_FILE}: run the same "
+              "command to continue", file=sys.stderr)
         return 130
-    return 0
+    return 1 if report["errors"] else 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="avp experiment", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_arguments(p)
+    return run_command(p.parse_args(argv))
 
 
 if __name__ == "__main__":

@@ -119,6 +119,8 @@ def write_summary(out: Path, records: Sequence[Mapping], skipped: Mapping[str, s
     js = {f"{m}/{mode}": s for (m, mode), s in sorted(stats.items())}
     (out / "summary.json").write_text(json.dumps({"info": dict(info), "skipped": dict(skipped), "stats": js},
                                                  indent=2, allow_nan=False) + "\n")
+    if not methods:  # nothing recorded yet: no plots
+        return stats
     plots = out / "plots"
     plots.mkdir(parents=True, exist_ok=True)
     labels = {m: lab for m, (_, lab) in _labels(methods).items()}

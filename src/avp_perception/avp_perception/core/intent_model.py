@@ -391,6 +391,12 @@ class IntentPredictor:
 
         ra, rb = cells(boxes[:, 0], boxes[:, 1])
         ca, cb = cells(boxes[:, 2], boxes[:, 3])
+        meets = (ra <= rb) & (ca <= cb)  # a box in the last rows / cols that no output reads keeps I_k,0's features
+        if not meets.all():
+            boxes, veh, cand, rows = boxes[meets], veh[meets], cand[meets], rows[meets]
+            ra, rb, ca, cb = ra[meets], rb[meets], ca[meets], cb[meets]
+            if len(boxes) == 0:
+                return torch.from_numpy(full)
         nr, nc = int((rb - ra).max()) + 1, int((cb - ca).max()) + 1  # one patch size for the whole batch
         py, px = np.minimum(ra, n_out - nr) * stride, np.minimum(ca, n_out - nc) * stride
         hr, hc = stride * (nr - 1) + field - m, stride * (nc - 1) + field - m  # conv1-output patch size

@@ -173,5 +173,6 @@ def make_intent_predictor(lot: LotMap | None, bev_config: BEVConfig = BEVConfig(
     try:
         intent.load_weights(path)
     except Exception as exc:  # noqa: BLE001 - any unreadable/mismatched file is one start-up error
-        raise ValueError(f"intent weights {path}: cannot load ({exc})") from None
+        why = (str(exc).strip().splitlines() or [type(exc).__name__])[0]  # one line (torch's messages run long)
+        raise ValueError(f"intent weights {path}: cannot load ({why})") from None
     return intent, f"intent CNN: weights from {path}" + ("" if weights else " (shipped)")
