@@ -9,8 +9,8 @@ for at the end, whether that is a dynamic vehicle's target, and the closest appr
 ego and each dynamic vehicle. Beside it, how often each maneuver occurs in all scenarios of the run, so that a
 maneuver over-represented among the failures stands out.
 
-Usage: ``python -m avp_bringup.experiment.failures OUT [--markdown FILE]`` (``OUT`` as given to ``avp experiment``;
-the run settings are read from ``OUT/run.json``).
+Usage: ``python -m avp_bringup.experiment.failures OUT [--markdown FILE] [--workers N]`` (``OUT`` as given to
+``avp experiment``; the run settings are read from ``OUT/run.json``).
 """
 
 from __future__ import annotations
@@ -103,10 +103,31 @@ def markdown(rows: list[dict], counts: Counter, n_seeds: int) -> str:
     return "\n".join(lines) + "\n"
 
 
+_W: dict = {}
+
+
+def _init(cfg: RunConfig) -> None:
+    import torch
+
+    from avp_world.lot import load_bundled_lot
+
+    torch.set_num_threads(1)
+    _W.update(cfg=cfg, lot=load_bundled_lot(), sim=sim_values(cfg))
+
+
+def _replay(record: dict) -> dict:
+    return replay_failure(_W["lot"], _W["sim"], record, _W["cfg"])
+
+
+def _counts(seeds: list[int]) -> Counter:
+    return maneuver_counts(_W["lot"], _W["sim"], seeds)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m avp_bringup.experiment.failures", description=__doc__.split("\n")[0])
     ap.add_argument("out", help="the folder given to avp experiment --out")
     ap.add_argument("--markdown", help="also write the tables to this Markdown file")
+    ap.add_argument("--workers", type=int, default=2, help="processes re-running episodes (0: this one)")
     args = ap.parse_args(argv)
     import torch
 
@@ -122,12 +143,22 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     lot, sim_p = load_bundled_lot(), sim_values(cfg)
     failed = sorted((r for r in records if not r["success"]), key=lambda r: (r["seed"], r["mode"], r["method"]))
-    rows = []
-    for r in failed:
-        rows.append(replay_failure(lot, sim_p, r, cfg))
-        print(json.dumps(rows[-1]), flush=True)
     seeds = sorted({int(r["seed"]) for r in records})
-    text = markdown(rows, maneuver_counts(lot, sim_p, seeds), len(seeds))
+    if args.workers > 0 and failed:
+        from concurrent.futures import ProcessPoolExecutor
+        from multiprocessing import get_context
+
+        with ProcessPoolExecutor(args.workers, mp_context=get_context("spawn"), initializer=_init,
+                                 initargs=(cfg,)) as pool:
+            rows = list(pool.map(_replay, failed))
+            counts_parts = list(pool.map(_counts, [seeds[i::args.workers] for i in range(args.workers)]))
+        counts: Counter = sum(counts_parts, Counter())
+    else:
+        rows = [replay_failure(lot, sim_p, r, cfg) for r in failed]
+        counts = maneuver_counts(lot, sim_p, seeds)
+    for row in rows:
+        print(json.dumps(row), flush=True)
+    text = markdown(rows, counts, len(seeds))
     print(text)
     if args.markdown:
         Path(args.markdown).write_text(text)
