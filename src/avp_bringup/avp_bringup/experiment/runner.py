@@ -388,7 +388,7 @@ def run_experiment(args: argparse.Namespace) -> dict:
           flush=True)
     n_run = 0
     errors: list[str] = []
-    started, t0 = time.strftime("%Y-%m-%dT%H:%M:%S%z"), time.perf_counter()
+    started, t0, commit = time.strftime("%Y-%m-%dT%H:%M:%S%z"), time.perf_counter(), _code_commit()
     if todo and not args.summary_only:
         from tqdm import tqdm
 
@@ -413,7 +413,7 @@ def run_experiment(args: argparse.Namespace) -> dict:
         finally:
             bar.close()
             writer.close()
-            log_invocation(out, args, started, time.perf_counter() - t0, n_run, len(todo))
+            log_invocation(out, args, started, time.perf_counter() - t0, n_run, len(todo), commit)
     wanted = set(keys)
     summary = write_summary(out, [r for r in records if record_key(r) in wanted], skipped,
                             {"ade_horizon": cfg.ade_horizon, "t_final": cfg.t_final, "intent": ident["intent"],
@@ -425,14 +425,20 @@ def run_experiment(args: argparse.Namespace) -> dict:
     return {"ran": n_run, "skipped_methods": skipped, "summary": summary, "errors": errors}
 
 
-def log_invocation(out: Path, args: argparse.Namespace, started: str, wall_s: float, ran: int, todo: int) -> None:
-    """Append this invocation to ``OUT/runs.jsonl`` (see the module docstring)."""
+def _code_commit() -> str:
+    """The checked-out commit of the code this process runs (read when the run starts)."""
     from avp_perception.training.run import git_commit
 
+    return git_commit(Path(__file__).resolve().parents[4])
+
+
+def log_invocation(out: Path, args: argparse.Namespace, started: str, wall_s: float, ran: int, todo: int,
+                   commit: str) -> None:
+    """Append this invocation to ``OUT/runs.jsonl`` (see the module docstring)."""
     line = {"started": started, "wall_s": round(wall_s, 1), "episodes_run": ran, "episodes_todo": todo,
             "workers": args.workers, "transport": args.transport, "cpu_count": os.cpu_count(),
             "loadavg_end": [round(x, 2) for x in os.getloadavg()],
-            "commit": git_commit(Path(__file__).resolve().parents[4]),
+            "commit": commit,
             "options": {k: v for k, v in sorted(vars(args).items()) if isinstance(v, (str, int, float, bool, list))}}
     with open(out / RUNS_LOG, "a") as f:
         f.write(json.dumps(line) + "\n")
