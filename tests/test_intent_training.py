@@ -332,3 +332,22 @@ def test_shipped_card_records_data_command_and_accuracy():
         assert key in card
     assert card["parameters"] == sum(p.numel() for p in build_model(TrainConfig()).parameters())
     assert card["metrics"]["paper"]["n"] > 0 and card["data"]["train"]["samples"] > 1000
+
+
+def test_error_analysis_by_distance_counts_every_spot_sample():
+    """``python -m avp_perception.training.analysis``: the distance bins partition the label-is-spot samples, the
+    per-bin hits add up to the overall figures, and the hybrid rule with X = 0 would be the CNN itself."""
+    from avp_perception.training.analysis import BINS, error_table
+    from avp_perception.training.train import model_logits, topk_hits
+
+    s = episode(EPISODE_SEED)
+    torch.set_num_threads(1)
+    logits = model_logits(IntentPredictor.pretrained(load_bundled_lot()).model, s)
+    t = error_table(s, logits)
+    spot = s.labels > 0
+    assert spot.any() and sum(r["n"] for r in t["by_distance"]) == int(spot.sum())
+    hits = topk_hits(logits, s.labels, 1)
+    assert sum(r["cnn"] * r["n"] for r in t["by_distance"]) == pytest.approx(hits[spot].sum())
+    assert t["top1"] == pytest.approx(hits.mean()) and [r["from_m"] for r in t["by_distance"]] == sorted(
+        r["from_m"] for r in t["by_distance"]) and t["by_distance"][0]["from_m"] >= BINS[0][0]
+    assert set(t["hybrid"]) == {2.0, 3.0, 4.0, 5.0, 6.0, 8.0} and all(0.0 <= v <= 1.0 for v in t["hybrid"].values())

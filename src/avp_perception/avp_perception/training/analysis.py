@@ -1,0 +1,74 @@
+"""Where the intent CNN's errors are (docs/intent_model.md, "What the error is made of").
+
+On a split saved by ``avp train-intent`` / ``avp gen-intent-data`` (``OUT/data/test.npz``), with the shipped or
+given weights: top-1 of the CNN and of the nearest-spot baseline on the samples whose label is a spot, by the
+distance from the vehicle to that spot, and how often the CNN answers "none" there; then a hybrid rule (the
+CNN, except that "none" becomes the nearest spot when it lies within X m) to test whether the distance feature
+holds information the CNN leaves unused.
+
+Usage: ``python -m avp_perception.training.analysis out/intent_run1/data/test.npz [--weights FILE]``
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+import torch
+
+from avp_perception.core.pipeline import make_intent_predictor
+from avp_perception.training.dataset import Samples
+from avp_perception.training.train import baseline_scores, model_logits, topk_hits
+
+BINS = ((0.0, 5.0), (5.0, 10.0), (10.0, 15.0), (15.0, 20.0), (20.0, 60.0))
+
+
+def error_table(samples: Samples, logits: list[np.ndarray]) -> dict:
+    """Top-1 by distance to the labelled spot (label-is-spot samples), and the hybrid rule's top-1 per X."""
+    y = samples.labels
+    hit = topk_hits(logits, y, 1)
+    near_scores = baseline_scores(samples, False)
+    near_hit = topk_hits(near_scores, y, 1)
+    pred = np.array([int(np.argmax(z)) for z in logits])
+    near = np.array([int(np.argmax(b)) for b in near_scores])
+    rows = [samples.features[samples.feature_rows(i)] for i in range(len(samples))]
+    d_label = np.array([r[y[i], 1] if y[i] > 0 else np.nan for i, r in enumerate(rows)])
+    d_near = np.array([r[near[i], 1] if near[i] > 0 else np.inf for i, r in enumerate(rows)])
+    spot = y > 0
+    out = {"n": int(len(y)), "top1": float(hit.mean()), "label_spot_top1": float(hit[spot].mean()),
+           "label_none_top1": float(hit[~spot].mean()), "by_distance": [], "hybrid": {}}
+    for lo, hi in BINS:
+        m = spot & (d_label >= lo) & (d_label < hi)
+        if m.any():
+            out["by_distance"].append({"from_m": lo, "to_m": hi, "n": int(m.sum()), "cnn": float(hit[m].mean()),
+                                       "nearest": float(near_hit[m].mean()),
+                                       "cnn_says_none": float((pred[m] == 0).mean())})
+    for x in (2.0, 3.0, 4.0, 5.0, 6.0, 8.0):
+        mixed = np.where((pred == 0) & (d_near < x), near, pred)
+        out["hybrid"][x] = float((mixed == y).mean())
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m avp_perception.training.analysis", description=__doc__.split("\n")[0])
+    ap.add_argument("split", help="a saved split (.npz)")
+    ap.add_argument("--weights", default="", help="intent CNN state dict (default: the shipped weights)")
+    args = ap.parse_args(argv)
+    torch.set_num_threads(1)
+    samples = Samples.load(args.split)
+    intent, info = make_intent_predictor(None, weights=args.weights)
+    t = error_table(samples, model_logits(intent.model, samples))
+    print(f"{info}; {t['n']} samples: top-1 {t['top1']:.3f} (label a spot {t['label_spot_top1']:.3f}, "
+          f"label none {t['label_none_top1']:.3f})")
+    print("| distance to the labelled spot | n | CNN top-1 | nearest top-1 | CNN says none |")
+    print("|---|--:|--:|--:|--:|")
+    for r in t["by_distance"]:
+        print(f"| {r['from_m']:.0f}–{r['to_m']:.0f} m | {r['n']} | {r['cnn']:.3f} | {r['nearest']:.3f} | "
+              f"{r['cnn_says_none']:.3f} |")
+    print("hybrid (CNN; its 'none' -> the nearest spot within X m): "
+          + ", ".join(f"X = {x:g} m: {v:.3f}" for x, v in t["hybrid"].items()))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
