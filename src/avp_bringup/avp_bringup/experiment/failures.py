@@ -25,7 +25,15 @@ import numpy as np
 
 from avp_bringup.experiment.metrics import comparable
 from avp_bringup.experiment.profiles import load_profile
-from avp_bringup.experiment.runner import RESULTS_FILE, RUN_FILE, RunConfig, read_results, sim_values
+from avp_bringup.experiment.runner import (
+    _WORKER,
+    RESULTS_FILE,
+    RUN_FILE,
+    RunConfig,
+    _init_worker,
+    read_results,
+    run_episode_inproc,
+)
 
 
 def _config(out: Path) -> RunConfig:
@@ -36,37 +44,27 @@ def _config(out: Path) -> RunConfig:
 
 
 def replay_failure(lot, sim_p: dict, record: dict, cfg: RunConfig) -> dict:
-    """Run the record's episode again, logging the ego's decisions; returns what :func:`main` reports."""
-    from avp_bringup.experiment.ego import MethodEgo
-    from avp_bringup.experiment.metrics import episode_record, prediction_errors
+    """Run the record's episode again as the runner does (:func:`~.runner.run_episode_inproc`), watching the ego's
+    decisions and its distance to the dynamic vehicles; returns what :func:`main` reports."""
     from avp_sim.core.factory import make_world
 
-    reactive = record["mode"] == "reactive"
-    world = make_world(lot, sim_p, record["seed"], reactive)
-    ego = MethodEgo(lot, load_profile(record["method"]), deterministic=True, intent_weights=cfg.intent_weights,
-                    intent_seed=cfg.intent_seed, message_precision=cfg.message_precision)
-    dyn = [v for v in world.scenario.vehicles if not v.parked]
-    dyn_idx = [int(np.nonzero(world.vehicle_ids == v.id)[0][0]) for v in dyn]
+    dyn = [v for v in make_world(lot, sim_p, record["seed"], record["mode"] == "reactive").scenario.vehicles
+           if not v.parked]
     closest = np.full(len(dyn), np.inf)
-    targets, preds = [], {}
-    while not world.done:
-        obs = world.observe()
-        out = ego.step(obs)
-        preds[out.step] = [p for p in out.predictions if not p.is_pedestrian]
+    targets: list[int] = []
+
+    def watch(world, out) -> None:
         if out.decision.mode == "park":
             targets.append(int(out.decision.spot_id))
-        world.step(*out.command)
-        if dyn_idx:
-            d = np.hypot(*(world.states[dyn_idx, :2] - world.ego[:2]).T)
-            closest = np.minimum(closest, d)
-    ade, fde = prediction_errors(preds, world.log_vehicles, world.vehicle_ids, world.dt, cfg.ade_horizon)
-    again = episode_record(method=record["method"], seed=record["seed"], reactive=reactive, status=world.status,
-                           metrics=world.metrics.as_dict(), min_ade=ade, min_fde=fde, step_timings=[],
-                           horizon=cfg.ade_horizon, transport="inproc", wall_s=0.0)
-    same = comparable(again) == comparable(record)
+        if dyn:
+            rows = [int(np.nonzero(world.vehicle_ids == v.id)[0][0]) for v in dyn]
+            np.minimum(closest, np.hypot(*(world.states[rows, :2] - world.ego[:2]).T), out=closest)
+
+    again = run_episode_inproc(lot, sim_p, load_profile(record["method"]), record["seed"],
+                               record["mode"] == "reactive", cfg, on_step=watch)
     last = targets[-1] if targets else -1
     return {"seed": record["seed"], "mode": record["mode"], "method": record["method"], "status": record["status"],
-            "reproduced": bool(same), "ego_target": last,
+            "reproduced": comparable(again) == comparable(record), "ego_target": last,
             "ego_target_is_agents": bool(last >= 0 and any(v.target_spot_id == last for v in dyn)),
             "agents": [{"id": int(v.id), "maneuver": v.maneuver, "target": int(v.target_spot_id),
                         "closest_m": round(float(c), 2)} for v, c in zip(dyn, closest, strict=True)]}
@@ -103,24 +101,12 @@ def markdown(rows: list[dict], counts: Counter, n_seeds: int) -> str:
     return "\n".join(lines) + "\n"
 
 
-_W: dict = {}
-
-
-def _init(cfg: RunConfig) -> None:
-    import torch
-
-    from avp_world.lot import load_bundled_lot
-
-    torch.set_num_threads(1)
-    _W.update(cfg=cfg, lot=load_bundled_lot(), sim=sim_values(cfg))
-
-
 def _replay(record: dict) -> dict:
-    return replay_failure(_W["lot"], _W["sim"], record, _W["cfg"])
+    return replay_failure(_WORKER["lot"], _WORKER["sim"], record, _WORKER["cfg"])
 
 
 def _counts(seeds: list[int]) -> Counter:
-    return maneuver_counts(_W["lot"], _W["sim"], seeds)
+    return maneuver_counts(_WORKER["lot"], _WORKER["sim"], seeds)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -129,11 +115,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--markdown", help="also write the tables to this Markdown file")
     ap.add_argument("--workers", type=int, default=2, help="processes re-running episodes (0: this one)")
     args = ap.parse_args(argv)
-    import torch
-
-    from avp_world.lot import load_bundled_lot
-
-    torch.set_num_threads(1)
     out = Path(args.out)
     try:
         cfg = _config(out)
@@ -141,21 +122,21 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, KeyError, ValueError) as e:
         print(f"[failures] cannot read the run in {out}: {e}", file=sys.stderr)
         return 2
-    lot, sim_p = load_bundled_lot(), sim_values(cfg)
     failed = sorted((r for r in records if not r["success"]), key=lambda r: (r["seed"], r["mode"], r["method"]))
     seeds = sorted({int(r["seed"]) for r in records})
     if args.workers > 0 and failed:
         from concurrent.futures import ProcessPoolExecutor
         from multiprocessing import get_context
 
-        with ProcessPoolExecutor(args.workers, mp_context=get_context("spawn"), initializer=_init,
-                                 initargs=(cfg,)) as pool:
+        with ProcessPoolExecutor(args.workers, mp_context=get_context("spawn"), initializer=_init_worker,
+                                 initargs=(cfg, True)) as pool:
             rows = list(pool.map(_replay, failed))
             counts_parts = list(pool.map(_counts, [seeds[i::args.workers] for i in range(args.workers)]))
         counts: Counter = sum(counts_parts, Counter())
-    else:
-        rows = [replay_failure(lot, sim_p, r, cfg) for r in failed]
-        counts = maneuver_counts(lot, sim_p, seeds)
+    else:  # the runner's worker state, in this process
+        _init_worker(cfg)
+        rows = [_replay(r) for r in failed]
+        counts = _counts(seeds)
     for row in rows:
         print(json.dumps(row), flush=True)
     text = markdown(rows, counts, len(seeds))

@@ -198,8 +198,11 @@ class ResultsWriter:
 # ------------------------------------------------------------------------------------------ episodes
 
 
-def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reactive: bool, cfg: RunConfig) -> dict:
-    """One episode on the simulator core with the method's :class:`~.ego.MethodEgo`; returns its record."""
+def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reactive: bool, cfg: RunConfig,
+                       on_step: Callable | None = None) -> dict:
+    """One episode on the simulator core with the method's :class:`~.ego.MethodEgo`; returns its record.
+
+    ``on_step(world, ego_step)``, if given, is called after every step (the failure analysis watches episodes)."""
     from avp_bringup.experiment.ego import MethodEgo
     from avp_bringup.experiment.metrics import episode_record, prediction_errors
     from avp_sim.core.factory import make_world
@@ -216,6 +219,8 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
         preds[out.step] = [p for p in out.predictions if not p.is_pedestrian]
         timings.append(out.timings)
         world.step(*out.command)
+        if on_step is not None:
+            on_step(world, out)
     ade, fde = prediction_errors(preds, world.log_vehicles, world.vehicle_ids, world.dt, cfg.ade_horizon)
     return episode_record(method=profile.name, seed=seed, reactive=reactive, status=world.status,
                           metrics=world.metrics.as_dict(), min_ade=ade, min_fde=fde, step_timings=timings,
