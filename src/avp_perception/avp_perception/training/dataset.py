@@ -64,6 +64,20 @@ class DataSpec:
     bev: BEVConfig = field(default_factory=BEVConfig)
 
 
+def save_arrays(obj, path: str | Path) -> None:
+    """A dataclass of numpy arrays as one compressed .npz, a member per field."""
+    np.savez_compressed(Path(path), **{f.name: getattr(obj, f.name) for f in fields(obj)})
+
+
+def load_arrays(cls, path: str | Path, what: str):
+    """The inverse of :func:`save_arrays`; a file missing a field is a ValueError naming it and ``what`` it is not."""
+    with np.load(Path(path)) as z:
+        missing = [f.name for f in fields(cls) if f.name not in z.files]
+        if missing:
+            raise ValueError(f"{path}: not {what} (missing {', '.join(missing)})")
+        return cls(**{f.name: z[f.name] for f in fields(cls)})
+
+
 @dataclass
 class Samples:
     """Samples of one split. Instance i owns candidates ``cand_offsets[i]:cand_offsets[i + 1]`` and feature rows
@@ -110,15 +124,11 @@ class Samples:
         return out
 
     def save(self, path: str | Path) -> None:
-        np.savez_compressed(Path(path), **{f.name: getattr(self, f.name) for f in fields(self)})
+        save_arrays(self, path)
 
     @classmethod
     def load(cls, path: str | Path) -> Samples:
-        with np.load(Path(path)) as z:
-            missing = [f.name for f in fields(cls) if f.name not in z.files]
-            if missing:
-                raise ValueError(f"{path}: not an intent sample file (missing {', '.join(missing)})")
-            return cls(**{f.name: z[f.name] for f in fields(cls)})
+        return load_arrays(cls, path, "an intent sample file")
 
     @classmethod
     def concat(cls, parts: Sequence[Samples], size_px: int = 100) -> Samples:

@@ -69,7 +69,9 @@ from avp_perception.training.dataset import (
     DataSpec,
     TrainingWorld,
     _generator,
+    load_arrays,
     run_episode,
+    save_arrays,
 )
 from avp_perception.training.lots import load_dlp_lot, random_lot
 from avp_perception.training.traffic import PARK, TrafficParams
@@ -117,15 +119,11 @@ class TrajSamples:
         return len(self.episode)
 
     def save(self, path: str | Path) -> None:
-        np.savez_compressed(Path(path), **{f.name: getattr(self, f.name) for f in fields(self)})
+        save_arrays(self, path)
 
     @classmethod
     def load(cls, path: str | Path) -> TrajSamples:
-        with np.load(Path(path)) as z:
-            missing = [f.name for f in fields(cls) if f.name not in z.files]
-            if missing:
-                raise ValueError(f"{path}: not a trajectory sample file (missing {', '.join(missing)})")
-            return cls(**{f.name: z[f.name] for f in fields(cls)})
+        return load_arrays(cls, path, "a trajectory sample file")
 
     @classmethod
     def concat(cls, parts: list[TrajSamples]) -> TrajSamples:
