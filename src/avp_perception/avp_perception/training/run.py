@@ -90,6 +90,44 @@ def cached_split(prog: str, name: str, n: int, spec, args, data_dir: Path, gener
     return s, dt
 
 
+SPLITS = ("train", "val", "test", "paper")
+
+
+def start_run(prog: str, args: argparse.Namespace, scales: dict, default_weights: Path, file_name: str, base_config,
+              log):
+    """The common head of ``avp train-intent`` / ``avp train-trajectory``: ``scales[args.scale]``'s episodes per split
+    ({split: n}), OUT and OUT/data, where the weights go (``--weights``, else ``default_weights`` for ``--scale
+    full``, else OUT/``file_name``) and ``base_config`` with ``--seed``, ``--threads`` and ``--epochs``."""
+    *sizes, epochs = scales[args.scale]
+    episodes = dict(zip(SPLITS, sizes, strict=True))
+    out = Path(args.out)
+    data_dir = out / "data"
+    data_dir.mkdir(parents=True, exist_ok=True)
+    weights = Path(args.weights) if args.weights else (default_weights if args.scale == "full" else out / file_name)
+    config = replace(base_config, seed=args.seed, threads=args.threads,
+                     epochs=args.epochs if args.epochs is not None else epochs)
+    log(f"[{prog}] scale {args.scale}: episodes "
+        + ", ".join(f"{k} {n}" for k, n in episodes.items())
+        + f"; {args.workers} workers, {args.threads} torch threads; load average {os.getloadavg()[0]:.2f}")
+    return episodes, out, data_dir, weights, config
+
+
+def load_splits(prog: str, episodes: dict[str, int], spec, args, data_dir: Path, generate, load, log):
+    """Every split by :func:`cached_split`; returns ({split: samples}, {"data_<split>_s": seconds})."""
+    sets, timings = {}, {}
+    for name, n in episodes.items():
+        sets[name], timings[f"data_{name}_s"] = cached_split(prog, name, n, spec, args, data_dir, generate, load, log)
+    return sets, timings
+
+
+def save_weights(save, model, weights: Path, out: Path, file_name: str) -> None:
+    """``save(model, path)`` to ``weights`` and, when that is elsewhere, to OUT/``file_name`` too."""
+    weights.parent.mkdir(parents=True, exist_ok=True)
+    save(model, weights)
+    if weights.resolve() != (out / file_name).resolve():
+        save(model, out / file_name)
+
+
 def card_provenance(prog: str, model, weights: Path, scale: str) -> dict:
     """The model card fields every training command records: size, command line, commit, scale."""
     return {
@@ -134,22 +172,10 @@ def cmd_train_intent(args: argparse.Namespace) -> int:
         print(msg, flush=True)
 
     t_start = time.monotonic()
-    n_train, n_val, n_test, n_paper, epochs = SCALES[args.scale]
-    out = Path(args.out)
-    data_dir = out / "data"
-    data_dir.mkdir(parents=True, exist_ok=True)
-    weights = Path(args.weights) if args.weights else (
-        default_weights_path() if args.scale == "full" else out / "intent_cnn.pt")
+    episodes, out, data_dir, weights, config = start_run("train-intent", args, SCALES, default_weights_path(),
+                                                         "intent_cnn.pt", TrainConfig(), log)
     spec = DataSpec()
-    config = replace(TrainConfig(), seed=args.seed, threads=args.threads,
-                     epochs=args.epochs if args.epochs is not None else epochs)
-    log(f"[train-intent] scale {args.scale}: episodes train {n_train}, val {n_val}, test {n_test}, paper {n_paper}; "
-        f"{args.workers} workers, {args.threads} torch threads; load average {os.getloadavg()[0]:.2f}")
-    timings: dict[str, float] = {}
-    sets = {}
-    for name, n in (("train", n_train), ("val", n_val), ("test", n_test), ("paper", n_paper)):
-        sets[name], timings[f"data_{name}_s"] = cached_split("train-intent", name, n, spec, args, data_dir,
-                                                             generate_split, Samples.load, log)
+    sets, timings = load_splits("train-intent", episodes, spec, args, data_dir, generate_split, Samples.load, log)
     t0 = time.monotonic()
     model, history = train(sets["train"], sets["val"], config, progress=not args.quiet, log=log)
     timings["train_s"] = time.monotonic() - t0
@@ -158,17 +184,14 @@ def cmd_train_intent(args: argparse.Namespace) -> int:
                for name in ("test", "paper", "val")}
     timings["eval_s"] = time.monotonic() - t0
     timings["total_s"] = time.monotonic() - t_start
-    weights.parent.mkdir(parents=True, exist_ok=True)
-    torch.save(model.state_dict(), weights)
-    if weights.resolve() != (out / "intent_cnn.pt").resolve():
-        torch.save(model.state_dict(), out / "intent_cnn.pt")
+    save_weights(lambda m, path: torch.save(m.state_dict(), path), model, weights, out, "intent_cnn.pt")
     card = {
         "model": "SmallRegularizedCNN (ParkPredict+), 100 x 100 px BEV at 0.4 m/px, 5 features",
         **card_provenance("train-intent", model, weights, args.scale),
         "data": {name: {"episodes": n, "samples": len(sets[name]),
                         "mean_options": float(sets[name].n_candidates.mean() + 1) if len(sets[name]) else 0.0,
                         "none_share": float((sets[name].labels == 0).mean()) if len(sets[name]) else 0.0}
-                 for name, n in (("train", n_train), ("val", n_val), ("test", n_test), ("paper", n_paper))},
+                 for name, n in episodes.items()},
         "data_spec": {k: (v if not hasattr(v, "__dataclass_fields__") else asdict(v)) for k, v in asdict(spec).items()},
         "train_config": asdict(config),
         "history": history,

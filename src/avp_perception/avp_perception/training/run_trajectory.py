@@ -10,10 +10,8 @@ and library versions => the same weights. Model card: docs/trajectory_model.md.
 from __future__ import annotations
 
 import argparse
-import os
 import time
-from dataclasses import asdict, replace
-from pathlib import Path
+from dataclasses import asdict
 
 SCALES = {
     # episodes per split: train, val, test, paper; epochs
@@ -42,7 +40,15 @@ def cmd_train_trajectory(args: argparse.Namespace) -> int:
     import torch
 
     from avp_perception.core.learned_prediction import default_weights_path, save_model
-    from avp_perception.training.run import cached_split, card_machine, card_provenance, log_wall_time, write_card
+    from avp_perception.training.run import (
+        card_machine,
+        card_provenance,
+        load_splits,
+        log_wall_time,
+        save_weights,
+        start_run,
+        write_card,
+    )
     from avp_perception.training.trajectory import (
         TRAJ_SEED0,
         TrajDataSpec,
@@ -57,23 +63,11 @@ def cmd_train_trajectory(args: argparse.Namespace) -> int:
         print(msg, flush=True)
 
     t_start = time.monotonic()
-    n_train, n_val, n_test, n_paper, epochs = SCALES[args.scale]
-    out = Path(args.out)
-    data_dir = out / "data"
-    data_dir.mkdir(parents=True, exist_ok=True)
-    weights = Path(args.weights) if args.weights else (
-        default_weights_path() if args.scale == "full" else out / "trajectory_transformer.pt")
+    episodes, out, data_dir, weights, config = start_run("train-trajectory", args, SCALES, default_weights_path(),
+                                                         "trajectory_transformer.pt", TrajTrainConfig(), log)
     spec = TrajDataSpec()
-    config = replace(TrajTrainConfig(), seed=args.seed, threads=args.threads,
-                     epochs=args.epochs if args.epochs is not None else epochs)
     torch.set_num_threads(args.threads)
-    log(f"[train-trajectory] scale {args.scale}: episodes train {n_train}, val {n_val}, test {n_test}, paper "
-        f"{n_paper}; {args.workers} workers, {args.threads} torch threads; load average {os.getloadavg()[0]:.2f}")
-    timings: dict[str, float] = {}
-    sets = {}
-    for name, n in (("train", n_train), ("val", n_val), ("test", n_test), ("paper", n_paper)):
-        sets[name], timings[f"data_{name}_s"] = cached_split("train-trajectory", name, n, spec, args, data_dir,
-                                                             generate, TrajSamples.load, log)
+    sets, timings = load_splits("train-trajectory", episodes, spec, args, data_dir, generate, TrajSamples.load, log)
     t0 = time.monotonic()
     model, history = train(sets["train"], sets["val"], config, progress=not args.quiet, log=log)
     timings["train_s"] = time.monotonic() - t0
@@ -82,19 +76,15 @@ def cmd_train_trajectory(args: argparse.Namespace) -> int:
     metrics = {name: evaluate(model, sets[name]) for name in ("test", "paper")}
     timings["eval_s"] = time.monotonic() - t0
     timings["total_s"] = time.monotonic() - t_start
-    weights.parent.mkdir(parents=True, exist_ok=True)
-    save_model(model, weights)
-    if weights.resolve() != (out / "trajectory_transformer.pt").resolve():
-        save_model(model, out / "trajectory_transformer.pt")
+    save_weights(save_model, model, weights, out, "trajectory_transformer.pt")
     card = {
         "model": "TrajectoryTransformer (ParkPredict+ decoder with intent cross-attention), 0.4 s step, "
                  "10 history / 10 future poses, 100 x 100 px BEV",
         **card_provenance("train-trajectory", model, weights, args.scale),
-        "seeds": {name: [TRAJ_SEED0[name], TRAJ_SEED0[name] + n - 1] for name, n in
-                  (("train", n_train), ("val", n_val), ("test", n_test), ("paper", n_paper))},
+        "seeds": {name: [TRAJ_SEED0[name], TRAJ_SEED0[name] + n - 1] for name, n in episodes.items()},
         "data": {name: {"episodes": n, "samples": len(sets[name]),
                         "goal_kinds": np.bincount(sets[name].goal_kind, minlength=3).tolist()}
-                 for name, n in (("train", n_train), ("val", n_val), ("test", n_test), ("paper", n_paper))},
+                 for name, n in episodes.items()},
         "data_spec": repr(spec),
         "train_config": asdict(config),
         "history": history,
