@@ -237,12 +237,13 @@ class EgoPlanner:
             poses.append(extra[:, :3])
             dims.append(extra[:, 3:5])
         poses_a, dims_a = np.concatenate(poses), np.concatenate(dims)
-        key = (float(obs.ego_length), float(obs.ego_width), np.round(poses_a, 6).tobytes(),
-               np.round(dims_a, 6).tobytes())
+        rp, rd = np.round(poses_a, 6), np.round(dims_a, 6)
+        key = (float(obs.ego_length), float(obs.ego_width), rp.tobytes(), rd.tobytes())
+        build = key
         if stat:  # build from the spots, the vehicles not inside them, and extra
             keep = np.r_[np.ones(len(occ), bool), kept, np.ones(len(poses_a) - len(occ) - len(stat), bool)]
             poses_a, dims_a = poses_a[keep], dims_a[keep]
-        build = (key[0], key[1], np.round(poses_a, 6).tobytes(), np.round(dims_a, 6).tobytes())
+            build = (key[0], key[1], rp[keep].tobytes(), rd[keep].tobytes())
         world = self._world_cache.get(build) if extra is None else None
         if world is None:
             world = StaticWorld(self.lot, poses_a, dims_a, obs.ego_length, obs.ego_width, self.settings.collision)
