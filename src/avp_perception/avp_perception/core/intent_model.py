@@ -380,10 +380,6 @@ class IntentPredictor:
         veh = np.repeat(np.arange(len(bevs)), counts - 1)
         cand = np.concatenate([np.arange(c - 1) for c in counts])
         rows = np.concatenate([[0], np.cumsum(counts)[:-1]])[veh] + 1 + cand  # row of each candidate in ``full``
-        keep = boxes[:, 1] >= boxes[:, 0]  # an unchanged image keeps I_k,0's features
-        boxes, veh, cand, rows = boxes[keep], veh[keep], cand[keep], rows[keep]
-        if len(boxes) == 0:
-            return torch.from_numpy(full)
 
         def cells(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             # output cells i whose input window [stride i, stride i + field - 1] meets pixels lo..hi
@@ -391,12 +387,12 @@ class IntentPredictor:
 
         ra, rb = cells(boxes[:, 0], boxes[:, 1])
         ca, cb = cells(boxes[:, 2], boxes[:, 3])
-        meets = (ra <= rb) & (ca <= cb)  # a box in the last rows / cols that no output reads keeps I_k,0's features
-        if not meets.all():
-            boxes, veh, cand, rows = boxes[meets], veh[meets], cand[meets], rows[meets]
-            ra, rb, ca, cb = ra[meets], rb[meets], ca[meets], cb[meets]
-            if len(boxes) == 0:
-                return torch.from_numpy(full)
+        # I_k,0's features stay where the image is unchanged or marked only in rows / cols no output reads
+        keep = (boxes[:, 1] >= boxes[:, 0]) & (ra <= rb) & (ca <= cb)
+        if not keep.any():
+            return torch.from_numpy(full)
+        boxes, veh, cand, rows = boxes[keep], veh[keep], cand[keep], rows[keep]
+        ra, rb, ca, cb = ra[keep], rb[keep], ca[keep], cb[keep]
         nr, nc = int((rb - ra).max()) + 1, int((cb - ca).max()) + 1  # one patch size for the whole batch
         py, px = np.minimum(ra, n_out - nr) * stride, np.minimum(ca, n_out - nc) * stride
         hr, hc = stride * (nr - 1) + field - m, stride * (nc - 1) + field - m  # conv1-output patch size
