@@ -4,17 +4,20 @@ Every car is a :class:`~avp_sim.core.scenario.VehicleAgent` (initial state + con
 :class:`~avp_sim.core.world.World` simulates it (reactive braking for the ego included, §III-B). Kinds:
 
 * **parkers** wait 12 m outside the entrance (outside the lot: rays stop at its boundary, §III-A, so the
-  ego never sees them), drive in at 2 m/s and then cruise (speed ~ U[1.8, 3.5] m/s) along the right-hand
-  lanes (:mod:`.lanes`), exploring: at every node they pick a next lane (no U-turns, no dead ends), less
-  likely one driven before, more likely one along which spots are free. Passing a free, unreserved spot they
-  take it with probability 1 - (1 - p) exp(-tau / 60 s) (p ~ U[0.3, 0.85] per driver, tau: time spent
-  searching; x 0.7 for spots across the aisle), so drivers skip spots at random, take spots near the
-  entrance more often and become less picky with time. A taken spot is parked in with one of ParkSim's 8
-  maneuvers (:mod:`avp_sim.core.maneuvers`): the side (near/far) follows from the spot's side of the lane,
-  stop before (60 %) or after the spot, head-in or tail-in (50 %); having picked it the driver slows to
-  U[1.2, 2] m/s over the last U[5, 12] m, stops at the maneuver's start pose on its lane, waits U[0, 1.5] s
-  and runs the maneuver. Label: that spot. A driver who has searched
-  U[150, 400] m without taking a spot drives to the exit ("wanderer", label none).
+  ego never sees them), drive in at 2 m/s and then cruise (speed ~ U[2, 4] m/s; ParkSim cruises at 5 m/s)
+  along the right-hand lanes (:mod:`.lanes`). Most are **goal-directed**, as ParkSim's task-based drivers
+  (reference sheet §3.3): at the entrance a driver picks a spot among those free at its estimated arrival,
+  with weight exp(-d / L) over the route length d (L ~ U[15, 60] m per driver: drivers prefer near spots,
+  x 0.7 for spots across the aisle), and drives the shortest lane route to it. A share ``p_explore`` = 0.15
+  **explore** instead: at every node they pick a next lane (no U-turns, no dead ends), less likely one driven
+  before, more likely one along which spots are free; passing a free, unreserved spot they take it with
+  probability 1 - (1 - p) exp(-tau / 60 s) (p ~ U[0.3, 0.85] per driver, tau: time spent searching; x 0.7
+  across the aisle). A taken spot is parked in with one of ParkSim's 8 maneuvers
+  (:mod:`avp_sim.core.maneuvers`): the side (near/far) follows from the spot's side of the lane, stop before
+  (80 %: ParkSim overshoots only near the ends of rows) or after the spot, head-in or tail-in (50 %); the
+  driver slows to U[0.8, 1.5] m/s (ParkSim: v_end = 1 m/s) over the last U[6, 12] m, stops at the
+  maneuver's start pose on its lane, waits U[0, 1.5] s and runs the maneuver. Label: that spot. An explorer
+  who has searched U[150, 400] m without taking a spot drives to the exit ("wanderer", label none).
 * **leavers** sit in an occupied spot, unpark at a random time (a maneuver played backwards, ParkSim's
   unparking) and drive the shortest way out (label none).
 * the other occupied spots hold parked cars (random facing, as the §VI-A generator).
@@ -62,16 +65,18 @@ class TrafficParams:
     arrival_gap: tuple[float, float] = (4.0, 12.0)  # mean gap between arrivals, drawn per episode
     departure_gap: tuple[float, float] = (10.0, 30.0)
     min_arrival_gap: float = 3.0
-    cruise_speed: tuple[float, float] = (1.8, 3.5)
+    cruise_speed: tuple[float, float] = (2.0, 4.0)  # ParkSim cruises at up to 5 m/s (reference sheet §3.1)
     approach_speed: float = 2.0
+    p_explore: float = 0.15  # share of parkers who search (the rest drive to a spot chosen at the entrance)
+    preference_length: tuple[float, float] = (15.0, 60.0)  # goal choice: weight exp(-route length / L), L per driver
     p_take: tuple[float, float] = (0.3, 0.85)
     patience: float = 60.0
     far_factor: float = 0.7
     give_up: tuple[float, float] = (150.0, 400.0)
-    p_stop_before: float = 0.6
+    p_stop_before: float = 0.8  # ParkSim overshoots ('after') only near the ends of rows
     p_head_in: float = 0.5
-    slow_distance: tuple[float, float] = (5.0, 12.0)  # a parker rolls the last metres to its maneuver start ...
-    slow_speed: tuple[float, float] = (1.2, 2.0)  # ... at this speed
+    slow_distance: tuple[float, float] = (6.0, 12.0)  # a parker rolls the last metres to its maneuver start ...
+    slow_speed: tuple[float, float] = (0.8, 1.5)  # ... at this speed (ParkSim: v_end = 1 m/s, sheet §3.1)
     pause: tuple[float, float] = (0.0, 1.5)
     queue_distance: float = 12.0
     exit_distance: float = 15.0
@@ -201,6 +206,13 @@ class TrafficGenerator:
         for lane, items in self.graph.spot_lanes.items():
             for row, t, side in items:
                 self.spot_lanes.setdefault(row, []).append((lane, t, side))
+        self.entry_dist: dict[int, float] = {}  # lane -> length of the shortest route from the entrance to its start
+        for lane in self.graph.spot_lanes:
+            try:
+                seq = self.graph.shortest(self.graph.entry, lane)
+            except ValueError:
+                continue
+            self.entry_dist[lane] = float(sum(self.graph.lanes[ln].length for ln in seq[:-1]))
 
     # ------------------------------------------------------------------ helpers
     def _time(self, k: int) -> float:
@@ -241,6 +253,68 @@ class TrafficGenerator:
     # ------------------------------------------------------------------ parkers and wanderers
     def _parker(self, rng: np.random.Generator, k0: int, free_from: np.ndarray, reserved: np.ndarray
                 ) -> AgentPlan | None:
+        """A car from the queue: goal-directed (1 - ``p_explore``, ParkSim's task-based drivers) or exploring."""
+        if rng.random() < self.p.p_explore:
+            return self._explorer(rng, k0, free_from, reserved)
+        return self._goal_parker(rng, k0, free_from, reserved)
+
+    def _maneuver_on_lane(self, rng: np.random.Generator, row: int, side: str, lane: int, t_in: float,
+                          brake_d: float) -> tuple | None:
+        """(row, key, world maneuver, t_s) for parking in ``row`` from ``lane`` joined at ``t_in``: stop before
+        (``p_stop_before``) or after the spot, head-in or tail-in (``p_head_in``), the other options as fall-backs;
+        the maneuver must start at least ``brake_d`` into the lane. None if no option fits."""
+        p, cur = self.p, self.graph.lanes[lane]
+        stops = ["before", "after"] if rng.random() < p.p_stop_before else ["after", "before"]
+        entries = ["head_in", "tail_in"] if rng.random() < p.p_head_in else ["tail_in", "head_in"]
+        for stop in stops:
+            for entry in entries:
+                key = ManeuverKey(side, stop, entry)
+                man = self.lib.world(row, key, p.dt)
+                if man is None:
+                    continue
+                t_s = float((man[0][:2] - cur.a) @ cur.d)
+                if t_in + brake_d <= t_s <= cur.length + 1.0:
+                    return row, key, man, t_s
+        return None
+
+    def _goal_parker(self, rng: np.random.Generator, k0: int, free_from: np.ndarray, reserved: np.ndarray
+                     ) -> AgentPlan | None:
+        """ParkSim's task-based driver (reference sheet §3.3): a spot chosen at the entrance among those free at
+        the estimated arrival (weight exp(-d / L) over the route length d, L ~ ``preference_length`` per
+        driver, x ``far_factor`` across the aisle), the shortest lane route to it, then the maneuver."""
+        p, g = self.p, self.graph
+        v_c = float(rng.uniform(*p.cruise_speed))
+        pref = float(rng.uniform(*p.preference_length))
+        t0 = self._time(k0) + p.queue_distance / p.approach_speed
+        brake_d = v_c**2 / (2.0 * A_DEC) + 0.5
+        options, weights = [], []
+        for row, items in self.spot_lanes.items():
+            for lane, t_k, side in items:
+                if lane not in self.entry_dist:
+                    continue
+                d = self.entry_dist[lane] + t_k
+                if not self._available(row, t0 + d / (0.8 * v_c), free_from, reserved):
+                    continue
+                options.append((row, lane, side))
+                weights.append(math.exp(-d / pref) * (p.far_factor if side == "far" else 1.0))
+        if not options:
+            self.why["no_free_spot"] += 1
+            return None
+        w = np.asarray(weights)
+        for i in rng.choice(len(options), size=min(3, len(options)), replace=False, p=w / w.sum()):
+            row, lane, side = options[int(i)]
+            lanes = g.shortest(g.entry, lane)
+            t_in = g.turns[(lanes[-2], lane)].t2 if len(lanes) > 1 else 0.0
+            chosen = self._maneuver_on_lane(rng, row, side, lane, t_in, brake_d)
+            if chosen is not None:
+                return self._park_plan(rng, k0, lanes, chosen, v_c)
+        self.why["goal_maneuver"] += 1
+        return None
+
+    def _explorer(self, rng: np.random.Generator, k0: int, free_from: np.ndarray, reserved: np.ndarray
+                  ) -> AgentPlan | None:
+        """An exploring driver (module docstring): takes a passed free spot with a growing probability or gives
+        up and leaves (a wanderer)."""
         p, g = self.p, self.graph
         v_c = float(rng.uniform(*p.cruise_speed))
         p_driver = float(rng.uniform(*p.p_take))
@@ -267,20 +341,7 @@ class TrafficGenerator:
                         prob *= p.far_factor
                     if rng.random() >= prob:
                         continue
-                    stops = ["before", "after"] if rng.random() < p.p_stop_before else ["after", "before"]
-                    entries = ["head_in", "tail_in"] if rng.random() < p.p_head_in else ["tail_in", "head_in"]
-                    for stop in stops:
-                        for entry in entries:
-                            key = ManeuverKey(side, stop, entry)
-                            man = self.lib.world(row, key, p.dt)
-                            if man is None:
-                                continue
-                            t_s = float((man[0][:2] - cur.a) @ cur.d)
-                            if t_in + brake_d <= t_s <= cur.length + 1.0:
-                                chosen = (row, key, man, t_s)
-                                break
-                        if chosen:
-                            break
+                    chosen = self._maneuver_on_lane(rng, row, side, cur.id, t_in, brake_d)
                     if chosen:
                         break
             if chosen:
@@ -302,23 +363,34 @@ class TrafficGenerator:
             t_in = g.turns[(cur.id, nxt)].t2
             lanes.append(nxt)
             visits[nxt] = visits.get(nxt, 0) + 1
-        caps = {g.entry: p.approach_speed}
-        queue = np.asarray(g.lanes[g.entry].point(-p.queue_distance))
-        start = np.array([queue[0], queue[1], g.lanes[g.entry].heading])
-        if chosen is None:  # wanderer: leave by the shortest way
-            lanes = lanes[:-1] + g.shortest(lanes[-1], g.exit)
-            try:
-                s, pieces = g.route_pieces(lanes, -p.queue_distance, g.lanes[g.exit].length + p.exit_distance, v_c,
-                                           caps)
-            except (ValueError, KeyError):
-                self.why["wander_route"] += 1
-                return None
-            u, _ = follow(Path.build(s, pieces), start, p.dt, self.vehicle)
-            u_full, x_full = self._pad(k0, start, u)
-            return AgentPlan(WANDER, -1, "", x_full, u_full, _moving(x_full))
-        row, key, man, t_s = chosen
+        if chosen is not None:
+            return self._park_plan(rng, k0, lanes, chosen, v_c)
+        start = self._queue_start()
+        lanes = lanes[:-1] + g.shortest(lanes[-1], g.exit)  # a wanderer: leave by the shortest way
         try:
-            s, pieces = g.route_pieces(lanes, -p.queue_distance, t_s, v_c, caps)
+            s, pieces = g.route_pieces(lanes, -p.queue_distance, g.lanes[g.exit].length + p.exit_distance, v_c,
+                                       {g.entry: p.approach_speed})
+        except (ValueError, KeyError):
+            self.why["wander_route"] += 1
+            return None
+        u, _ = follow(Path.build(s, pieces), start, p.dt, self.vehicle)
+        u_full, x_full = self._pad(k0, start, u)
+        return AgentPlan(WANDER, -1, "", x_full, u_full, _moving(x_full))
+
+    def _queue_start(self) -> np.ndarray:
+        entry = self.graph.lanes[self.graph.entry]
+        queue = np.asarray(entry.point(-self.p.queue_distance))
+        return np.array([queue[0], queue[1], entry.heading])
+
+    def _park_plan(self, rng: np.random.Generator, k0: int, lanes: list[int], chosen: tuple, v_c: float
+                   ) -> AgentPlan | None:
+        """From the queue along ``lanes`` at ``v_c``, slowing to U[slow_speed] over the last U[slow_distance] m,
+        to the maneuver start; a pause, then the maneuver ``chosen`` = (row, key, world maneuver, t_s)."""
+        p, g = self.p, self.graph
+        row, key, man, t_s = chosen
+        start = self._queue_start()
+        try:
+            s, pieces = g.route_pieces(lanes, -p.queue_distance, t_s, v_c, {g.entry: p.approach_speed})
         except ValueError:
             self.why["park_route"] += 1
             return None
