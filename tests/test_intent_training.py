@@ -27,7 +27,7 @@ from avp_perception.training.dataset import (
 )
 from avp_perception.training.lanes import Path, follow
 from avp_perception.training.lots import load_dlp_lot, random_lot, spot_aisles
-from avp_perception.training.traffic import PARK, TrafficGenerator
+from avp_perception.training.traffic import PARK, WANDER, TrafficGenerator, TrafficParams
 from avp_perception.training.train import (
     TrainConfig,
     baseline_scores,
@@ -161,6 +161,41 @@ def test_traffic_cars_end_in_their_labelled_spots_without_colliding():
             if done:
                 assert not polygon_contains_points(lot.boundary, states[-1, j, :2])  # it left the lot
     assert finished >= 3
+
+
+def test_goal_directed_parkers_take_the_shortest_route_prefer_near_spots_and_slow_down():
+    """ParkSim's task-based drivers (reference sheet §3.3): the spot is chosen at the entrance, the car drives the
+    shortest lane route to it at cruise speed and rolls the last metres slowly; with p_explore = 0 nobody
+    wanders. Oracles: the lane graph's own Dijkstra lengths and speeds measured from the states."""
+    lot = load_dlp_lot()
+    params = TrafficParams(p_explore=0.0, preference_length=(8.0, 8.0))
+    gen = TrafficGenerator(lot, params)
+    n = lot.n_spots
+    rng = np.random.default_rng(7)
+    excess, uniform_excess = [], []
+    for _ in range(12):
+        free_from = np.where(rng.random(n) < 0.7, np.inf, -np.inf)
+        for _ in range(params.tries):  # as generate(): a draw whose maneuvers do not fit is tried again
+            plan = gen._parker(rng, 0, free_from, np.zeros(n, dtype=bool))
+            if plan is not None:
+                break
+        assert plan is not None and plan.kind == PARK and free_from[plan.spot_row] < 0  # a free spot
+        # route length to the chosen spot vs the nearest free spot (by the lane graph's Dijkstra)
+        d = {row: min(gen.entry_dist[lane] + t for lane, t, _ in items if lane in gen.entry_dist)
+             for row, items in gen.spot_lanes.items() if free_from[row] < 0}
+        excess.append(d[plan.spot_row] - min(d.values()))
+        uniform_excess.append(np.mean(list(d.values())) - min(d.values()))  # a spot drawn uniformly
+        # speeds along the drive: up to cruise speed, then at most slow_speed over the last slow_distance
+        x = plan.states[:plan.drive_end + 1]
+        v = np.hypot(*np.diff(x[:, :2], axis=0).T) / params.dt
+        s_left = np.cumsum(v[::-1] * params.dt)[::-1]  # distance still to drive from each step
+        assert v.max() >= params.approach_speed - 1e-6
+        assert (v[s_left < params.slow_distance[0] - 0.5] <= params.slow_speed[1] + 0.05).all()
+        assert v[-1] < 0.2  # stopped at the maneuver's start
+    # L = 8 m: a spot 8 m further along the route is e times less likely: far nearer than a uniform choice
+    assert np.mean(excess) < 0.3 * np.mean(uniform_excess), (excess, uniform_excess)
+    tr = gen.generate(3)
+    assert tr.stats[WANDER] == 0 and tr.stats[PARK] >= 3
 
 
 # ------------------------------------------------------------------------------------------ samples
