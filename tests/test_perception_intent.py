@@ -266,3 +266,24 @@ def test_vehicle_without_candidates_keeps_all_mass_on_none():
             assert len(it.spot_ids) == 0 and it.none_probability == pytest.approx(1.0)
             assert it.exploration_probabilities.sum() == pytest.approx(1.0)
     assert IntentPredictor(LOT).predict_all(obs, [], b) == []
+
+
+def test_the_head_lets_shared_features_change_the_ranking():
+    """v_hat, d_ent and t_lot are the same in every option of a vehicle: with ParkPredict+'s affine head they add
+    one constant to every logit and could never change which option ranks first (module docstring). With the
+    head's LeakyReLU the gap between a spot and "none" must depend on the speed."""
+    torch.manual_seed(3)
+    model = SmallRegularizedCNN(100).eval()
+    with torch.no_grad():
+        for m in model.modules():  # non-trivial BatchNorm statistics, as after training
+            if isinstance(m, torch.nn.BatchNorm1d):
+                m.running_mean.uniform_(-1.0, 1.0)
+                m.running_var.uniform_(0.5, 2.0)
+    images = torch.rand(2, 3, 100, 100)
+    gaps = []
+    for speed in (0.5, 1.5, 3.0):
+        f = torch.tensor([[0.0, 0.0, speed, 20.0, 0.3], [0.9, 6.0, speed, 20.0, 0.3]])
+        with torch.no_grad():
+            z = model(images, f)
+        gaps.append(float(z[1] - z[0]))
+    assert max(gaps) - min(gaps) > 1e-3, gaps

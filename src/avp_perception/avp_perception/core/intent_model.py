@@ -15,9 +15,16 @@ pixel->ground transform here (sheet §1.3), which is not copied; t_lot: time in 
 
 Network (sheet §1.4), adapted to the input size: 3 blocks Conv(k=7, 5, 3; 3->8->8->3 channels, no padding)
 -> BatchNorm2d -> Dropout(0.2) -> LeakyReLU(0.01) -> MaxPool2d(2); flatten || 5 features -> Linear(100) ->
-BatchNorm1d -> Dropout(0.2) (no activation) -> Linear(1): one logit per candidate. A 100 px input gives
+BatchNorm1d -> Dropout(0.2) -> LeakyReLU(0.01) -> Linear(1): one logit per candidate. A 100 px input gives
 3 x 9 x 9 = 243 image features (400 px: 6627 as ParkPredict+). Probabilities (sheet §1.5): sigmoid of each
 logit, divided by their sum over the candidates of V_k (not a softmax).
+
+**The head's activation is ours.** ParkPredict+ has it commented out (sheet §1.4), which makes the head affine:
+logit_i = a . conv(I_k,i) + c . [cos_k,i, d_k,i] + e . [v_hat_k, d_ent, t_lot] + b. The last three features are
+the same for every option of V_k, so their term is the same constant in every logit and cancels from every
+comparison: the ranking (top-k ranks the logits) can never depend on the car's speed, its distance to the
+entrance or its time in the lot — "slowing down next to a free spot" and "cruising past it" rank alike. With
+the LeakyReLU they interact with the per-option inputs (docs/intent_model.md measures the difference).
 
 Inference (all three ``mode``s compute the same logits; tests compare them):
 
@@ -81,7 +88,10 @@ def receptive_field() -> tuple[int, int]:
 
 def _block(c_in: int, c_out: int, k: int, dropout: float) -> nn.Sequential:
     return nn.Sequential(nn.Conv2d(c_in, c_out, k), nn.BatchNorm2d(c_out), nn.Dropout(dropout),
-                         nn.LeakyReLU(0.01), nn.MaxPool2d(2))
+                         nn.LeakyReLU(SLOPE), nn.MaxPool2d(2))
+
+
+SLOPE = 0.01  # LeakyReLU slope of the conv blocks and the head
 
 
 class SmallRegularizedCNN(nn.Module):
@@ -95,7 +105,7 @@ class SmallRegularizedCNN(nn.Module):
         self.conv = nn.Sequential(*[_block(CHANNELS[i], CHANNELS[i + 1], KERNELS[i], dropout) for i in range(3)])
         n_flat = CHANNELS[-1] * self.out_size**2
         self.fc = nn.Sequential(nn.Linear(n_flat + n_features, hidden), nn.BatchNorm1d(hidden), nn.Dropout(dropout),
-                                nn.Linear(hidden, 1))
+                                nn.LeakyReLU(SLOPE), nn.Linear(hidden, 1))  # the activation: module docstring
 
     def encode(self, images: torch.Tensor) -> torch.Tensor:
         """(B, 3, H, W) -> (B, 3, h, w) conv features."""
@@ -167,7 +177,7 @@ class FusedIntentNet:
     def __init__(self, model: SmallRegularizedCNN):
         model = model.eval()
         self.out_size = model.out_size
-        self.slope = 0.01
+        self.slope = SLOPE
         self.convs: list[tuple[torch.Tensor, torch.Tensor]] = []
         with torch.no_grad():
             for block in model.conv:
@@ -176,7 +186,7 @@ class FusedIntentNet:
                 w = (conv.weight * scale[:, None, None, None]).contiguous(memory_format=torch.channels_last)
                 b = (conv.bias - bn.running_mean) * scale + bn.bias
                 self.convs.append((w.detach().clone(), b.detach().clone()))
-            fc1, bn1, fc2 = model.fc[0], model.fc[1], model.fc[3]
+            fc1, bn1, fc2 = model.fc[0], model.fc[1], model.fc[4]
             scale = bn1.weight / torch.sqrt(bn1.running_var + bn1.eps)
             self.w1 = (fc1.weight * scale[:, None]).detach().clone()
             self.b1 = ((fc1.bias - bn1.running_mean) * scale + bn1.bias).detach().clone()
@@ -209,6 +219,7 @@ class FusedIntentNet:
 
     def head(self, encoded: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
         h = torch.nn.functional.linear(torch.cat([encoded.flatten(1), features], dim=1), self.w1, self.b1)
+        h = torch.nn.functional.leaky_relu(h, self.slope)
         return torch.nn.functional.linear(h, self.w2, self.b2).squeeze(1)
 
     def __call__(self, images: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
