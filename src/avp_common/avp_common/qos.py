@@ -8,6 +8,11 @@ LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=Relia
 #: Per-step data in lock-step (observations, beliefs, predictions, commands): every message matters.
 STEP = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
                   durability=DurabilityPolicy.VOLATILE)
+#: Ground truth (debug/ground_truth), the source of every metric: a monitor or recorder that falls behind for a
+#: while (a loaded machine) must still get every step, so the writer keeps 30 s of them (KEEP_LAST drops unacked
+#: samples once its history is full).
+GROUND_TRUTH = QoSProfile(depth=300, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.VOLATILE)
 #: Debug/visualisation streams: latest only.
 DEBUG = QoSProfile(depth=2, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
                    durability=DurabilityPolicy.VOLATILE)

@@ -29,7 +29,7 @@ from visualization_msgs.msg import MarkerArray
 from avp_common.conversions import lot_to_msg, observation_to_msg, step_to_ns, step_to_time, time_to_ns
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
-from avp_common.qos import DEBUG, LATCHED, STATUS, STEP
+from avp_common.qos import DEBUG, GROUND_TRUTH, LATCHED, STATUS, STEP
 from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation
 from avp_msgs.srv import ResetEpisode
 from avp_sim.core.factory import load_lot_param, make_world, world_config
@@ -52,7 +52,7 @@ class SimNode(Node):
         self.pub_lot = self.create_publisher(type(lot_to_msg(self.lot)), "lot_map", LATCHED)
         self.pub_obs = self.create_publisher(Observation, "observation", STEP)
         self.pub_status = self.create_publisher(EpisodeStatus, "episode_status", STATUS)
-        self.pub_gt = self.create_publisher(GroundTruth, "debug/ground_truth", STEP)
+        self.pub_gt = self.create_publisher(GroundTruth, "debug/ground_truth", GROUND_TRUTH)
         self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", DEBUG)
         self.pub_scan = self.create_publisher(LaserScan, "debug/scan", DEBUG)
         self.pub_clock = self.create_publisher(Clock, "/clock", 10)
