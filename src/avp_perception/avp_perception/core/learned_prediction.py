@@ -56,7 +56,14 @@ from torch import nn
 from avp_perception.core.belief import BELIEF_INIT, BeliefMap
 from avp_perception.core.bev import BEVConfig, BEVRenderer
 from avp_perception.core.ego_trail import EgoTrail
-from avp_perception.core.intent_model import CHANNELS, KERNELS, SmallRegularizedCNN, conv_output_size, images_to_tensor
+from avp_perception.core.intent_model import (
+    CHANNELS,
+    KERNELS,
+    SLOPE,
+    SmallRegularizedCNN,
+    conv_output_size,
+    images_to_tensor,
+)
 from avp_perception.core.intention import Intention
 from avp_perception.core.prediction import (
     BezierPredictor,
@@ -225,7 +232,7 @@ class TrajectoryTransformer(nn.Module):
         super().__init__()
         c = self.config = config
         self.conv = nn.Sequential(*[nn.Sequential(nn.Conv2d(CHANNELS[i], CHANNELS[i + 1], KERNELS[i]),
-                                                  nn.BatchNorm2d(CHANNELS[i + 1]), nn.LeakyReLU(0.01),
+                                                  nn.BatchNorm2d(CHANNELS[i + 1]), nn.LeakyReLU(SLOPE),
                                                   nn.MaxPool2d(2)) for i in range(3)])
         n_img = CHANNELS[-1] * conv_output_size(c.image_size) ** 2
         self.enc_in = nn.Linear(3 + n_img, c.d_model)

@@ -206,12 +206,14 @@ class TrafficGenerator:
         for lane, items in self.graph.spot_lanes.items():
             for row, t, side in items:
                 self.spot_lanes.setdefault(row, []).append((lane, t, side))
-        self.entry_dist: dict[int, float] = {}  # lane -> length of the shortest route from the entrance to its start
+        self.entry_routes: dict[int, list[int]] = {}  # lane with spots -> shortest lane route from the entrance
+        self.entry_dist: dict[int, float] = {}  # ... and its length up to that lane's start
         for lane in self.graph.spot_lanes:
             try:
                 seq = self.graph.shortest(self.graph.entry, lane)
             except ValueError:
                 continue
+            self.entry_routes[lane] = seq
             self.entry_dist[lane] = float(sum(self.graph.lanes[ln].length for ln in seq[:-1]))
 
     # ------------------------------------------------------------------ helpers
@@ -303,7 +305,7 @@ class TrafficGenerator:
         w = np.asarray(weights)
         for i in rng.choice(len(options), size=min(3, len(options)), replace=False, p=w / w.sum()):
             row, lane, side = options[int(i)]
-            lanes = g.shortest(g.entry, lane)
+            lanes = self.entry_routes[lane]
             t_in = g.turns[(lanes[-2], lane)].t2 if len(lanes) > 1 else 0.0
             chosen = self._maneuver_on_lane(rng, row, side, lane, t_in, brake_d)
             if chosen is not None:
