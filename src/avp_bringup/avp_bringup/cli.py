@@ -449,10 +449,10 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("params", help="print parameter tables")
     p.add_argument("node", nargs="?")
     p.set_defaults(func=cmd_params)
-    from avp_perception.training.run import add_gen_arguments, add_train_arguments
+    from avp_perception.training.run import add_gen_arguments, add_intent_arguments
 
     p = sub.add_parser("train-intent", help="train the intent CNN from scratch (docs/intent_model.md)")
-    add_train_arguments(p)
+    add_intent_arguments(p)
     p.set_defaults(func=cmd_train_intent)
     p = sub.add_parser("gen-intent-data", help="generate intent-model samples of one split")
     add_gen_arguments(p)

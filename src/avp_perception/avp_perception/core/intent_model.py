@@ -60,8 +60,12 @@ from avp_perception.core.intention import Intention, split_none_mass
 from avp_world.lot import LotMap
 from avp_world.types import Observation, ObservedVehicle
 
-N_FEATURES = 5
-FEATURE_NAMES = ("cos_to_target", "distance_to_target", "speed", "distance_to_entrance", "time_in_lot_min")
+PARKPREDICT_FEATURES = ("cos_to_target", "distance_to_target", "speed", "distance_to_entrance", "time_in_lot_min")
+SPEED_WINDOWS = 4  # past 1 s windows of the motion features (4 s: the history the observation model gives)
+MOTION_FEATURES = ("sin_to_target", *(f"mean_speed_{j}_{j + 1}s" for j in range(SPEED_WINDOWS)),
+                   "heading_change_2s")
+FEATURE_NAMES = PARKPREDICT_FEATURES + MOTION_FEATURES
+N_FEATURES = len(FEATURE_NAMES)  # 11
 KERNELS = (7, 5, 3)
 CHANNELS = (3, 8, 8, 3)
 
@@ -112,7 +116,7 @@ class SmallRegularizedCNN(nn.Module):
         return self.conv(images)
 
     def head(self, encoded: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
-        """(B, 3, h, w) conv features and (B, 5) features -> (B,) logits."""
+        """(B, 3, h, w) conv features and (B, N_FEATURES) features -> (B,) logits."""
         return self.fc(torch.cat([encoded.flatten(1), features], dim=1)).squeeze(1)
 
     def forward(self, images: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
@@ -126,23 +130,57 @@ def sigmoid_normalise(logits: np.ndarray | torch.Tensor) -> np.ndarray:
     return (s / s.sum()).numpy()
 
 
+def motion_features(history: np.ndarray | None, dt: float, speed: float) -> np.ndarray:
+    """The vehicle's motion over its observed history (our extension of §V-A, module docstring):
+    [mean speed over [t-1, t], [t-2, t-1], [t-3, t-2], [t-4, t-3] s (path length of the history poses in the
+    window / 1 s), heading change over the last 2 s (wrapped, rad)]. Windows the history does not reach repeat
+    the oldest one measured; with fewer than two poses every speed is ``speed`` and the heading change 0."""
+    out = np.full(SPEED_WINDOWS + 1, float(speed))
+    out[-1] = 0.0
+    if history is None or dt <= 0:
+        return out
+    h = np.asarray(history, dtype=float).reshape(-1, 3)
+    if len(h) < 2:
+        return out
+    step = np.hypot(np.diff(h[:, 0]), np.diff(h[:, 1]))[::-1]  # newest first
+    n = max(1, int(round(1.0 / dt)))
+    for j in range(SPEED_WINDOWS):
+        seg = step[j * n:(j + 1) * n]
+        if len(seg) == 0:
+            out[j] = out[j - 1]
+        else:
+            out[j] = float(seg.sum()) / (len(seg) * dt)
+    back = min(len(h) - 1, 2 * n)
+    out[-1] = math.remainder(h[-1, 2] - h[-1 - back, 2], math.tau)
+    return out
+
+
 def intent_features(pose: np.ndarray, speed: float, targets: np.ndarray, entrance: np.ndarray,
-                    time_in_lot_min: float) -> np.ndarray:
-    """(K + 1, 5) float32 features: row 0 the "none" option, rows 1..K the candidate spot centres ``targets``."""
+                    time_in_lot_min: float, history: np.ndarray | None = None, dt: float = 0.1) -> np.ndarray:
+    """(K + 1, 11) float32 features: row 0 the "none" option, rows 1..K the candidate spot centres ``targets``.
+    Columns: ParkPredict+'s five [cos_k,i, d_k,i, v_hat_k, d_ent, t_lot] (the "none" row [0, 0, v_hat, d_ent,
+    t_lot]), then sin_k,i (the spot's side: + left; 0 for "none") and :func:`motion_features` of ``history``
+    (past poses at ``dt``, oldest first, ending with the current one)."""
     tg = np.asarray(targets, dtype=float).reshape(-1, 2)
     p = np.asarray(pose, dtype=float)
     d = tg - p[:2]
     dist = np.hypot(d[:, 0], d[:, 1])
-    cos = (d @ np.array([math.cos(p[2]), math.sin(p[2])])) / np.maximum(dist, 1e-9)
+    c, s = math.cos(p[2]), math.sin(p[2])
+    cos = (d @ np.array([c, s])) / np.maximum(dist, 1e-9)
+    sin = (d @ np.array([-s, c])) / np.maximum(dist, 1e-9)
     cos[dist < 1e-9] = 1.0  # on top of the spot: aligned by convention
+    sin[dist < 1e-9] = 0.0
     d_ent = float(np.hypot(*(p[:2] - np.asarray(entrance, dtype=float)[:2])))
     out = np.empty((len(tg) + 1, N_FEATURES), dtype=np.float32)
-    out[0] = (0.0, 0.0, speed, d_ent, time_in_lot_min)
+    out[0, :5] = (0.0, 0.0, speed, d_ent, time_in_lot_min)
     out[1:, 0] = cos
     out[1:, 1] = dist
     out[1:, 2] = speed
     out[1:, 3] = d_ent
     out[1:, 4] = time_in_lot_min
+    out[0, 5] = 0.0
+    out[1:, 5] = sin
+    out[:, 6:] = motion_features(history, dt, speed)[None]
     return out
 
 
@@ -346,7 +384,7 @@ class IntentPredictor:
                lot: LotMap | None = None, *, ego_history: np.ndarray | None = None
                ) -> tuple[list[VehicleBEV], list[np.ndarray]]:
         """The network inputs of :meth:`predict_all`: per vehicle its BEV (I_k,0 and the marked I_k,i, §V-B)
-        and its (K + 1, 5) features (§V-A). The training data (:mod:`avp_perception.training`) is made
+        and its (K + 1, N_FEATURES) features (§V-A). The training data (:mod:`avp_perception.training`) is made
         with this same call."""
         r = self.renderer(lot)
         if isinstance(beliefs, BeliefMap):
@@ -355,7 +393,8 @@ class IntentPredictor:
             b_tilde, observed = np.asarray(beliefs, dtype=float), r.observed_mask(obs)
         bevs = r.render_all(obs, list(vehicles), b_tilde, observed, ego_history)
         feats = [intent_features(bev.pose, bev.speed, r.spot_centers[bev.candidate_idx], r.lot.entrance,
-                                 self.time_in_lot(obs, v)) for bev, v in zip(bevs, vehicles, strict=True)]
+                                 self.time_in_lot(obs, v), v.history, obs.dt)
+                 for bev, v in zip(bevs, vehicles, strict=True)]
         return bevs, feats
 
     @torch.no_grad()

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from avp_perception.core.bev import BEVConfig
-from avp_perception.core.intent_model import IntentPredictor
+from avp_perception.core.intent_model import N_FEATURES, IntentPredictor
 from avp_perception.core.pipeline import PerceptionCore
 from avp_perception.training.lots import load_dlp_lot, random_lot
 from avp_perception.training.traffic import LEAVE, PARK, WANDER, TrafficGenerator, TrafficParams
@@ -90,7 +90,7 @@ class Samples:
     candidate_spot_ids: np.ndarray  # (C,) int64
     patch_offsets: np.ndarray  # (C + 1,) int64
     patch_data: np.ndarray  # (P,) uint8
-    features: np.ndarray  # (C + N, 5) float32
+    features: np.ndarray  # (C + N, N_FEATURES) float32
     labels: np.ndarray  # (N,) int64: 0 = none, i = candidate i
     episode: np.ndarray  # (N,) int64 episode seed
     lot: np.ndarray  # (N,) int8 LOT_* code
@@ -170,7 +170,8 @@ def empty_samples(size_px: int = 100) -> Samples:
     return Samples(images=np.zeros((0, size_px, size_px, 3), np.uint8), cand_offsets=np.zeros(1, np.int64),
                    candidate_boxes=np.zeros((0, 4), np.int64), candidate_spot_ids=z,
                    patch_offsets=np.zeros(1, np.int64),
-                   patch_data=np.zeros(0, np.uint8), features=np.zeros((0, 5), np.float32), labels=z, episode=z,
+                   patch_data=np.zeros(0, np.uint8), features=np.zeros((0, N_FEATURES), np.float32), labels=z,
+                   episode=z,
                    lot=np.zeros(0, np.int8), step=np.zeros(0, np.int32), vehicle=z, kind=np.zeros(0, np.int8),
                    target_spot=z, speed=np.zeros(0, np.float32), pose=np.zeros((0, 3)))
 

@@ -44,6 +44,14 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
+def add_intent_arguments(p: argparse.ArgumentParser) -> None:
+    """``avp train-intent``'s arguments: :func:`add_train_arguments` and ``--device``."""
+    add_train_arguments(p)
+    p.add_argument("--device", default="cpu",
+                   help="torch device of the training steps, e.g. cuda (the shipped weights: cpu; another device "
+                        "gives other weights)")
+
+
 def add_gen_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("split", choices=["train", "val", "test", "paper"])
     p.add_argument("--episodes", type=int, required=True)
@@ -164,7 +172,7 @@ def log_wall_time(prog: str, timings: dict[str, float], log) -> None:
 def cmd_train_intent(args: argparse.Namespace) -> int:
     import torch
 
-    from avp_perception.core.intent_model import default_weights_path
+    from avp_perception.core.intent_model import FEATURE_NAMES, N_FEATURES, default_weights_path
     from avp_perception.training.dataset import DataSpec, Samples, generate_split
     from avp_perception.training.train import TrainConfig, evaluate, train
 
@@ -173,7 +181,7 @@ def cmd_train_intent(args: argparse.Namespace) -> int:
 
     t_start = time.monotonic()
     episodes, out, data_dir, weights, config = start_run("train-intent", args, SCALES, default_weights_path(),
-                                                         "intent_cnn.pt", TrainConfig(), log)
+                                                         "intent_cnn.pt", TrainConfig(device=args.device), log)
     spec = DataSpec()
     sets, timings = load_splits("train-intent", episodes, spec, args, data_dir, generate_split, Samples.load, log)
     t0 = time.monotonic()
@@ -186,7 +194,8 @@ def cmd_train_intent(args: argparse.Namespace) -> int:
     timings["total_s"] = time.monotonic() - t_start
     save_weights(lambda m, path: torch.save(m.state_dict(), path), model, weights, out, "intent_cnn.pt")
     card = {
-        "model": "SmallRegularizedCNN (ParkPredict+), 100 x 100 px BEV at 0.4 m/px, 5 features",
+        "model": "SmallRegularizedCNN (ParkPredict+), 100 x 100 px BEV at 0.4 m/px, "
+                 f"{N_FEATURES} features: {', '.join(FEATURE_NAMES)}",
         **card_provenance("train-intent", model, weights, args.scale),
         "data": {name: {"episodes": n, "samples": len(sets[name]),
                         "mean_options": float(sets[name].n_candidates.mean() + 1) if len(sets[name]) else 0.0,
@@ -234,7 +243,7 @@ def main(argv: list[str] | None = None) -> int:
     """``python -m avp_perception.training.run train-intent|gen-intent-data ...`` (the same as ``avp ...``)."""
     parser = argparse.ArgumentParser(prog="avp")
     sub = parser.add_subparsers(dest="cmd", required=True)
-    add_train_arguments(sub.add_parser("train-intent", help="train the intent CNN from scratch"))
+    add_intent_arguments(sub.add_parser("train-intent", help="train the intent CNN from scratch"))
     add_gen_arguments(sub.add_parser("gen-intent-data", help="generate intent samples of one split"))
     args = parser.parse_args(argv)
     return cmd_train_intent(args) if args.cmd == "train-intent" else cmd_gen_intent_data(args)

@@ -57,6 +57,7 @@ class TrainConfig:
     conv_dropout: float = 0.0
     fc_dropout: float = 0.2
     threads: int = 2
+    device: str = "cpu"  # torch device of the training steps ("cuda" where there is one); evaluation runs on the CPU
 
 
 # ------------------------------------------------------------------------------------------- batches
@@ -119,10 +120,12 @@ def grouped_loss(logits: torch.Tensor, spans, weights, targets) -> torch.Tensor:
     for r, (a, b) in enumerate(spans):
         index[a:b] = r * m + torch.arange(b - a)
         logw.view(-1)[r * m:r * m + b - a] = torch.from_numpy(np.log(weights[r]).astype(np.float32))
+    dev = logits.device
+    pad, logw, index = pad.to(dev), logw.to(dev), index.to(dev)
     ls = F.logsigmoid(logits)
     mat = pad.view(-1).index_put((index,), ls).view(g, m)
     lse = torch.logsumexp(mat + logw, dim=1)
-    tgt = torch.tensor([r * m + t for r, t in enumerate(targets)])
+    tgt = torch.tensor([r * m + t for r, t in enumerate(targets)], device=dev)
     return (lse - mat.view(-1)[tgt]).mean()
 
 
@@ -158,7 +161,7 @@ def train(train_set: Samples, val_set: Samples, config: TrainConfig = TrainConfi
 
     torch.set_num_threads(config.threads)
     rng = np.random.default_rng(config.seed)
-    model = build_model(config, train_set.images.shape[1]).to(memory_format=torch.channels_last)
+    model = build_model(config, train_set.images.shape[1]).to(config.device, memory_format=torch.channels_last)
     field, stride = receptive_field()
     used = stride * (model.out_size - 1) + field  # input rows / cols the output depends on
     opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
@@ -177,7 +180,7 @@ def train(train_set: Samples, val_set: Samples, config: TrainConfig = TrainConfi
                    mininterval=1.0)
         for idx in bar:
             x, f, spans, w, tg = make_batch(train_set, idx, rng, config.max_candidates, used)
-            loss = grouped_loss(model(x, f), spans, w, tg)
+            loss = grouped_loss(model(x.to(config.device), f.to(config.device)), spans, w, tg)
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
@@ -185,7 +188,7 @@ def train(train_set: Samples, val_set: Samples, config: TrainConfig = TrainConfi
             losses.append(float(loss.detach()))
             bar.set_postfix(loss=f"{np.mean(losses[-50:]):.3f}")
         bar.close()
-        val = evaluate(model, val_set, threads=config.threads)
+        val = evaluate(copy.deepcopy(model).cpu(), val_set, threads=config.threads)
         rec = {"epoch": epoch + 1, "train_loss": float(np.mean(losses)), "val_top1": val["top1"],
                "val_top3": val["top3"], "val_nll": val["nll"], "seconds": round(time.monotonic() - t0, 1)}
         history.append(rec)
@@ -199,7 +202,7 @@ def train(train_set: Samples, val_set: Samples, config: TrainConfig = TrainConfi
                 log(f"[train-intent] early stop: no better validation top-1 for {bad} epochs")
                 break
     model.load_state_dict(best_state)
-    model = model.to(memory_format=torch.contiguous_format).eval()
+    model = model.to("cpu", memory_format=torch.contiguous_format).eval()
     return model, history
 
 
