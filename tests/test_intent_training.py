@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import torch
 
-from avp_perception.core.intent_model import IntentPredictor, default_weights_path
+from avp_perception.core.intent_model import N_FEATURES, IntentPredictor, default_weights_path
 from avp_perception.training.dataset import (
     DataSpec,
     Samples,
@@ -217,12 +217,15 @@ def test_samples_labels_candidates_and_features_are_consistent():
         else:
             assert target not in ids.tolist()
         f = s.features[s.feature_rows(i)]
-        assert f.shape == (c1 - c0 + 1, 5) and (f[0, :2] == 0).all()
+        assert f.shape == (c1 - c0 + 1, N_FEATURES) and (f[0, :2] == 0).all() and f[0, 5] == 0
+        assert (f[:, 6:] == f[0, 6:]).all()  # the motion block is the vehicle's, the same in every row
         # distance / cosine to each candidate from the stored pose and the lot map (not the renderer)
         pose = s.pose[i]
         d = np.array([centres[int(j)] for j in ids]) - pose[:2]
         np.testing.assert_allclose(f[1:, 1], np.hypot(d[:, 0], d[:, 1]), rtol=1e-5, atol=1e-4)
         np.testing.assert_allclose(f[1:, 0], d @ [math.cos(pose[2]), math.sin(pose[2])] / np.hypot(d[:, 0], d[:, 1]),
+                                   atol=1e-5)
+        np.testing.assert_allclose(f[1:, 5], d @ [-math.sin(pose[2]), math.cos(pose[2])] / np.hypot(d[:, 0], d[:, 1]),
                                    atol=1e-5)
         # marked images differ from I_k,0 only inside their boxes, and there they contain the purple mark
         marked = s.candidate_images(i)
@@ -336,8 +339,8 @@ def test_nearest_spot_baseline_by_hand():
     # three candidates: ahead at 8 m, ahead at 5 m, behind at 2 m; label = the 5 m one (option 2)
     s = episode(EPISODE_SEED).subset(np.array([0]))
     s = replace(s, cand_offsets=np.array([0, 3]),
-                features=np.array([[0, 0, 1, 10, 0], [0.9, 8, 1, 10, 0], [0.5, 5, 1, 10, 0], [-0.7, 2, 1, 10, 0]],
-                                  np.float32),
+                features=np.pad(np.array([[0, 0, 1, 10, 0], [0.9, 8, 1, 10, 0], [0.5, 5, 1, 10, 0],
+                                          [-0.7, 2, 1, 10, 0]], np.float32), ((0, 0), (0, N_FEATURES - 5))),
                 labels=np.array([2]))
     ahead, nearest = baseline_scores(s, True)[0], baseline_scores(s, False)[0]
     assert np.argmax(ahead) == 2 and np.argmax(nearest) == 3

@@ -16,13 +16,18 @@ import torch
 from avp_perception.core.belief import BeliefMap
 from avp_perception.core.bev import BEVConfig
 from avp_perception.core.intent_model import (
+    FEATURE_NAMES,
+    N_FEATURES,
+    PARKPREDICT_FEATURES,
     FusedIntentNet,
     IntentPredictor,
     SmallRegularizedCNN,
     conv_output_size,
     images_to_tensor,
     intent_features,
+    load_cnn,
     max_pool_2x2,
+    motion_features,
     receptive_field,
     sigmoid_normalise,
 )
@@ -56,14 +61,15 @@ def test_layer_sizes_match_parkpredict():
     # 400: 394 -> 197 -> 193 -> 96 -> 94 -> 47 (3 x 47^2 = 6627 as ParkPredict+); 100: 94-47-43-21-19-9
     assert conv_output_size(400) == 47 and conv_output_size(100) == 9 and conv_output_size(80) == 7
     assert receptive_field() == (30, 8)  # 7 + 1 -> 8 (x2) + 4*2 + 2 -> 18 (x4) + 2*4 + 4 -> 30, stride 8
-    m = SmallRegularizedCNN(400)
+    m = SmallRegularizedCNN(400, n_features=5)  # ParkPredict+'s five features
     n_params = sum(p.numel() for p in m.parameters())
     # conv 1184 + 1608 + 219, BN 16 + 16 + 6, fc1 6632*100 + 100, BN1d 200, fc2 101
     assert n_params == 666650
     assert m.fc[0].in_features == 6632
     with torch.no_grad():
         assert m.eval()(torch.zeros(2, 3, 400, 400), torch.zeros(2, 5)).shape == (2,)
-    assert SmallRegularizedCNN(100).fc[0].in_features == 243 + 5
+    assert SmallRegularizedCNN(100).fc[0].in_features == 243 + N_FEATURES
+    assert N_FEATURES == len(FEATURE_NAMES) == 11 and FEATURE_NAMES[:5] == PARKPREDICT_FEATURES
     with pytest.raises(ValueError):
         conv_output_size(20)
 
@@ -79,12 +85,39 @@ def test_sigmoid_then_normalise_not_softmax():
 def test_features_by_hand_and_entrance_distance_uses_true_position():
     f = intent_features(np.array([0.0, 0.0, 0.0]), 2.0, np.array([[3.0, 4.0], [-5.0, 0.0]]),
                         np.array([6.0, 8.0]), 0.5)
-    np.testing.assert_allclose(f, [[0, 0, 2, 10, 0.5], [0.6, 5, 2, 10, 0.5], [-1, 5, 2, 10, 0.5]], atol=1e-6)
+    # ParkPredict+'s five, the spot's side (sin, + left), then (no history) the speed in every window, no turn
+    motion = [2, 2, 2, 2, 0]
+    np.testing.assert_allclose(f, [[0, 0, 2, 10, 0.5, 0, *motion], [0.6, 5, 2, 10, 0.5, 0.8, *motion],
+                                   [-1, 5, 2, 10, 0.5, 0, *motion]], atol=1e-6)
     assert f.dtype == np.float32
     # heading north at (10, 20): spot due east is perpendicular; entrance distance from the true position
     g = intent_features(np.array([10.0, 20.0, math.pi / 2]), 0.0, np.array([[13.0, 20.0]]), LOT.entrance, 0.0)
     assert g[1, 0] == pytest.approx(0.0, abs=1e-6) and g[1, 1] == pytest.approx(3.0)
     assert g[0, 3] == pytest.approx(math.hypot(10.0 - 21.5, 20.0 - 41.5), rel=1e-6)
+
+
+def test_motion_features_by_hand():
+    """Mean speed per past 1 s window and the heading change over 2 s, from a history built by hand: 4 m/s for
+    the first 2 s, then 1 m/s, turning left at 0.125 rad/s."""
+    t = np.arange(41) * 0.1
+    x = np.concatenate([[0.0], np.cumsum(np.where(t[1:] <= 2.0 + 1e-9, 4.0, 1.0) * 0.1)])
+    hist = np.stack([x, np.zeros_like(t), 0.125 * t], axis=1)
+    np.testing.assert_allclose(motion_features(hist, 0.1, 1.0), [1.0, 1.0, 4.0, 4.0, 0.25], atol=1e-9)
+    # rotated and translated, the same motion gives the same features (they are frame-free)
+    c, s = math.cos(2.0), math.sin(2.0)
+    moved = np.column_stack([5 + c * hist[:, 0] - s * hist[:, 1], -3 + s * hist[:, 0] + c * hist[:, 1],
+                             hist[:, 2] + 2.0])
+    np.testing.assert_allclose(motion_features(moved, 0.1, 1.0), motion_features(hist, 0.1, 1.0), atol=1e-9)
+    # heading change wraps through +-pi
+    wrap = hist.copy()
+    wrap[:, 2] = np.remainder(2 * math.pi - 0.3 + 0.125 * t, 2 * math.pi) - math.pi  # crosses +pi at t = 2.4 s
+    assert motion_features(wrap, 0.1, 1.0)[-1] == pytest.approx(0.25)
+    # 1 s of history: the older windows repeat the last one measured; one pose: the given speed everywhere
+    np.testing.assert_allclose(motion_features(hist[-11:], 0.1, 1.0), [1, 1, 1, 1, 0.125], atol=1e-9)
+    np.testing.assert_allclose(motion_features(hist[-1:], 0.1, 0.7), [0.7, 0.7, 0.7, 0.7, 0.0])
+    # through intent_features: the same motion block in every row
+    f = intent_features(hist[-1], 1.0, np.array([[20.0, 3.0]]), np.zeros(2), 0.1, hist, 0.1)
+    np.testing.assert_allclose(f[:, 6:], np.tile([1.0, 1.0, 4.0, 4.0, 0.25], (2, 1)), atol=1e-6)
 
 
 def test_max_pool_and_fused_net_are_the_same_function():
@@ -102,7 +135,7 @@ def test_max_pool_and_fused_net_are_the_same_function():
                 mod.bias.uniform_(-0.2, 0.2)
     m.eval()
     imgs = torch.rand(4, 3, 100, 100)
-    feats = torch.rand(4, 5)
+    feats = torch.rand(4, N_FEATURES)
     with torch.no_grad():
         np.testing.assert_allclose(FusedIntentNet(m)(imgs, feats).numpy(), m(imgs, feats).numpy(), atol=1e-4)
 
@@ -282,8 +315,36 @@ def test_the_head_lets_shared_features_change_the_ranking():
     images = torch.rand(2, 3, 100, 100)
     gaps = []
     for speed in (0.5, 1.5, 3.0):
-        f = torch.tensor([[0.0, 0.0, speed, 20.0, 0.3], [0.9, 6.0, speed, 20.0, 0.3]])
+        f = torch.tensor([[0.0, 0.0, speed, 20.0, 0.3, 0.0, *[speed] * 4, 0.0],
+                          [0.9, 6.0, speed, 20.0, 0.3, 0.4, *[speed] * 4, 0.0]])
         with torch.no_grad():
             z = model(images, f)
         gaps.append(float(z[1] - z[0]))
     assert max(gaps) - min(gaps) > 1e-3, gaps
+
+
+def test_weights_carry_their_feature_count(tmp_path):
+    """A state dict trained on ParkPredict+'s five features loads as a 5-feature model (it never reads the motion
+    columns); one with all of FEATURE_NAMES as an 11-feature one; anything else is one error naming the file."""
+    torch.manual_seed(0)
+    images = torch.rand(3, 3, 100, 100)
+    feats = torch.rand(3, N_FEATURES) * 4
+    for n in (5, N_FEATURES):
+        m = SmallRegularizedCNN(100, n_features=n).eval()
+        torch.save(m.state_dict(), tmp_path / f"w{n}.pt")
+        loaded = load_cnn(tmp_path / f"w{n}.pt")
+        assert loaded.n_features == n
+        pred = IntentPredictor(LOT)
+        pred.load_weights(tmp_path / f"w{n}.pt")
+        assert pred.model.n_features == n and pred.net.n_features == n
+        changed = feats.clone()
+        changed[:, 5:] += 1.0  # the side and motion columns
+        with torch.no_grad():
+            same = torch.allclose(loaded(images, feats), loaded(images, changed))
+            np.testing.assert_allclose(pred.net(images, feats).numpy(), loaded(images, feats).numpy(), atol=1e-4)
+        assert same == (n == 5)
+    torch.save({"conv.0.0.weight": torch.zeros(1)}, tmp_path / "bad.pt")
+    with pytest.raises(ValueError, match="bad.pt"):
+        load_cnn(tmp_path / "bad.pt")
+    with pytest.raises(ValueError, match="n_features"):
+        SmallRegularizedCNN(100, n_features=12)

@@ -104,7 +104,10 @@ class SmallRegularizedCNN(nn.Module):
     def __init__(self, image_size: int = 100, n_features: int = N_FEATURES, hidden: int = 100,
                  dropout: float = 0.2):
         super().__init__()
+        if not 1 <= int(n_features) <= N_FEATURES:
+            raise ValueError(f"n_features must be 1..{N_FEATURES} (the first n of FEATURE_NAMES), got {n_features}")
         self.image_size = int(image_size)
+        self.n_features = int(n_features)  # the first n of FEATURE_NAMES (5: ParkPredict+'s)
         self.out_size = conv_output_size(self.image_size)
         self.conv = nn.Sequential(*[_block(CHANNELS[i], CHANNELS[i + 1], KERNELS[i], dropout) for i in range(3)])
         n_flat = CHANNELS[-1] * self.out_size**2
@@ -116,8 +119,9 @@ class SmallRegularizedCNN(nn.Module):
         return self.conv(images)
 
     def head(self, encoded: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
-        """(B, 3, h, w) conv features and (B, N_FEATURES) features -> (B,) logits."""
-        return self.fc(torch.cat([encoded.flatten(1), features], dim=1)).squeeze(1)
+        """(B, 3, h, w) conv features and (B, >= n_features) features -> (B,) logits (the first ``n_features``
+        columns are used: the feature rows are always all of FEATURE_NAMES)."""
+        return self.fc(torch.cat([encoded.flatten(1), features[:, : self.n_features]], dim=1)).squeeze(1)
 
     def forward(self, images: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
         return self.head(self.encode(images), features)
@@ -215,6 +219,7 @@ class FusedIntentNet:
     def __init__(self, model: SmallRegularizedCNN):
         model = model.eval()
         self.out_size = model.out_size
+        self.n_features = model.n_features
         self.slope = SLOPE
         self.convs: list[tuple[torch.Tensor, torch.Tensor]] = []
         with torch.no_grad():
@@ -256,12 +261,27 @@ class FusedIntentNet:
         return self.after_conv1(self.conv1(x[..., : self.used, : self.used]))
 
     def head(self, encoded: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
-        h = torch.nn.functional.linear(torch.cat([encoded.flatten(1), features], dim=1), self.w1, self.b1)
+        x = torch.cat([encoded.flatten(1), features[:, : self.n_features]], dim=1)
+        h = torch.nn.functional.linear(x, self.w1, self.b1)
         h = torch.nn.functional.leaky_relu(h, self.slope)
         return torch.nn.functional.linear(h, self.w2, self.b2).squeeze(1)
 
     def __call__(self, images: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
         return self.head(self.encode(images), features)
+
+
+def load_cnn(path: str | Path, image_size: int = 100) -> SmallRegularizedCNN:
+    """A :class:`SmallRegularizedCNN` with the state dict at ``path`` (saved by ``torch.save(model.state_dict())``),
+    in eval mode. The number of features it takes (the first n of FEATURE_NAMES; 5 = ParkPredict+'s) is read from
+    its first linear layer. ValueError names the file when it is not such a state dict."""
+    state = torch.load(Path(path), map_location="cpu", weights_only=True)
+    try:
+        n = int(state["fc.0.weight"].shape[1]) - CHANNELS[-1] * conv_output_size(image_size) ** 2
+        model = SmallRegularizedCNN(image_size, n_features=n)
+        model.load_state_dict(state)
+    except (KeyError, ValueError, RuntimeError, AttributeError) as e:
+        raise ValueError(f"intent weights {path}: not a {image_size} px SmallRegularizedCNN state dict ({e})") from None
+    return model.eval()
 
 
 MODES = ("incremental", "fused", "reference")
@@ -341,9 +361,8 @@ class IntentPredictor:
         return pred
 
     def load_weights(self, path: str | Path) -> None:
-        """Load a state dict saved with ``torch.save(model.state_dict(), path)``."""
-        state = torch.load(Path(path), map_location="cpu", weights_only=True)
-        self.model.load_state_dict(state)
+        """Load a state dict saved with ``torch.save(model.state_dict(), path)`` (:func:`load_cnn`)."""
+        self.model = load_cnn(path, self.model.image_size)
         self.model.eval()
         self.net = FusedIntentNet(self.model)
 

@@ -47,6 +47,9 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
 def add_intent_arguments(p: argparse.ArgumentParser) -> None:
     """``avp train-intent``'s arguments: :func:`add_train_arguments` and ``--device``."""
     add_train_arguments(p)
+    p.add_argument("--features", type=int, default=None,
+                   help="train on the first N features of FEATURE_NAMES (default 5: ParkPredict+'s; 11 adds the "
+                        "motion features, docs/intent_model.md)")
     p.add_argument("--device", default="cpu",
                    help="torch device of the training steps, e.g. cuda (the shipped weights: cpu; another device "
                         "gives other weights)")
@@ -172,7 +175,7 @@ def log_wall_time(prog: str, timings: dict[str, float], log) -> None:
 def cmd_train_intent(args: argparse.Namespace) -> int:
     import torch
 
-    from avp_perception.core.intent_model import FEATURE_NAMES, N_FEATURES, default_weights_path
+    from avp_perception.core.intent_model import FEATURE_NAMES, default_weights_path
     from avp_perception.training.dataset import DataSpec, Samples, generate_split
     from avp_perception.training.train import TrainConfig, evaluate, train
 
@@ -182,6 +185,8 @@ def cmd_train_intent(args: argparse.Namespace) -> int:
     t_start = time.monotonic()
     episodes, out, data_dir, weights, config = start_run("train-intent", args, SCALES, default_weights_path(),
                                                          "intent_cnn.pt", TrainConfig(device=args.device), log)
+    if args.features is not None:
+        config = replace(config, n_features=args.features)
     spec = DataSpec()
     sets, timings = load_splits("train-intent", episodes, spec, args, data_dir, generate_split, Samples.load, log)
     t0 = time.monotonic()
@@ -195,7 +200,7 @@ def cmd_train_intent(args: argparse.Namespace) -> int:
     save_weights(lambda m, path: torch.save(m.state_dict(), path), model, weights, out, "intent_cnn.pt")
     card = {
         "model": "SmallRegularizedCNN (ParkPredict+), 100 x 100 px BEV at 0.4 m/px, "
-                 f"{N_FEATURES} features: {', '.join(FEATURE_NAMES)}",
+                 f"{config.n_features} features: {', '.join(FEATURE_NAMES[: config.n_features])}",
         **card_provenance("train-intent", model, weights, args.scale),
         "data": {name: {"episodes": n, "samples": len(sets[name]),
                         "mean_options": float(sets[name].n_candidates.mean() + 1) if len(sets[name]) else 0.0,

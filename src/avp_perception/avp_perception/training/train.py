@@ -57,6 +57,7 @@ class TrainConfig:
     conv_dropout: float = 0.0
     fc_dropout: float = 0.2
     threads: int = 2
+    n_features: int = 5  # the first n of FEATURE_NAMES: 5 = ParkPredict+'s; N_FEATURES adds the motion features
     device: str = "cpu"  # torch device of the training steps ("cuda" where there is one); evaluation runs on the CPU
 
 
@@ -148,7 +149,7 @@ def _batches(samples: Samples, order: np.ndarray, budget: int) -> list[np.ndarra
 
 def build_model(config: TrainConfig, size_px: int = 100) -> SmallRegularizedCNN:
     torch.manual_seed(config.seed)
-    model = SmallRegularizedCNN(size_px, dropout=config.fc_dropout)
+    model = SmallRegularizedCNN(size_px, n_features=config.n_features, dropout=config.fc_dropout)
     for block in model.conv:
         block[2].p = config.conv_dropout
     return model

@@ -368,15 +368,14 @@ def train(train_set: TrajSamples, val_set: TrajSamples, config: TrajTrainConfig 
     file when None, skipped when absent); returns the model of the best validation rollout ADE and the history."""
     from tqdm import tqdm
 
-    from avp_perception.core.intent_model import SmallRegularizedCNN, default_weights_path
+    from avp_perception.core.intent_model import default_weights_path, load_cnn
 
     torch.set_num_threads(int(config.threads))
     torch.manual_seed(config.seed)
     model = TrajectoryTransformer(config.model)
     wpath = Path(intent_weights) if intent_weights else default_weights_path()
     if wpath.is_file():
-        cnn = SmallRegularizedCNN(config.model.image_size)
-        cnn.load_state_dict(torch.load(wpath, map_location="cpu", weights_only=True))
+        cnn = load_cnn(wpath, config.model.image_size)
         model.init_conv_from_intent(cnn)
         log(f"[train-trajectory] conv stack initialised from {wpath}")
     for p in model.conv[:2].parameters():
