@@ -176,13 +176,12 @@ def intent_features(pose: np.ndarray, speed: float, targets: np.ndarray, entranc
     sin[dist < 1e-9] = 0.0
     d_ent = float(np.hypot(*(p[:2] - np.asarray(entrance, dtype=float)[:2])))
     out = np.empty((len(tg) + 1, N_FEATURES), dtype=np.float32)
-    out[0, :5] = (0.0, 0.0, speed, d_ent, time_in_lot_min)
+    out[0, :6] = (0.0, 0.0, speed, d_ent, time_in_lot_min, 0.0)
     out[1:, 0] = cos
     out[1:, 1] = dist
     out[1:, 2] = speed
     out[1:, 3] = d_ent
     out[1:, 4] = time_in_lot_min
-    out[0, 5] = 0.0
     out[1:, 5] = sin
     out[:, 6:] = motion_features(history, dt, speed)[None]
     return out
@@ -362,8 +361,7 @@ class IntentPredictor:
 
     def load_weights(self, path: str | Path) -> None:
         """Load a state dict saved with ``torch.save(model.state_dict(), path)`` (:func:`load_cnn`)."""
-        self.model = load_cnn(path, self.model.image_size)
-        self.model.eval()
+        self.model = load_cnn(path, self.model.image_size)  # in eval mode
         self.net = FusedIntentNet(self.model)
 
     # ------------------------------------------------------------------ inference

@@ -172,7 +172,9 @@ def make_intent_predictor(lot: LotMap | None, bev_config: BEVConfig = BEVConfig(
         return intent, f"intent CNN: untrained seeded random weights (seed {seed}); no shipped weights found"
     try:
         intent.load_weights(path)
-    except Exception as exc:  # noqa: BLE001 - any unreadable/mismatched file is one start-up error
+    except ValueError:  # load_cnn's own one-line error already names the file
+        raise
+    except Exception as exc:  # noqa: BLE001 - any unreadable file is one start-up error
         why = (str(exc).strip().splitlines() or [type(exc).__name__])[0]  # one line (torch's messages run long)
         raise ValueError(f"intent weights {path}: cannot load ({why})") from None
     return intent, f"intent CNN: weights from {path}" + ("" if weights else " (shipped)")
