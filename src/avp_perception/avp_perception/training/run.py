@@ -45,7 +45,7 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def add_intent_arguments(p: argparse.ArgumentParser) -> None:
-    """``avp train-intent``'s arguments: :func:`add_train_arguments` and ``--device``."""
+    """``avp train-intent``'s arguments: :func:`add_train_arguments`, ``--features`` and ``--device``."""
     add_train_arguments(p)
     p.add_argument("--features", type=int, default=None,
                    help="train on the first N features of FEATURE_NAMES (default 5: ParkPredict+'s; 11 adds the "
