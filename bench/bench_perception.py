@@ -38,6 +38,7 @@ from avp_perception.core.belief import BeliefMap
 from avp_perception.core.bev import BEVConfig, BEVRenderer
 from avp_perception.core.intent_model import IntentPredictor
 from avp_perception.core.intention import Intention
+from avp_perception.core.pipeline import make_intent_predictor
 from avp_perception.core.prediction import BezierPredictor
 from avp_sim.core.scenario import ScenarioError, ScenarioParams, generate_paper_scenario
 from avp_sim.core.world import World
@@ -85,7 +86,7 @@ def perception_step(obs, beliefs: BeliefMap, intent: IntentPredictor):
 
 
 def time_steps(obs_list, lot, cfg: BEVConfig, mode: str, repeats: int) -> np.ndarray:
-    intent = IntentPredictor(lot, cfg, seed=0, mode=mode)
+    intent, _ = make_intent_predictor(lot, cfg, mode=mode)  # the shipped weights (the node's default)
     beliefs = BeliefMap.from_lot(lot)
     for obs in obs_list[:10]:  # warm-up
         perception_step(obs, beliefs, intent)
@@ -156,6 +157,7 @@ def main() -> None:
     print(f"machine: {machine()}; load average (1, 5, 15 min) {os.getloadavg()}")
     sets = {k: snapshots(lot, k, args.snapshots, args.stride) for k in (1, 2)}
     cfg = BEVConfig()
+    print(make_intent_predictor(lot, cfg)[1])
     print(f"lot '{lot.name}' ({lot.n_spots} spots); BEV {cfg.size_px} x {cfg.size_px} px at {cfg.m_per_px} m/px "
           f"({cfg.extent_m:.0f} m square); snapshots: " + ", ".join(
               f"{len(v)} with {k} dynamic vehicle(s)" for k, v in sets.items()))

@@ -414,7 +414,7 @@ class IntentPredictor:
                  for bev, v in zip(bevs, vehicles, strict=True)]
         return bevs, feats
 
-    @torch.no_grad()
+    @torch.inference_mode()
     def logits(self, bevs: Sequence[VehicleBEV], features: Sequence[np.ndarray]) -> np.ndarray:
         """Concatenated logits, per vehicle [none, candidate 1..K] (the order of ``VehicleBEV.images()``)."""
         if not bevs:
