@@ -389,3 +389,12 @@ def test_error_analysis_by_distance_counts_every_spot_sample():
     assert t["top1"] == pytest.approx(hits.mean()) and [r["from_m"] for r in t["by_distance"]] == sorted(
         r["from_m"] for r in t["by_distance"]) and t["by_distance"][0]["from_m"] >= BINS[0][0]
     assert set(t["hybrid"]) == {2.0, 3.0, 4.0, 5.0, 6.0, 8.0} and all(0.0 <= v <= 1.0 for v in t["hybrid"].values())
+    # error budget: the label groups and the speed groups each partition the samples and count the misses
+    budget = {r["group"]: r for r in t["error_budget"]}
+    misses = int((~hits).sum())
+    label_groups = ["label none"] + [g for g in budget if g.startswith("label a spot") and " m away" in g]
+    speed_groups = [g for g in budget if "m/s" in g or g.endswith("faster")]
+    for names in (label_groups, speed_groups):
+        assert sum(budget[g]["n"] for g in names) == len(s) and sum(budget[g]["errors"] for g in names) == misses
+    for r in budget.values():
+        assert r["top1_if_fixed"] == pytest.approx(t["top1"] + r["errors"] / len(s))

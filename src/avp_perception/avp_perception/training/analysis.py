@@ -2,7 +2,9 @@
 
 On a split saved by ``avp train-intent`` / ``avp gen-intent-data`` (``OUT/data/test.npz``), with the shipped or
 given weights: top-1 of the CNN and of the nearest-spot baseline on the samples whose label is a spot, by the
-distance from the vehicle to that spot, and how often the CNN answers "none" there; then a hybrid rule (the
+distance from the vehicle to that spot, and how often the CNN answers "none" there; the error budget (errors
+per group — by label, distance, and speed below / above the parkers' final roll — and the top-1 of the whole set
+were a group's errors all fixed: what any better predictor could gain there at most); then a hybrid rule (the
 CNN, except that "none" becomes the nearest spot when it lies within X m) to test whether the distance feature
 holds information the CNN leaves unused.
 
@@ -21,6 +23,7 @@ from avp_perception.training.dataset import Samples
 from avp_perception.training.train import baseline_scores, model_logits, topk_hits
 
 BINS = ((0.0, 5.0), (5.0, 10.0), (10.0, 15.0), (15.0, 20.0), (20.0, 60.0))
+SLOW_SPEED = 1.6  # m/s: above the parkers' final roll (0.8-1.5 m/s, traffic.py), below their cruise (2-4 m/s)
 
 
 def error_table(samples: Samples, logits: list[np.ndarray]) -> dict:
@@ -43,6 +46,15 @@ def error_table(samples: Samples, logits: list[np.ndarray]) -> dict:
             out["by_distance"].append({"from_m": lo, "to_m": hi, "n": int(m.sum()), "cnn": float(hit[m].mean()),
                                        "nearest": float(near_hit[m].mean()),
                                        "cnn_says_none": float((pred[m] == 0).mean())})
+    # the error budget: each group's errors and the top-1 the whole set would reach were they all fixed
+    slow = samples.speed < SLOW_SPEED
+    groups = [("label none", ~spot)] + [
+        (f"label a spot {lo:.0f}-{hi:.0f} m away", spot & (d_label >= lo) & (d_label < hi)) for lo, hi in BINS]
+    groups += [(f"{who}, {how}", mask & sp) for who, mask in (("label a spot", spot), ("label none", ~spot))
+               for how, sp in ((f"slower than {SLOW_SPEED:g} m/s", slow), ("faster", ~slow))]
+    out["error_budget"] = [{"group": name, "n": int(m.sum()), "top1": float(hit[m].mean()) if m.any() else 0.0,
+                            "errors": int((~hit & m).sum()),
+                            "top1_if_fixed": float((hit | m).mean())} for name, m in groups]
     for x in (2.0, 3.0, 4.0, 5.0, 6.0, 8.0):
         mixed = np.where((pred == 0) & (d_near < x), near, pred)
         out["hybrid"][x] = float((mixed == y).mean())
@@ -65,6 +77,10 @@ def main(argv: list[str] | None = None) -> int:
     for r in t["by_distance"]:
         print(f"| {r['from_m']:.0f}–{r['to_m']:.0f} m | {r['n']} | {r['cnn']:.3f} | {r['nearest']:.3f} | "
               f"{r['cnn_says_none']:.3f} |")
+    print(f"| group | n | CNN top-1 | errors | top-1 of all {t['n']} were they fixed |")
+    print("|---|--:|--:|--:|--:|")
+    for r in t["error_budget"]:
+        print(f"| {r['group']} | {r['n']} | {r['top1']:.3f} | {r['errors']} | {r['top1_if_fixed']:.3f} |")
     print("hybrid (CNN; its 'none' -> the nearest spot within X m): "
           + ", ".join(f"X = {x:g} m: {v:.3f}" for x, v in t["hybrid"].items()))
     return 0
