@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import json
 import math
+from collections import Counter
 from dataclasses import replace
 
 import numpy as np
@@ -398,3 +399,32 @@ def test_error_analysis_by_distance_counts_every_spot_sample():
         assert sum(budget[g]["n"] for g in names) == len(s) and sum(budget[g]["errors"] for g in names) == misses
     for r in budget.values():
         assert r["top1_if_fixed"] == pytest.approx(t["top1"] + r["errors"] / len(s))
+
+
+def test_oracle_explains_every_goal_directed_car():
+    """``python -m avp_perception.training.oracle``: regenerated from its seed, the episode gives back the plans
+    behind the samples; for every goal-directed parker still driving, the observer that knows the driver model
+    gives the spot the car really takes a non-zero posterior (its route, roll and stop rules agree with the
+    generator), the posteriors are distributions, and the table's groups partition the samples."""
+    from avp_perception.training.oracle import GROUPS, OracleEpisode, oracle_table
+
+    seen = Counter()
+    for seed in (EPISODE_SEED, 12):
+        s = episode(seed)
+        ep = OracleEpisode(seed, SHORT)
+        for i in range(len(s)):
+            plan = ep.plans.get(int(s.vehicle[i]))
+            assert plan is not None and plan.kind == {0: "park", 1: "leave", 2: "wander"}[int(s.kind[i])]
+            if not plan.goal_options:
+                continue
+            name, post = ep.posterior(plan, s.pose[i, :2])
+            seen[name] += 1
+            if name in ("cruising", "rolling"):
+                assert sum(post.values()) == pytest.approx(1.0)
+                assert post.get(int(s.target_spot[i]), 0.0) > 0.0, (seed, i, name)
+    assert seen["cruising"] > 10 and seen["rolling"] > 10 and seen["maneuvering"] > 0
+    s = episode(EPISODE_SEED)
+    hits = np.zeros(len(s), dtype=bool)
+    t = oracle_table(s, hits, SHORT)
+    assert set(t["groups"]) == set(GROUPS) and sum(r["n"] for r in t["groups"].values()) == len(s)
+    assert t["groups"]["maneuvering"]["oracle"] in (None, 1.0) and t["cnn_top1"] == 0.0

@@ -35,6 +35,7 @@ from avp_perception.core.pipeline import PerceptionCore
 from avp_sim.core.scenario import ScenarioParams, generate_paper_scenario
 from avp_sim.core.world import World
 from avp_world.lot import load_bundled_lot
+from avp_world.types import Observation, ObservedVehicle
 
 LOT = load_bundled_lot("paper_lot")
 
@@ -69,7 +70,7 @@ def test_layer_sizes_match_parkpredict():
     with torch.no_grad():
         assert m.eval()(torch.zeros(2, 3, 400, 400), torch.zeros(2, 5)).shape == (2,)
     assert SmallRegularizedCNN(100).fc[0].in_features == 243 + N_FEATURES
-    assert N_FEATURES == len(FEATURE_NAMES) == 11 and FEATURE_NAMES[:5] == PARKPREDICT_FEATURES
+    assert N_FEATURES == len(FEATURE_NAMES) == 12 and FEATURE_NAMES[:5] == PARKPREDICT_FEATURES
     with pytest.raises(ValueError):
         conv_output_size(20)
 
@@ -86,7 +87,7 @@ def test_features_by_hand_and_entrance_distance_uses_true_position():
     f = intent_features(np.array([0.0, 0.0, 0.0]), 2.0, np.array([[3.0, 4.0], [-5.0, 0.0]]),
                         np.array([6.0, 8.0]), 0.5)
     # ParkPredict+'s five, the spot's side (sin, + left), then (no history) the speed in every window, no turn
-    motion = [2, 2, 2, 2, 0]
+    motion = [2, 2, 2, 2, 0, 0]  # ... and no slow roll seen
     np.testing.assert_allclose(f, [[0, 0, 2, 10, 0.5, 0, *motion], [0.6, 5, 2, 10, 0.5, 0.8, *motion],
                                    [-1, 5, 2, 10, 0.5, 0, *motion]], atol=1e-6)
     assert f.dtype == np.float32
@@ -116,8 +117,8 @@ def test_motion_features_by_hand():
     np.testing.assert_allclose(motion_features(hist[-11:], 0.1, 1.0), [1, 1, 1, 1, 0.125], atol=1e-9)
     np.testing.assert_allclose(motion_features(hist[-1:], 0.1, 0.7), [0.7, 0.7, 0.7, 0.7, 0.0])
     # through intent_features: the same motion block in every row
-    f = intent_features(hist[-1], 1.0, np.array([[20.0, 3.0]]), np.zeros(2), 0.1, hist, 0.1)
-    np.testing.assert_allclose(f[:, 6:], np.tile([1.0, 1.0, 4.0, 4.0, 0.25], (2, 1)), atol=1e-6)
+    f = intent_features(hist[-1], 1.0, np.array([[20.0, 3.0]]), np.zeros(2), 0.1, hist, 0.1, 7.5)
+    np.testing.assert_allclose(f[:, 6:], np.tile([1.0, 1.0, 4.0, 4.0, 0.25, 7.5], (2, 1)), atol=1e-6)
 
 
 def test_max_pool_and_fused_net_are_the_same_function():
@@ -243,6 +244,44 @@ def test_time_in_lot_counts_from_first_history_pose():
     assert pred.time_in_lot(obs0, v0) == pytest.approx(span / 60.0)  # time went back: new episode
 
 
+def test_roll_distance_remembers_the_slow_roll_beyond_the_history():
+    """slow_roll_distance: on first sight read from the history (back to the last step at or above ROLL_SPEED),
+    then grown by each observation's displacement while the car stays slow, 0 once it is fast again, and
+    forgotten with the episode (time going back)."""
+    dt = 0.1
+    # 3 m/s for 2 s, then 1 m/s: a 41-pose (4 s) history ending 2 s into the slow roll (2.0 m rolled)
+    speeds = np.where(np.arange(40) < 20, 3.0, 1.0)
+    x = np.concatenate([[0.0], np.cumsum(speeds * dt)])
+
+    def seen(step: int, xs: np.ndarray) -> tuple[Observation, ObservedVehicle]:
+        hist = np.stack([xs, np.full_like(xs, 5.0), np.zeros_like(xs)], axis=1)
+        v = ObservedVehicle(id=7, length=4.6, width=1.85, is_static=False, history=hist)
+        obs = Observation(step=step, dt=dt, ego_pose=np.zeros(3), ego_length=4.6, ego_width=1.85, ego_speed=0.0,
+                          vacant_spot_ids=np.zeros(0, np.int64), occupied_spot_ids=np.zeros(0, np.int64),
+                          vehicles=(v,))
+        return obs, v
+
+    pred = IntentPredictor(LOT)
+    assert pred.roll_distance(*seen(100, x)) == pytest.approx(2.0)
+    assert pred.roll_distance(*seen(100, x)) == pytest.approx(2.0)  # same step: not counted twice
+    # 5 s later, still at 1 m/s (the history no longer shows the slow-down): 2 + 5 m
+    later = x[-1] + np.arange(-40, 1) * 0.1 + 5.0
+    assert pred.roll_distance(*seen(150, later)) == pytest.approx(7.0)
+    # fast again: 0
+    fast = later[-1] + np.arange(-40, 1) * 0.3 + 3.0
+    assert pred.roll_distance(*seen(160, fast)) == 0.0
+    # a new episode (time went back), seen first at 3 m/s
+    obs, v = seen(10, np.arange(41) * 0.3)
+    pred.time_in_lot(obs, v)
+    assert pred.roll_distance(obs, v) == 0.0
+    # the feature rows carry it in the last column
+    obs, v = seen(200, x)
+    bt = BeliefMap.from_lot(LOT).observe(obs.vacant_spot_ids, obs.occupied_spot_ids)
+    fresh = IntentPredictor(LOT)
+    _, feats = fresh.inputs(obs, [v], bt)
+    assert FEATURE_NAMES[-1] == "slow_roll_distance" and np.allclose(feats[0][:, -1], 2.0)
+
+
 def test_weights_round_trip(tmp_path):
     obs = two_vehicle_obs()
     v = next(v for v in obs.vehicles if not v.is_static)
@@ -315,8 +354,8 @@ def test_the_head_lets_shared_features_change_the_ranking():
     images = torch.rand(2, 3, 100, 100)
     gaps = []
     for speed in (0.5, 1.5, 3.0):
-        f = torch.tensor([[0.0, 0.0, speed, 20.0, 0.3, 0.0, *[speed] * 4, 0.0],
-                          [0.9, 6.0, speed, 20.0, 0.3, 0.4, *[speed] * 4, 0.0]])
+        f = torch.tensor([[0.0, 0.0, speed, 20.0, 0.3, 0.0, *[speed] * 4, 0.0, 0.0],
+                          [0.9, 6.0, speed, 20.0, 0.3, 0.4, *[speed] * 4, 0.0, 0.0]])
         with torch.no_grad():
             z = model(images, f)
         gaps.append(float(z[1] - z[0]))
@@ -325,7 +364,7 @@ def test_the_head_lets_shared_features_change_the_ranking():
 
 def test_weights_carry_their_feature_count(tmp_path):
     """A state dict trained on ParkPredict+'s five features loads as a 5-feature model (it never reads the motion
-    columns); one with all of FEATURE_NAMES as an 11-feature one; anything else is one error naming the file."""
+    columns); one with all of FEATURE_NAMES as a 12-feature one; anything else is one error naming the file."""
     torch.manual_seed(0)
     images = torch.rand(3, 3, 100, 100)
     feats = torch.rand(3, N_FEATURES) * 4
@@ -347,4 +386,4 @@ def test_weights_carry_their_feature_count(tmp_path):
     with pytest.raises(ValueError, match="bad.pt"):
         load_cnn(tmp_path / "bad.pt")
     with pytest.raises(ValueError, match="n_features"):
-        SmallRegularizedCNN(100, n_features=12)
+        SmallRegularizedCNN(100, n_features=N_FEATURES + 1)

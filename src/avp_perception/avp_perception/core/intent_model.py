@@ -63,9 +63,10 @@ from avp_world.types import Observation, ObservedVehicle
 PARKPREDICT_FEATURES = ("cos_to_target", "distance_to_target", "speed", "distance_to_entrance", "time_in_lot_min")
 SPEED_WINDOWS = 4  # past 1 s windows of the motion features (4 s: the history the observation model gives)
 MOTION_FEATURES = ("sin_to_target", *(f"mean_speed_{j}_{j + 1}s" for j in range(SPEED_WINDOWS)),
-                   "heading_change_2s")
+                   "heading_change_2s", "slow_roll_distance")
 FEATURE_NAMES = PARKPREDICT_FEATURES + MOTION_FEATURES
-N_FEATURES = len(FEATURE_NAMES)  # 11
+N_FEATURES = len(FEATURE_NAMES)  # 12
+ROLL_SPEED = 1.6  # m/s: "slow" for slow_roll_distance (parkers roll their last 6-12 m at 0.8-1.5 m/s, cruise 2-4)
 KERNELS = (7, 5, 3)
 CHANNELS = (3, 8, 8, 3)
 
@@ -160,11 +161,13 @@ def motion_features(history: np.ndarray | None, dt: float, speed: float) -> np.n
 
 
 def intent_features(pose: np.ndarray, speed: float, targets: np.ndarray, entrance: np.ndarray,
-                    time_in_lot_min: float, history: np.ndarray | None = None, dt: float = 0.1) -> np.ndarray:
-    """(K + 1, 11) float32 features: row 0 the "none" option, rows 1..K the candidate spot centres ``targets``.
+                    time_in_lot_min: float, history: np.ndarray | None = None, dt: float = 0.1,
+                    roll_distance: float = 0.0) -> np.ndarray:
+    """(K + 1, 12) float32 features: row 0 the "none" option, rows 1..K the candidate spot centres ``targets``.
     Columns: ParkPredict+'s five [cos_k,i, d_k,i, v_hat_k, d_ent, t_lot] (the "none" row [0, 0, v_hat, d_ent,
-    t_lot]), then sin_k,i (the spot's side: + left; 0 for "none") and :func:`motion_features` of ``history``
-    (past poses at ``dt``, oldest first, ending with the current one)."""
+    t_lot]), then sin_k,i (the spot's side: + left; 0 for "none"), :func:`motion_features` of ``history``
+    (past poses at ``dt``, oldest first, ending with the current one) and ``roll_distance``
+    (:meth:`IntentPredictor.roll_distance`)."""
     tg = np.asarray(targets, dtype=float).reshape(-1, 2)
     p = np.asarray(pose, dtype=float)
     d = tg - p[:2]
@@ -183,7 +186,8 @@ def intent_features(pose: np.ndarray, speed: float, targets: np.ndarray, entranc
     out[1:, 3] = d_ent
     out[1:, 4] = time_in_lot_min
     out[1:, 5] = sin
-    out[:, 6:] = motion_features(history, dt, speed)[None]
+    out[:, 6:11] = motion_features(history, dt, speed)[None]
+    out[:, 11] = roll_distance
     return out
 
 
@@ -324,6 +328,7 @@ class IntentPredictor:
         self._renderer: BEVRenderer | None = BEVRenderer(lot, bev_config) if lot is not None else None
         self._first_seen: dict[int, float] = {}
         self._last_t = -math.inf
+        self._rolls: dict[int, tuple[float, np.ndarray, float]] = {}  # id -> (t, position, slow_roll_distance)
 
     # ------------------------------------------------------------------ state
     def renderer(self, lot: LotMap | None = None) -> BEVRenderer:
@@ -336,16 +341,42 @@ class IntentPredictor:
     def reset(self) -> None:
         """Forget the time-in-lot bookkeeping (new episode)."""
         self._first_seen.clear()
+        self._rolls.clear()
         self._last_t = -math.inf
 
     def time_in_lot(self, obs: Observation, vehicle: ObservedVehicle) -> float:
-        """Minutes since the oldest history pose of ``vehicle``'s first observation (episode-local)."""
+        """Minutes since the oldest history pose of ``vehicle``'s first observation (episode-local). Also
+        updates the vehicle's :meth:`roll_distance` (call it every step for every observed dynamic vehicle)."""
         if obs.t < self._last_t:  # time went back: a new episode
             self.reset()
         self._last_t = obs.t
         span = (len(vehicle.history) - 1) * obs.dt
         first = self._first_seen.setdefault(int(vehicle.id), obs.t - span)
+        self.roll_distance(obs, vehicle)
         return max(0.0, obs.t - first) / 60.0
+
+    def roll_distance(self, obs: Observation, vehicle: ObservedVehicle) -> float:
+        """Metres ``vehicle`` has driven since its speed last fell below ROLL_SPEED, as far as the ego has seen
+        it (0 while it drives faster): its memory beyond the 4 s history, from its own observations only. On
+        first sight it is read from the history (back to the last step at or above ROLL_SPEED); then each new
+        observation adds the displacement since the previous one while the vehicle is slow."""
+        vid = int(vehicle.id)
+        h = np.asarray(vehicle.history, dtype=float).reshape(-1, 3)
+        xy = np.asarray(vehicle.pose, dtype=float)[:2]
+        prev = self._rolls.get(vid)
+        if prev is not None and prev[0] == obs.t:
+            return prev[2]
+        step = np.hypot(*np.diff(h[:, :2], axis=0).T) if len(h) > 1 else np.zeros(0)
+        slow_now = (step[-1] / obs.dt < ROLL_SPEED) if len(step) and obs.dt > 0 else False
+        if not slow_now:
+            roll = 0.0
+        elif prev is None:
+            fast = np.nonzero(step / obs.dt >= ROLL_SPEED)[0]
+            roll = float(step[(fast[-1] + 1) if len(fast) else 0:].sum())
+        else:
+            roll = prev[2] + float(np.hypot(*(xy - prev[1])))
+        self._rolls[vid] = (obs.t, xy.copy(), roll)
+        return roll
 
     @classmethod
     def pretrained(cls, lot: LotMap | None = None, bev_config: BEVConfig = BEVConfig(), mode: str = "incremental",
@@ -410,7 +441,7 @@ class IntentPredictor:
             b_tilde, observed = np.asarray(beliefs, dtype=float), r.observed_mask(obs)
         bevs = r.render_all(obs, list(vehicles), b_tilde, observed, ego_history)
         feats = [intent_features(bev.pose, bev.speed, r.spot_centers[bev.candidate_idx], r.lot.entrance,
-                                 self.time_in_lot(obs, v), v.history, obs.dt)
+                                 self.time_in_lot(obs, v), v.history, obs.dt, self.roll_distance(obs, v))
                  for bev, v in zip(bevs, vehicles, strict=True)]
         return bevs, feats
 

@@ -345,16 +345,22 @@ def _generator(lot: LotMap, params: TrafficParams) -> TrafficGenerator:
     return _GENERATORS[key]
 
 
+def episode_lot(seed: int, spec: DataSpec, rng: np.random.Generator, lot_choice: str = "mixed"
+                ) -> tuple[LotMap, int]:
+    """The lot of a training-distribution episode and its LOT_* code; "mixed" draws DLP (``p_dlp``) or this seed's
+    random lot from ``rng`` (the episode's own generator, seeded [seed, 7])."""
+    if lot_choice == "mixed":
+        lot_choice = "dlp" if rng.random() < spec.p_dlp else "random"
+    lot = {"dlp": load_dlp_lot, "paper": load_bundled_lot}.get(lot_choice, lambda: random_lot(seed))()
+    return lot, {"dlp": LOT_DLP, "paper": LOT_PAPER}.get(lot_choice, LOT_RANDOM)
+
+
 def traffic_episode(seed: int, spec: DataSpec, lot_choice: str = "mixed") -> Samples:
     """Samples of one training-distribution episode: the DLP lot (probability ``p_dlp``) or the random lot of
     this seed (``lot_choice``: "mixed", "dlp", "random" or "paper" for the paper lot with this traffic)."""
     rng = np.random.default_rng([int(seed), 7])
-    if lot_choice == "mixed":
-        lot_choice = "dlp" if rng.random() < spec.p_dlp else "random"
-    lot = {"dlp": load_dlp_lot, "paper": load_bundled_lot}.get(lot_choice, lambda: random_lot(seed))()
-    code = {"dlp": LOT_DLP, "paper": LOT_PAPER}.get(lot_choice, LOT_RANDOM)
-    params = TrafficParams(t_final=spec.t_final)
-    gen = _generator(lot, params)
+    lot, code = episode_lot(seed, spec, rng, lot_choice)
+    gen = _generator(lot, TrafficParams(t_final=spec.t_final))
     tr = gen.generate(seed)
     world = TrainingWorld(lot, tr.scenario, WorldConfig(t_final=spec.t_final + 1.0, sensor=SensorConfig()))
     b = run_episode(lot, world, tr.labels, tr.kinds, tr.ego_controls, tr.ego_states, spec, seed, code, spec.t_final,

@@ -48,7 +48,7 @@ def add_intent_arguments(p: argparse.ArgumentParser) -> None:
     """``avp train-intent``'s arguments: :func:`add_train_arguments`, ``--features`` and ``--device``."""
     add_train_arguments(p)
     p.add_argument("--features", type=int, default=None,
-                   help="train on the first N features of FEATURE_NAMES (default 5: ParkPredict+'s; 11 adds the "
+                   help="train on the first N features of FEATURE_NAMES (default 5: ParkPredict+'s; 12 adds the "
                         "motion features, docs/intent_model.md)")
     p.add_argument("--device", default="cpu",
                    help="torch device of the training steps, e.g. cuda (the shipped weights: cpu; another device "

@@ -105,6 +105,12 @@ class AgentPlan:
     drive_end: int = -1  # parkers: timeline index where the maneuver starts (the car stopped on its lane)
     end_lane: int = -1  # parkers: lane and lane coordinate of that stop
     end_t: float = 0.0
+    cruise_speed: float = 0.0  # parkers: v_c and the final roll's length (slow_distance draw)
+    roll_distance: float = 0.0
+    # goal-directed parkers: the options (row, lane, side) the driver chose among and their weights (empty for
+    # explorers) — for analysis (training.oracle); drawing them consumed no extra random numbers
+    goal_options: tuple = ()
+    goal_weights: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 @dataclass
@@ -118,6 +124,7 @@ class Traffic:
     ego_states: np.ndarray  # (T + 1, 3)
     n_parked: int = 0
     stats: dict = field(default_factory=dict)
+    plans: dict[int, AgentPlan] = field(default_factory=dict)  # vehicle id -> its plan (analysis only)
 
 
 class ManeuverLibrary:
@@ -309,7 +316,10 @@ class TrafficGenerator:
             t_in = g.turns[(lanes[-2], lane)].t2 if len(lanes) > 1 else 0.0
             chosen = self._maneuver_on_lane(rng, row, side, lane, t_in, brake_d)
             if chosen is not None:
-                return self._park_plan(rng, k0, lanes, chosen, v_c)
+                plan = self._park_plan(rng, k0, lanes, chosen, v_c)
+                if plan is not None:
+                    plan.goal_options, plan.goal_weights = tuple(options), w
+                return plan
         self.why["goal_maneuver"] += 1
         return None
 
@@ -396,7 +406,8 @@ class TrafficGenerator:
         except ValueError:
             self.why["park_route"] += 1
             return None
-        pieces = slow_tail(pieces, float(rng.uniform(*p.slow_distance)), float(rng.uniform(*p.slow_speed)))
+        roll = float(rng.uniform(*p.slow_distance))
+        pieces = slow_tail(pieces, roll, float(rng.uniform(*p.slow_speed)))
         u_drive, x_drive = follow(Path.build(s, pieces), start, p.dt, self.vehicle)
         pause = np.zeros((int(round(rng.uniform(*p.pause) / p.dt)), 2))
         controls = np.concatenate([u_drive, pause, man[2]])
@@ -406,7 +417,7 @@ class TrafficGenerator:
             self.why["not_in_spot"] += 1
             return None
         return AgentPlan(PARK, row, "/".join(key), x_full, u_full, _moving(x_full), drive_end=k0 + len(u_drive) - 1,
-                         end_lane=lanes[-1], end_t=t_s)
+                         end_lane=lanes[-1], end_t=t_s, cruise_speed=v_c, roll_distance=roll)
 
     # ------------------------------------------------------------------ leavers
     def _leaver(self, rng: np.random.Generator, row: int, k0: int) -> AgentPlan | None:
@@ -602,6 +613,7 @@ class TrafficGenerator:
         vehicles: list[VehicleAgent] = []
         labels: dict[int, int] = {}
         kinds: dict[int, str] = {}
+        plans: dict[int, AgentPlan] = {}
         leaving_rows = {a.spot_row for a in accepted if a.kind == LEAVE}
         for row in np.nonzero(occ)[0]:
             if int(row) in leaving_rows:
@@ -632,7 +644,8 @@ class TrafficGenerator:
                 target_spot_id=label, maneuver=a.maneuver))
             labels[vid] = label
             kinds[vid] = a.kind
+            plans[vid] = a
         stats.update({k: sum(a.kind == k for a in accepted) for k in (PARK, LEAVE, WANDER)})
         scenario = Scenario(seed=int(seed), reactive=True, ego_start=ego_x[0].copy(), ego=self.vehicle,
                             vehicles=tuple(vehicles), dt=p.dt, t_hist=p.t_hist)
-        return Traffic(scenario, labels, kinds, ego_u, ego_x, n_parked, stats)
+        return Traffic(scenario, labels, kinds, ego_u, ego_x, n_parked, stats, plans)
