@@ -328,3 +328,21 @@ def test_inproc_and_ros_transport_give_identical_episodes(tmp_path, ros_env, mon
     # the perception's share (observation k -> predictions k across the belief and prediction nodes) is counted
     assert all(r["timings"]["perception_time"] > 0 for r in raw)
 
+
+
+def test_intent_identity_names_the_weights_without_machine_paths(tmp_path):
+    """run.json / summary.md name the intent weights by content hash and 'shipped' (or the path as given), never
+    by this machine's absolute path, so results made on two machines compare."""
+    import hashlib
+
+    from avp_bringup.experiment.runner import RunConfig, intent_identity
+    from avp_perception.core.pipeline import shipped_weights_path
+
+    shipped = shipped_weights_path()
+    assert intent_identity(RunConfig()) == f"sha256:{hashlib.sha256(shipped.read_bytes()).hexdigest()} (shipped)"
+    assert str(shipped.parent) not in intent_identity(RunConfig())
+    (tmp_path / "w.pt").write_bytes(b"not really weights")
+    given = str(tmp_path / "w.pt")
+    assert intent_identity(RunConfig(intent_weights=given)).endswith(f" ({given})")
+    with pytest.raises(ValueError, match="no such file"):
+        intent_identity(RunConfig(intent_weights=str(tmp_path / "missing.pt")))

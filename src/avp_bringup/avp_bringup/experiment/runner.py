@@ -85,7 +85,8 @@ def sim_values(cfg: RunConfig) -> dict[str, Any]:
 
 
 def intent_identity(cfg: RunConfig) -> str:
-    """Which intent weights the episodes use: 'sha256:<hex> (<path>)' or 'random seed N'."""
+    """Which intent weights the episodes use: 'sha256:<hex> (shipped)', 'sha256:<hex> (<path as given>)' or
+    'random seed N' (no machine-specific path: summaries made on two machines compare)."""
     from avp_perception.core.pipeline import shipped_weights_path
 
     path = Path(cfg.intent_weights) if cfg.intent_weights else shipped_weights_path()
@@ -93,7 +94,7 @@ def intent_identity(cfg: RunConfig) -> str:
         return f"random seed {cfg.intent_seed}"
     if not path.is_file():
         raise ValueError(f"--intent-weights {path}: no such file")
-    return f"sha256:{hashlib.sha256(path.read_bytes()).hexdigest()} ({path})"
+    return f"sha256:{hashlib.sha256(path.read_bytes()).hexdigest()} ({cfg.intent_weights or 'shipped'})"
 
 
 def check_method(profile: MethodProfile) -> str:
