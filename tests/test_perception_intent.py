@@ -387,3 +387,20 @@ def test_weights_carry_their_feature_count(tmp_path):
         load_cnn(tmp_path / "bad.pt")
     with pytest.raises(ValueError, match="n_features"):
         SmallRegularizedCNN(100, n_features=N_FEATURES + 1)
+
+
+def test_columns_the_network_does_not_read_are_skipped_not_changed(tmp_path):
+    """A 5-feature network's inputs skip the history-based columns (no motion features, no roll tracking) but
+    the five it reads are those an all-features network gets."""
+    obs = two_vehicle_obs()
+    dyn = [v for v in obs.vehicles if not v.is_static]
+    bt = BeliefMap.from_lot(LOT).observe(obs.vacant_spot_ids, obs.occupied_spot_ids)
+    full = IntentPredictor(LOT)  # all features
+    five = IntentPredictor(LOT)
+    torch.save(SmallRegularizedCNN(100, n_features=5).state_dict(), tmp_path / "w5.pt")
+    five.load_weights(tmp_path / "w5.pt")
+    _, f_full = full.inputs(obs, dyn, bt)
+    _, f_five = five.inputs(obs, dyn, bt)
+    for a, b in zip(f_full, f_five, strict=True):
+        np.testing.assert_array_equal(a[:, :5], b[:, :5])
+    assert all(np.all(b[:, 11] == 0.0) for b in f_five)  # slow_roll_distance: not tracked for this network

@@ -66,6 +66,8 @@ MOTION_FEATURES = ("sin_to_target", *(f"mean_speed_{j}_{j + 1}s" for j in range(
                    "heading_change_2s", "slow_roll_distance")
 FEATURE_NAMES = PARKPREDICT_FEATURES + MOTION_FEATURES
 N_FEATURES = len(FEATURE_NAMES)  # 12
+MOTION_COLUMN = FEATURE_NAMES.index("mean_speed_0_1s")  # 6: the first column computed from the history
+ROLL_COLUMN = FEATURE_NAMES.index("slow_roll_distance")  # 11
 ROLL_SPEED = 1.6  # m/s: "slow" for slow_roll_distance (parkers roll their last 6-12 m at 0.8-1.5 m/s, cruise 2-4)
 KERNELS = (7, 5, 3)
 CHANNELS = (3, 8, 8, 3)
@@ -352,7 +354,8 @@ class IntentPredictor:
         self._last_t = obs.t
         span = (len(vehicle.history) - 1) * obs.dt
         first = self._first_seen.setdefault(int(vehicle.id), obs.t - span)
-        self.roll_distance(obs, vehicle)
+        if self.net.n_features > ROLL_COLUMN:
+            self.roll_distance(obs, vehicle)
         return max(0.0, obs.t - first) / 60.0
 
     def roll_distance(self, obs: Observation, vehicle: ObservedVehicle) -> float:
@@ -432,16 +435,20 @@ class IntentPredictor:
                lot: LotMap | None = None, *, ego_history: np.ndarray | None = None
                ) -> tuple[list[VehicleBEV], list[np.ndarray]]:
         """The network inputs of :meth:`predict_all`: per vehicle its BEV (I_k,0 and the marked I_k,i, §V-B)
-        and its (K + 1, N_FEATURES) features (§V-A). The training data (:mod:`avp_perception.training`) is made
-        with this same call."""
+        and its (K + 1, N_FEATURES) features (§V-A) — the columns past the network's ``n_features`` are left at
+        their no-history defaults (not computed). The training data (:mod:`avp_perception.training`) is made with
+        this same call on an all-features network."""
         r = self.renderer(lot)
         if isinstance(beliefs, BeliefMap):
             b_tilde, observed = beliefs.b_tilde, beliefs.observed_mask
         else:
             b_tilde, observed = np.asarray(beliefs, dtype=float), r.observed_mask(obs)
         bevs = r.render_all(obs, list(vehicles), b_tilde, observed, ego_history)
+        # columns the network does not read are not computed (left at their no-history defaults)
+        n = self.net.n_features
         feats = [intent_features(bev.pose, bev.speed, r.spot_centers[bev.candidate_idx], r.lot.entrance,
-                                 self.time_in_lot(obs, v), v.history, obs.dt, self.roll_distance(obs, v))
+                                 self.time_in_lot(obs, v), v.history if n > MOTION_COLUMN else None, obs.dt,
+                                 self.roll_distance(obs, v) if n > ROLL_COLUMN else 0.0)
                  for bev, v in zip(bevs, vehicles, strict=True)]
         return bevs, feats
 
