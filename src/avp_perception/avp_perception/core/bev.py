@@ -215,9 +215,19 @@ def changed_boxes(images: np.ndarray, base: np.ndarray) -> np.ndarray:
 # ------------------------------------------------------------------------------- exploration points
 
 
+_SEGMENTS: dict[int, tuple[LotMap, np.ndarray, np.ndarray]] = {}
+
+
 def _road_segments(lot: LotMap) -> tuple[np.ndarray, np.ndarray]:
+    """(R, 2, 2) road centre-line segments and their headings (cached per lot object)."""
+    hit = _SEGMENTS.get(id(lot))
+    if hit is not None and hit[0] is lot:
+        return hit[1], hit[2]
     seg = np.array([[r.start, r.end] for r in lot.roads], dtype=float).reshape(-1, 2, 2)
     heading = np.array([r.heading for r in lot.roads], dtype=float)
+    if len(_SEGMENTS) > 16:
+        _SEGMENTS.clear()
+    _SEGMENTS[id(lot)] = (lot, seg, heading)
     return seg, heading
 
 

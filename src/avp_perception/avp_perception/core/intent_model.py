@@ -131,10 +131,12 @@ class SmallRegularizedCNN(nn.Module):
 
 
 def sigmoid_normalise(logits: np.ndarray | torch.Tensor) -> np.ndarray:
-    """ParkPredict+ probabilities (sheet §1.5): sigmoid(z_j) / sum_j sigmoid(z_j)."""
-    z = torch.as_tensor(logits, dtype=torch.float64)
-    s = torch.sigmoid(z)
-    return (s / s.sum()).numpy()
+    """ParkPredict+ probabilities (sheet §1.5): sigmoid(z_j) / sum_j sigmoid(z_j) (float64; numpy, no overflow)."""
+    z = logits.detach().cpu().numpy() if isinstance(logits, torch.Tensor) else logits
+    z = np.asarray(z, dtype=np.float64)
+    e = np.exp(-np.abs(z))
+    s = np.where(z >= 0.0, 1.0 / (1.0 + e), e / (1.0 + e))
+    return s / s.sum()
 
 
 def motion_features(history: np.ndarray | None, dt: float, speed: float) -> np.ndarray:

@@ -8,6 +8,7 @@ does (weights linspace(0.9, 0.1, n) over the top n = min(3, #points), normalised
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -45,5 +46,12 @@ def split_none_mass(none_probability: float, n_points: int, top: int = TOP_EXPLO
     n = min(int(top), int(n_points))
     if n <= 0:
         return np.zeros(0)
+    return float(none_probability) * _split_weights(n)
+
+
+@functools.cache
+def _split_weights(n: int) -> np.ndarray:
     w = np.linspace(0.9, 0.1, n)
-    return float(none_probability) * w / w.sum()
+    w = w / w.sum()
+    w.setflags(write=False)
+    return w
