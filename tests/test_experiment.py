@@ -329,7 +329,6 @@ def test_inproc_and_ros_transport_give_identical_episodes(tmp_path, ros_env, mon
     assert all(r["timings"]["perception_time"] > 0 for r in raw)
 
 
-
 def test_intent_identity_names_the_weights_without_machine_paths(tmp_path):
     """run.json / summary.md name the intent weights by content hash and 'shipped' (or the path as given), never
     by this machine's absolute path, so results made on two machines compare."""

@@ -87,12 +87,18 @@ class LotMap:
         object.__setattr__(
             self, "road_corners", np.array([r.corners() for r in self.roads]).reshape(-1, 4, 2)
         )
+        object.__setattr__(
+            self, "road_segments", np.array([[r.start, r.end] for r in self.roads], dtype=float).reshape(-1, 2, 2)
+        )
+        object.__setattr__(self, "road_headings", np.array([r.heading for r in self.roads], dtype=float))
 
     spot_ids: np.ndarray = field(init=False, repr=False, compare=False)
     spot_poses: np.ndarray = field(init=False, repr=False, compare=False)
     spot_dims: np.ndarray = field(init=False, repr=False, compare=False)
     spot_corners: np.ndarray = field(init=False, repr=False, compare=False)
     road_corners: np.ndarray = field(init=False, repr=False, compare=False)
+    road_segments: np.ndarray = field(init=False, repr=False, compare=False)  # (R, 2, 2) centre lines C_j
+    road_headings: np.ndarray = field(init=False, repr=False, compare=False)  # (R,) theta_Rj
 
     @property
     def n_spots(self) -> int:

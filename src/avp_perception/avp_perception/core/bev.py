@@ -215,22 +215,6 @@ def changed_boxes(images: np.ndarray, base: np.ndarray) -> np.ndarray:
 # ------------------------------------------------------------------------------- exploration points
 
 
-_SEGMENTS: dict[int, tuple[LotMap, np.ndarray, np.ndarray]] = {}
-
-
-def _road_segments(lot: LotMap) -> tuple[np.ndarray, np.ndarray]:
-    """(R, 2, 2) road centre-line segments and their headings (cached per lot object)."""
-    hit = _SEGMENTS.get(id(lot))
-    if hit is not None and hit[0] is lot:
-        return hit[1], hit[2]
-    seg = np.array([[r.start, r.end] for r in lot.roads], dtype=float).reshape(-1, 2, 2)
-    heading = np.array([r.heading for r in lot.roads], dtype=float)
-    if len(_SEGMENTS) > 16:
-        _SEGMENTS.clear()
-    _SEGMENTS[id(lot)] = (lot, seg, heading)
-    return seg, heading
-
-
 def _outward_poses(point: np.ndarray, direction: np.ndarray, heading: float, center: np.ndarray) -> list[np.ndarray]:
     """Pose(s) on a centre line with the road heading theta_R or theta_R + pi, whichever points away from
     ``center``; both where the road is perpendicular to the outward direction (it only touches the region)."""
@@ -251,7 +235,7 @@ def exploration_points_circle(lot: LotMap, center: np.ndarray, radius: float) ->
     (both where a centre line only touches the circle).
     """
     c = np.asarray(center, dtype=float)[:2]
-    seg, heading = _road_segments(lot)
+    seg, heading = lot.road_segments, lot.road_headings
     p0 = seg[:, 0]
     d = seg[:, 1] - p0
     f = p0 - c
@@ -274,7 +258,7 @@ def exploration_points_square(lot: LotMap, pose: np.ndarray, half_extent: float)
     c = np.asarray(pose[:2], dtype=float)
     cs, sn = math.cos(pose[2]), math.sin(pose[2])
     rot = np.array([[cs, -sn], [sn, cs]])
-    seg, heading = _road_segments(lot)
+    seg, heading = lot.road_segments, lot.road_headings
     out: list[np.ndarray] = []
     for (p0, p1), th in zip(seg, heading, strict=True):
         q0, q1 = (p0 - c) @ rot, (p1 - c) @ rot  # local frame

@@ -190,8 +190,8 @@ def intent_features(pose: np.ndarray, speed: float, targets: np.ndarray, entranc
     out[1:, 3] = d_ent
     out[1:, 4] = time_in_lot_min
     out[1:, 5] = sin
-    out[:, 6:11] = motion_features(history, dt, speed)[None]
-    out[:, 11] = roll_distance
+    out[:, MOTION_COLUMN:ROLL_COLUMN] = motion_features(history, dt, speed)[None]
+    out[:, ROLL_COLUMN] = roll_distance
     return out
 
 
@@ -366,11 +366,11 @@ class IntentPredictor:
         first sight it is read from the history (back to the last step at or above ROLL_SPEED); then each new
         observation adds the displacement since the previous one while the vehicle is slow."""
         vid = int(vehicle.id)
+        prev = self._rolls.get(vid)
+        if prev is not None and prev[0] == obs.t:  # already updated at this step
+            return prev[2]
         h = np.asarray(vehicle.history, dtype=float).reshape(-1, 3)
         xy = np.asarray(vehicle.pose, dtype=float)[:2]
-        prev = self._rolls.get(vid)
-        if prev is not None and prev[0] == obs.t:
-            return prev[2]
         step = np.hypot(*np.diff(h[:, :2], axis=0).T) if len(h) > 1 else np.zeros(0)
         slow_now = (step[-1] / obs.dt < ROLL_SPEED) if len(step) and obs.dt > 0 else False
         if not slow_now:

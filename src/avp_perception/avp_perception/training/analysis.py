@@ -61,15 +61,24 @@ def error_table(samples: Samples, logits: list[np.ndarray]) -> dict:
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m avp_perception.training.analysis", description=__doc__.split("\n")[0])
+def load_split_and_logits(prog: str, description: str, argv: list[str] | None
+                          ) -> tuple[Samples, list[np.ndarray], str]:
+    """The command line of the analysis tools (``split [--weights FILE]``): the saved split, the intent CNN's
+    logits on it (shipped or given weights, 1 torch thread) and the line saying which weights."""
+    ap = argparse.ArgumentParser(prog=prog, description=description)
     ap.add_argument("split", help="a saved split (.npz)")
     ap.add_argument("--weights", default="", help="intent CNN state dict (default: the shipped weights)")
     args = ap.parse_args(argv)
     torch.set_num_threads(1)
     samples = Samples.load(args.split)
     intent, info = make_intent_predictor(None, weights=args.weights)
-    t = error_table(samples, model_logits(intent.model, samples))
+    return samples, model_logits(intent.model, samples), info
+
+
+def main(argv: list[str] | None = None) -> int:
+    samples, logits, info = load_split_and_logits("python -m avp_perception.training.analysis",
+                                                  __doc__.split("\n")[0], argv)
+    t = error_table(samples, logits)
     print(f"{info}; {t['n']} samples: top-1 {t['top1']:.3f} (label a spot {t['label_spot_top1']:.3f}, "
           f"label none {t['label_none_top1']:.3f})")
     print("| distance to the labelled spot | n | CNN top-1 | nearest top-1 | CNN says none |")

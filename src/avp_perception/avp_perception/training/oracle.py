@@ -24,10 +24,7 @@ Usage: ``python -m avp_perception.training.oracle OUT/data/test.npz [--weights F
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
-import torch
 
 from avp_perception.training.dataset import DataSpec, Samples, episode_lot
 from avp_perception.training.lanes import A_DEC
@@ -140,17 +137,12 @@ def oracle_table(samples: Samples, cnn_hits: np.ndarray, spec: DataSpec = DataSp
 
 
 def main(argv: list[str] | None = None) -> int:
-    from avp_perception.core.pipeline import make_intent_predictor
-    from avp_perception.training.train import model_logits, topk_hits
+    from avp_perception.training.analysis import load_split_and_logits
+    from avp_perception.training.train import topk_hits
 
-    ap = argparse.ArgumentParser(prog="python -m avp_perception.training.oracle", description=__doc__.split("\n")[0])
-    ap.add_argument("split", help="a saved held-out split (.npz) of the traffic episodes")
-    ap.add_argument("--weights", default="", help="intent CNN state dict (default: the shipped weights)")
-    args = ap.parse_args(argv)
-    torch.set_num_threads(1)
-    samples = Samples.load(args.split)
-    intent, info = make_intent_predictor(None, weights=args.weights)
-    cnn_hits = topk_hits(model_logits(intent.model, samples), samples.labels, 1)
+    samples, logits, info = load_split_and_logits("python -m avp_perception.training.oracle",
+                                                  __doc__.split("\n")[0], argv)
+    cnn_hits = topk_hits(logits, samples.labels, 1)
     t = oracle_table(samples, cnn_hits)
     print(f"{info}; {t['n']} samples, CNN top-1 {t['cnn_top1']:.3f}")
     print("| goal-directed parkers' samples | n | oracle top-1 | CNN top-1 |")
