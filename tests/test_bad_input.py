@@ -98,6 +98,7 @@ def test_scenario_file_not_yaml_or_missing(paper_lot, tmp_path):
 rclpy = pytest.importorskip("rclpy")
 
 from avp_bringup.graph import Graph, NodeSpec  # noqa: E402
+from avp_bringup.services import call_idempotent  # noqa: E402
 
 
 def _sim(**extra) -> NodeSpec:
@@ -353,10 +354,9 @@ def test_bad_requests_into_a_running_simulator(ros_env, tmp_path, monkeypatch):
         m.twist.linear.x, m.twist.angular.z = v, om
         pub.publish(m)
 
-    def reset(**kw):
-        fut = client.call_async(ResetEpisode.Request(**kw))
-        spin(20, fut.done)
-        return fut.result()
+    def reset(**kw):  # re-sent while unanswered: a response can be lost while discovery settles
+        return call_idempotent(client, ResetEpisode.Request(**kw), lambda s: rclpy.spin_once(node, timeout_sec=s),
+                               timeout=20)
 
     bad_scenario = tmp_path / "bad.yaml"
     data = yaml.safe_load(SCENARIO.read_text())

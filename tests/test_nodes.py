@@ -15,6 +15,7 @@ rclpy = pytest.importorskip("rclpy")
 from geometry_msgs.msg import TwistStamped  # noqa: E402
 
 from avp_bringup.graph import Graph, NodeSpec  # noqa: E402
+from avp_bringup.services import call_idempotent  # noqa: E402
 from avp_common.conversions import step_to_time  # noqa: E402
 from avp_common.qos import STATUS, STEP  # noqa: E402
 from avp_msgs.msg import EpisodeStatus, GroundTruth, Observation  # noqa: E402
@@ -97,10 +98,9 @@ def test_reset_service(ros, tmp_path):
         client = probe.node.create_client(ResetEpisode, "reset_episode")
         assert client.wait_for_service(timeout_sec=20)
 
-        def call(**kw):
-            fut = client.call_async(ResetEpisode.Request(**kw))
-            probe.spin_until(fut.done, timeout=20)
-            return fut.result()
+        def call(**kw):  # re-sent while unanswered: a response can be lost while discovery settles
+            return call_idempotent(client, ResetEpisode.Request(**kw),
+                                   lambda s: rclpy.spin_once(probe.node, timeout_sec=s), timeout=20)
 
         bad = call(seed=1, reactive=True, scenario_file="/nonexistent.yaml")
         assert not bad.success and "reset_episode" in bad.message
@@ -113,6 +113,46 @@ def test_reset_service(ros, tmp_path):
         assert 29 <= ok.n_vehicles <= 39
         assert probe.spin_until(lambda: probe.status is not None and probe.status.seed == 11)
         assert not probe.status.reactive and probe.status.state == EpisodeStatus.STATE_RUNNING
+
+
+def test_call_idempotent_resends_an_unanswered_request(ros):
+    """A server that answers its first request too late: the helper re-sends, takes the second answer and drops
+    the first (its future was withdrawn), over real DDS."""
+    import threading
+
+    from rclpy.executors import SingleThreadedExecutor
+
+    probe, _ = ros
+    server = rclpy.create_node("slow_reset_server", namespace="/avp")
+    seen: list[int] = []
+
+    def on_reset(req, resp):
+        seen.append(req.seed)
+        if len(seen) == 1:
+            time.sleep(1.5)  # longer than resend_after below
+        resp.success, resp.n_vehicles = True, len(seen)
+        return resp
+
+    server.create_service(ResetEpisode, "slow_reset", on_reset)
+    executor = SingleThreadedExecutor()
+    executor.add_node(server)
+    stop = threading.Event()
+    thread = threading.Thread(target=lambda: [executor.spin_once(timeout_sec=0.05) for _ in iter(stop.is_set, True)])
+    thread.start()
+    try:
+        client = probe.node.create_client(ResetEpisode, "slow_reset")
+        assert client.wait_for_service(timeout_sec=20)
+        spin = lambda s: rclpy.spin_once(probe.node, timeout_sec=s)  # noqa: E731
+        res = call_idempotent(client, ResetEpisode.Request(seed=7), spin, timeout=20, resend_after=0.5)
+        assert res is not None and res.success
+        assert res.n_vehicles >= 2, "the late first answer was taken instead of a re-sent request's"
+        assert seen[:2] == [7, 7]
+        nobody = probe.node.create_client(ResetEpisode, "nobody")  # no server: None after the timeout
+        assert call_idempotent(nobody, ResetEpisode.Request(seed=1), spin, timeout=0.5, resend_after=0.2) is None
+    finally:
+        stop.set()
+        thread.join()
+        server.destroy_node()
 
 
 def test_avp_launch_starts_graph_and_ctrl_c_stops_it(ros, tmp_path):

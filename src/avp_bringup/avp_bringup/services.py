@@ -1,0 +1,35 @@
+"""Calling a ROS 2 service whose request is safe to repeat, re-sending it while no answer comes.
+
+`wait_for_service` returning True means the *client* has matched the server's endpoints; the server may not yet
+have matched the client's response reader. Fast DDS then waits 100 ms for that match and otherwise drops the
+response (ros2/rmw_fastrtps#390, #467) — on a loaded two-core machine, right after start-up, discovery can take
+longer, and a single `call_async` then never completes. For idempotent requests (`reset_episode` with a seed,
+`get_state`, `get_parameters`) re-sending is the cure; for others (lifecycle `change_state`) it is not, and
+callers must let discovery settle instead.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+
+def call_idempotent(client: Any, request: Any, spin_once: Callable[[float], None], timeout: float = 30.0,
+                    resend_after: float = 2.0) -> Any | None:
+    """Send `request` on `client` (an rclpy Client) and spin with `spin_once(seconds)` until it is answered;
+    re-send it every `resend_after` s without an answer. Returns the response, or None after `timeout` s."""
+    t0 = time.monotonic()
+    while True:
+        future = client.call_async(request)
+        t_sent = time.monotonic()
+        while not future.done():
+            now = time.monotonic()
+            if now - t0 >= timeout or now - t_sent >= resend_after:
+                break
+            spin_once(0.05)
+        if future.done():
+            return future.result()
+        client.remove_pending_request(future)
+        if time.monotonic() - t0 >= timeout:
+            return None
