@@ -27,9 +27,15 @@ from pathlib import Path
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 
+from avp_bringup.services import call_idempotent
+
 TRANSITIONS = {"configure": Transition.TRANSITION_CONFIGURE, "cleanup": Transition.TRANSITION_CLEANUP,
                "activate": Transition.TRANSITION_ACTIVATE, "deactivate": Transition.TRANSITION_DEACTIVATE,
                "shutdown": None}  # shutdown: the id depends on the current state
+#: the state a transition ends in when it succeeds
+GOAL_STATE = {"configure": "inactive", "cleanup": "unconfigured", "activate": "active", "deactivate": "inactive",
+              "shutdown": "finalized"}
+RECHECK_S = 2.0  # s without an answer to change_state before the state is asked instead
 SHUTDOWN_FROM = {"unconfigured": Transition.TRANSITION_UNCONFIGURED_SHUTDOWN,
                  "inactive": Transition.TRANSITION_INACTIVE_SHUTDOWN,
                  "active": Transition.TRANSITION_ACTIVE_SHUTDOWN}
@@ -123,24 +129,28 @@ class LifecycleClient:
             self._clients[key] = self.node.create_client(srv, f"{target}/{kind}")
         return self._clients[key]
 
-    def _call(self, target: str, kind: str, request, timeout: float):
-        import rclpy
-
+    def _ready(self, target: str, kind: str, timeout: float):
         client = self._client(target, kind)
         if not client.wait_for_service(timeout_sec=timeout):
             raise SwapError(f"{target}: no lifecycle service {target}/{kind} (not running, or not a lifecycle node)")
-        future = client.call_async(request)
-        t0 = time.monotonic()
-        while not future.done() and time.monotonic() - t0 < timeout:
-            rclpy.spin_once(self.node, timeout_sec=0.05)
-        if not future.done():
-            raise SwapError(f"{target}: {kind} did not answer within {timeout} s")
-        return future.result()
+        return client
+
+    def _spin_once(self, seconds: float) -> None:
+        import rclpy
+
+        rclpy.spin_once(self.node, timeout_sec=seconds)
 
     def state(self, target: str, timeout: float = 10.0) -> str:
-        return self._call(target, "get_state", GetState.Request(), timeout).current_state.label
+        """The lifecycle state's label; get_state is safe to repeat, so it is re-sent while unanswered (a response
+        can be lost while discovery settles: avp_bringup/services.py)."""
+        res = call_idempotent(self._ready(target, "get_state", timeout), GetState.Request(), self._spin_once, timeout)
+        if res is None:
+            raise SwapError(f"{target}: get_state did not answer within {timeout} s")
+        return res.current_state.label
 
     def change(self, target: str, transition: str, timeout: float = 30.0) -> None:
+        """Request ``transition``. A transition must not be sent twice, so while its answer is missing the node's
+        state is asked every RECHECK_S s: reaching the transition's goal state counts as its answer."""
         tid = TRANSITIONS[transition]
         if transition == "shutdown":
             tid = SHUTDOWN_FROM.get(self.state(target, timeout))
@@ -148,13 +158,31 @@ class LifecycleClient:
                 return  # finalized already
         req = ChangeState.Request()
         req.transition.id = tid
-        if not self._call(target, "change_state", req, timeout).success:
+        client = self._ready(target, "change_state", timeout)
+        future = client.call_async(req)
+        t0 = time.monotonic()
+        t_check = t0 + RECHECK_S
+        while not future.done():
+            now = time.monotonic()
+            if now - t0 > timeout:
+                client.remove_pending_request(future)
+                raise SwapError(f"{target}: change_state '{transition}' did not answer within {timeout} s")
+            if now >= t_check:
+                try:
+                    reached = self.state(target, RECHECK_S) == GOAL_STATE[transition]
+                except SwapError:  # no answer either; after a shutdown the node may be gone
+                    reached = transition == "shutdown" and not self._client(target, "get_state").service_is_ready()
+                if reached:
+                    client.remove_pending_request(future)
+                    return
+                t_check = time.monotonic() + RECHECK_S
+            self._spin_once(0.05)
+        if not future.result().success:
             raise SwapError(f"{target}: transition '{transition}' failed (state {self.state(target, timeout)})")
 
     def parameters(self, target: str, names: tuple[str, ...], timeout: float = 5.0) -> dict:
         """The values of ``names`` that ``target`` has declared (rcl_interfaces GetParameters); {} when the node
         has no parameter service or does not answer in time."""
-        import rclpy
         from rcl_interfaces.msg import ParameterType
         from rcl_interfaces.srv import GetParameters
 
@@ -164,15 +192,12 @@ class LifecycleClient:
         client = self._clients[key]
         if not client.wait_for_service(timeout_sec=timeout):
             return {}
-        future = client.call_async(GetParameters.Request(names=list(names)))
-        t0 = time.monotonic()
-        while not future.done() and time.monotonic() - t0 < timeout:
-            rclpy.spin_once(self.node, timeout_sec=0.05)
-        if not future.done() or future.result() is None:
+        res = call_idempotent(client, GetParameters.Request(names=list(names)), self._spin_once, timeout)
+        if res is None:
             return {}
         readers = {ParameterType.PARAMETER_BOOL: "bool_value", ParameterType.PARAMETER_INTEGER: "integer_value",
                    ParameterType.PARAMETER_DOUBLE: "double_value", ParameterType.PARAMETER_STRING: "string_value"}
-        return {n: getattr(v, readers[v.type]) for n, v in zip(names, future.result().values, strict=False)
+        return {n: getattr(v, readers[v.type]) for n, v in zip(names, res.values, strict=False)
                 if v.type in readers}
 
     def spin(self, seconds: float) -> None:
