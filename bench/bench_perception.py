@@ -7,8 +7,9 @@ vehicle too rarely); every ``--stride``-th step of each episode where the ego ob
 dynamic vehicles is kept. Timed per snapshot:
 
 * step = belief update eq. (7) + BEV reconstruction of every observed dynamic vehicle (all candidate
-  images) + intent CNN on all candidates of all vehicles in one batch (random weights, torch.no_grad)
-  + eq. (8); targets: median <= 5 ms; reported per thread count of ``torch.set_num_threads``;
+  images) + intent CNN on all candidates of all vehicles in one batch (the shipped weights, as the node
+  loads them; torch.inference_mode) + eq. (8); target: median <= 5 ms; reported per thread count of
+  ``torch.set_num_threads`` (the belief node uses 1);
 * Bezier prediction (§V-C) of the 2-vehicle snapshots with 2 intentions >= mu per vehicle; target <= 1 ms;
 * Hybrid A* prediction (issue #4, ``make_predictor("hybrid_astar")``) of the same snapshots: with the Bezier
   bench's intentions (the first two vacant spots of the observation, often across the lot) and with the two

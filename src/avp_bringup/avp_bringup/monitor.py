@@ -25,6 +25,8 @@ from avp_common.conversions import observation_from_msg, time_to_ns
 from avp_common.qos import STATUS
 from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation
 
+#: reader side of the metric streams: a whole episode (t_f = 100 s at dt = 0.1 s, 1000 steps) may queue while the
+#: monitor is busy (the writer of debug/ground_truth keeps 300: avp_common.qos.GROUND_TRUTH; compatible QoS)
 GROUND_TRUTH_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
                               durability=DurabilityPolicy.VOLATILE)
 
