@@ -15,7 +15,7 @@ rclpy = pytest.importorskip("rclpy")
 from geometry_msgs.msg import TwistStamped  # noqa: E402
 
 from avp_bringup.graph import Graph, NodeSpec  # noqa: E402
-from avp_bringup.services import call_idempotent  # noqa: E402
+from avp_bringup.services import call_idempotent, call_once  # noqa: E402
 from avp_common.conversions import step_to_time  # noqa: E402
 from avp_common.qos import STATUS, STEP  # noqa: E402
 from avp_msgs.msg import EpisodeStatus, GroundTruth, Observation  # noqa: E402
@@ -115,9 +115,9 @@ def test_reset_service(ros, tmp_path):
         assert not probe.status.reactive and probe.status.state == EpisodeStatus.STATE_RUNNING
 
 
-def test_call_idempotent_resends_an_unanswered_request(ros):
-    """A server that answers its first request too late: the helper re-sends, takes the second answer and drops
-    the first (its future was withdrawn), over real DDS."""
+def test_service_helpers_resend_or_watch_the_effect(ros):
+    """A server that answers its first request too late: call_idempotent re-sends, takes the second answer and
+    drops the first (its future was withdrawn); call_once never re-sends. Over real DDS."""
     import threading
 
     from rclpy.executors import SingleThreadedExecutor
@@ -128,8 +128,8 @@ def test_call_idempotent_resends_an_unanswered_request(ros):
 
     def on_reset(req, resp):
         seen.append(req.seed)
-        if len(seen) == 1:
-            time.sleep(1.5)  # longer than resend_after below
+        if len(seen) == 1 or req.seed == 9:
+            time.sleep(1.5)  # longer than resend_after below; seed 9: answered after its effect was seen
         resp.success, resp.n_vehicles = True, len(seen)
         return resp
 
@@ -149,6 +149,15 @@ def test_call_idempotent_resends_an_unanswered_request(ros):
         assert seen[:2] == [7, 7]
         nobody = probe.node.create_client(ResetEpisode, "nobody")  # no server: None after the timeout
         assert call_idempotent(nobody, ResetEpisode.Request(seed=1), spin, timeout=0.5, resend_after=0.2) is None
+
+        # call_once: sent once; an answer is taken, or the effect seen another way ends the wait (None)
+        n_seen = len(seen)
+        assert call_once(client, ResetEpisode.Request(seed=8), spin, lambda: False, timeout=20).success
+        assert seen[n_seen:] == [8]
+        t0 = time.monotonic()
+        assert call_once(client, ResetEpisode.Request(seed=9), spin, lambda: time.monotonic() - t0 > 0.3) is None
+        with pytest.raises(TimeoutError, match="nobody"):
+            call_once(nobody, ResetEpisode.Request(seed=1), spin, lambda: False, timeout=0.3)
     finally:
         stop.set()
         thread.join()

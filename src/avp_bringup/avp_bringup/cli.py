@@ -220,11 +220,18 @@ def _start_episode(monitor, executor, graph, srv_type, args, n_obs_subs: int, lo
     t1 = time.monotonic()
     while time.monotonic() - t1 < 1.0:  # matching completes both ways; the latched lot map reaches every node
         executor.spin_once(timeout_sec=0.05)
-    fut = client.call_async(srv_type.Request(seed=int(args.seed), reactive=not args.non_reactive))
-    executor.spin_until_future_complete(fut, timeout_sec=30.0)
-    res = fut.result()
-    if res is None or not res.success:
-        raise RuntimeError(f"reset_episode failed: {None if res is None else res.message}")
+    from avp_bringup.services import call_once
+
+    seed, reactive = int(args.seed), not args.non_reactive
+    try:  # sent once (a second reset would restart the running episode); its status also shows it happened
+        res = call_once(client, srv_type.Request(seed=seed, reactive=reactive),
+                        lambda s: executor.spin_once(timeout_sec=s),
+                        lambda: monitor.status is not None and (monitor.status.seed, monitor.status.reactive)
+                        == (seed, reactive), timeout=30.0)
+    except TimeoutError as exc:
+        raise RuntimeError(f"reset_episode failed: {exc}") from None
+    if res is not None and not res.success:
+        raise RuntimeError(f"reset_episode failed: {res.message}")
 
 
 def cmd_record(args: argparse.Namespace) -> int:

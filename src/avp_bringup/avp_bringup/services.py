@@ -4,8 +4,9 @@
 have matched the client's response reader. Fast DDS then waits 100 ms for that match and otherwise drops the
 response (ros2/rmw_fastrtps#390, #467) — on a loaded two-core machine, right after start-up, discovery can take
 longer, and a single `call_async` then never completes. For idempotent requests (`reset_episode` with a seed,
-`get_state`, `get_parameters`) re-sending is the cure; for others (lifecycle `change_state`) it is not, and
-callers must let discovery settle instead.
+`get_state`, `get_parameters`) re-sending is the cure (:func:`call_idempotent`); others (a reset that starts
+a running episode, a lifecycle `change_state`) are sent once and their effect is watched for as well
+(:func:`call_once`).
 """
 
 from __future__ import annotations
@@ -33,3 +34,25 @@ def call_idempotent(client: Any, request: Any, spin_once: Callable[[float], None
         client.remove_pending_request(future)
         if time.monotonic() - t0 >= timeout:
             return None
+
+
+def call_once(client: Any, request: Any, spin_once: Callable[[float], None], effect_seen: Callable[[], bool],
+              timeout: float = 30.0) -> Any | None:
+    """Send a request that must not be repeated (``reset_episode`` once the episode runs, a lifecycle transition)
+    and spin until it is answered or ``effect_seen()`` shows its effect another way (e.g. the new episode's status
+    arrived): the answer may have been lost (module docstring). Returns the response, or None when only the effect
+    was seen; TimeoutError after ``timeout`` s with neither."""
+    future = client.call_async(request)
+    t0 = time.monotonic()
+    while not future.done():
+        if effect_seen():
+            spin_once(0.0)  # an answer already received is still taken
+            if future.done():
+                break
+            client.remove_pending_request(future)
+            return None
+        if time.monotonic() - t0 >= timeout:
+            client.remove_pending_request(future)
+            raise TimeoutError(f"no answer on {client.srv_name} within {timeout} s")
+        spin_once(0.05)
+    return future.result()

@@ -151,6 +151,7 @@ def run_ros(keys: list[Key], cfg: RunConfig, on_record: Callable[[dict], None], 
     from rclpy.executors import SingleThreadedExecutor
 
     from avp_bringup.graph import Graph, method_graph
+    from avp_bringup.services import call_once
     from avp_msgs.srv import ResetEpisode
 
     if not cfg.message_precision:
@@ -190,12 +191,14 @@ def run_ros(keys: list[Key], cfg: RunConfig, on_record: Callable[[dict], None], 
                     reactive = mode == "reactive"
                     collector.begin(seed, reactive)
                     t0 = time.monotonic()
-                    fut = client.call_async(ResetEpisode.Request(seed=int(seed), reactive=reactive))
-                    executor.spin_until_future_complete(fut, timeout_sec=30.0)
-                    res = fut.result()
-                    if res is None or not res.success:
-                        raise RuntimeError(f"reset_episode(seed={seed}, reactive={reactive}) failed: "
-                                           f"{None if res is None else res.message}")
+                    try:  # sent once; the episode's own status also shows that the reset happened
+                        res = call_once(client, ResetEpisode.Request(seed=int(seed), reactive=reactive),
+                                        lambda s: executor.spin_once(timeout_sec=s),
+                                        lambda: collector.status is not None, timeout=30.0)
+                    except TimeoutError as exc:
+                        raise RuntimeError(f"reset_episode(seed={seed}, reactive={reactive}) failed: {exc}") from None
+                    if res is not None and not res.success:
+                        raise RuntimeError(f"reset_episode(seed={seed}, reactive={reactive}) failed: {res.message}")
                     t_end = None
                     while not collector.finished:
                         executor.spin_once(timeout_sec=0.1)
