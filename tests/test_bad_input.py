@@ -256,7 +256,10 @@ def test_bad_messages_into_a_running_planner(ros_env, tmp_path, monkeypatch, pap
     graph.start()
     log = tmp_path / "planner_under_test.log"
     try:
-        assert feeder.spin(30, lambda: feeder.node.count_subscribers(f"{ns}/observation") > 0), "planner not up"
+        # every input matched (a step's message published before its reader matched would be lost) and cmd
+        assert feeder.spin(30, lambda: all(feeder.node.count_subscribers(f"{ns}/{t}") > 0
+                                           for t in ("observation", "beliefs", "predictions"))
+                           and feeder.node.count_publishers(f"{ns}/cmd") > 0), "planner not up"
 
         def play(step: int, mutate=None):
             o, b, p = feeder.messages(replace(base, step=step))
