@@ -25,14 +25,12 @@ from avp_perception.core.belief import BELIEF_INIT, BeliefMap
 from avp_perception.core.bev import BEVConfig, VehicleBEV
 from avp_perception.core.ego_trail import EgoTrail
 from avp_perception.core.implicit import ego_intention
-from avp_perception.core.intent_model import IntentPredictor
+from avp_perception.core.intent_model import IntentPredictor, default_weights_path
 from avp_perception.core.intention import Intention
 from avp_perception.core.nawaz import NawazOccupancy
 from avp_perception.core.prediction import PredictionConfig, make_predictor
 from avp_world.lot import LotMap
 from avp_world.types import Observation, PredictedTrajectory
-
-SHIPPED_WEIGHTS = "intent_cnn.pt"  # file name under avp_perception/models/
 
 
 @dataclass(frozen=True)
@@ -153,8 +151,8 @@ def float32_beliefs(b: np.ndarray) -> np.ndarray:
 
 
 def shipped_weights_path() -> Path | None:
-    """The intent CNN weights shipped with the package (``avp_perception/models/intent_cnn.pt``), if present."""
-    path = Path(__file__).resolve().parents[1] / "models" / SHIPPED_WEIGHTS
+    """The intent CNN weights shipped with the package (:func:`default_weights_path`), if present."""
+    path = default_weights_path()
     return path if path.is_file() else None
 
 
