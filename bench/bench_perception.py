@@ -37,7 +37,7 @@ import torch
 
 from avp_perception.core.belief import BeliefMap
 from avp_perception.core.bev import BEVConfig, BEVRenderer
-from avp_perception.core.intent_model import IntentPredictor
+from avp_perception.core.intent_model import IntentPredictor, SmallRegularizedCNN
 from avp_perception.core.intention import Intention
 from avp_perception.core.pipeline import make_intent_predictor
 from avp_perception.core.prediction import BezierPredictor
@@ -87,7 +87,14 @@ def perception_step(obs, beliefs: BeliefMap, intent: IntentPredictor):
 
 
 def time_steps(obs_list, lot, cfg: BEVConfig, mode: str, repeats: int) -> np.ndarray:
-    intent, _ = make_intent_predictor(lot, cfg, mode=mode)  # the shipped weights (the node's default)
+    if cfg.size_px == BEVConfig().size_px:
+        intent, _ = make_intent_predictor(lot, cfg, mode=mode)  # the shipped weights (the node's default)
+    else:  # --sweep: no weights of this size; seeded random ones reading as many features (values do not matter)
+        n = make_intent_predictor(lot, BEVConfig())[0].net.n_features
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(0)
+            model = SmallRegularizedCNN(cfg.size_px, n_features=n)
+        intent = IntentPredictor(lot, cfg, model=model, mode=mode)
     beliefs = BeliefMap.from_lot(lot)
     for obs in obs_list[:10]:  # warm-up
         perception_step(obs, beliefs, intent)
