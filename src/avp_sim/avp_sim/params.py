@@ -58,7 +58,8 @@ SIM_PARAMS: list[ParamSpec] = [
               "old is ignored and the ego holds still (0: only the current one; a dead pipeline node stops the ego "
               "within one step).", min=0, max=1000, default=0),
     ParamSpec("wait_for_subscribers", bool, "Lock-step: hold step 0 until a subscriber to observation and a "
-              "publisher on cmd exist.", default=True),
+              "publisher on cmd exist, then 0.5 s more the first time (sim_node.SUBSCRIBER_SETTLE_S: the "
+              "readers finish matching).", default=True),
     ParamSpec("min_subscribers", int, "Lock-step: step 0 waits for this many observation subscribers (the ego "
               "pipeline, plus recorders/monitors that must see step 0).", min=1, max=100, default=1),
     ParamSpec("min_debug_subscribers", int, "Lock-step: step 0 also waits for this many debug/ground_truth "

@@ -41,6 +41,13 @@ _STATE = {RUNNING: EpisodeStatus.STATE_RUNNING, SUCCESS: EpisodeStatus.STATE_SUC
           COLLISION: EpisodeStatus.STATE_COLLISION, TIMEOUT: EpisodeStatus.STATE_TIMEOUT}
 
 
+#: Lock-step: wall seconds between the moment the subscribers step 0 waits for are all matched by our writers and
+#: step 0 — their readers' side of the match can lag, and a volatile reader misses what was written before it
+#: matched (a test saw one of two ground-truth subscribers miss step 0). Only the first episode waits (the
+#: readers stay matched).
+SUBSCRIBER_SETTLE_S = 0.5
+
+
 class SimNode(Node):
     def __init__(self) -> None:
         super().__init__("avp_sim")
@@ -63,6 +70,7 @@ class SimNode(Node):
         self.seed = self.p["seed"]
         self.reactive = self.p["reactive"]
         self.started = False  # step 0 published
+        self.subscribers_since: float | None = None  # when the subscribers step 0 waits for were first all there
         self.last_pub_wall = 0.0
         self.latest_cmd: tuple[float, float, float, int] | None = None  # (v, omega, wall time, stamp ns)
         if self.p["autostart"]:
@@ -125,9 +133,15 @@ class SimNode(Node):
             n_subs = self.pub_obs.get_subscription_count()
             n_cmd = self.count_publishers(self.sub_cmd.topic_name)
             n_debug = self.pub_gt.get_subscription_count()
-            if self.p["wait_for_subscribers"] and (n_subs < self.p["min_subscribers"] or n_cmd < 1
-                                                   or n_debug < self.p["min_debug_subscribers"]):
-                return
+            if self.p["wait_for_subscribers"]:
+                if (n_subs < self.p["min_subscribers"] or n_cmd < 1
+                        or n_debug < self.p["min_debug_subscribers"]):
+                    self.subscribers_since = None
+                    return
+                if self.subscribers_since is None:
+                    self.subscribers_since = time.monotonic()
+                if time.monotonic() - self.subscribers_since < SUBSCRIBER_SETTLE_S:
+                    return  # our writers have matched them; their readers may still be matching ours
             self._publish_step()
             return
         if time.monotonic() - self.last_pub_wall > self.p["lockstep_timeout"]:
