@@ -121,14 +121,14 @@ def test_sigkilled_recorder_mid_episode_reads_back_a_prefix(ros, tmp_path):
     simulator published (received independently by this test)."""
     from rosbags.highlevel import AnyReader
 
-    from avp_common.qos import STEP
+    from avp_common.qos import GROUND_TRUTH
     from avp_msgs.msg import GroundTruth
 
     env = ros
     node = rclpy.create_node("probe", namespace="/avp")
     published: list[bytes] = []
     node.create_subscription(GroundTruth, "debug/ground_truth", lambda raw: published.append(bytes(raw)),
-                             STEP, raw=True)
+                             GROUND_TRUTH, raw=True)  # the writer's depth: a stalled probe drops nothing
     bag = tmp_path / "bag"
     rec = subprocess.Popen([sys.executable, "-m", "avp_bringup.cli", "record", str(bag), "--split-period", "0.3",
                             "--topics", "/clock", "/avp/lot_map", "/avp/debug/ground_truth"], env=env,

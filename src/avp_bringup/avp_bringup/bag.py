@@ -88,7 +88,9 @@ class BagRecorder(Node):
         self._subs = []
         for topic, (typename, latched) in topics.items():
             conn = self.writer.add_connection(topic, typename, typestore=self.ts, offered_qos_profiles=[_qos(latched)])
-            qos = QoSProfile(depth=1 if latched else 100, history=HistoryPolicy.KEEP_LAST,
+            # reader queue: 30 s of steps (as the ground-truth writer keeps), so a recorder stalled on a split or
+            # an fsync drops nothing
+            qos = QoSProfile(depth=1 if latched else 300, history=HistoryPolicy.KEEP_LAST,
                              reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
             self._subs.append(self.create_subscription(message_class(typename), topic,
