@@ -27,7 +27,7 @@ from pathlib import Path
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 
-from avp_bringup.services import call_idempotent
+from avp_bringup.services import call_idempotent, call_once
 
 TRANSITIONS = {"configure": Transition.TRANSITION_CONFIGURE, "cleanup": Transition.TRANSITION_CLEANUP,
                "activate": Transition.TRANSITION_ACTIVATE, "deactivate": Transition.TRANSITION_DEACTIVATE,
@@ -159,25 +159,23 @@ class LifecycleClient:
         req = ChangeState.Request()
         req.transition.id = tid
         client = self._ready(target, "change_state", timeout)
-        future = client.call_async(req)
-        t0 = time.monotonic()
-        t_check = t0 + RECHECK_S
-        while not future.done():
-            now = time.monotonic()
-            if now - t0 > timeout:
-                client.remove_pending_request(future)
-                raise SwapError(f"{target}: change_state '{transition}' did not answer within {timeout} s")
-            if now >= t_check:
-                try:
-                    reached = self.state(target, RECHECK_S) == GOAL_STATE[transition]
-                except SwapError:  # no answer either; after a shutdown the node may be gone
-                    reached = transition == "shutdown" and not self._client(target, "get_state").service_is_ready()
-                if reached:
-                    client.remove_pending_request(future)
-                    return
-                t_check = time.monotonic() + RECHECK_S
-            self._spin_once(0.05)
-        if not future.result().success:
+        next_check = [time.monotonic() + RECHECK_S]
+
+        def goal_reached() -> bool:  # asked every RECHECK_S s while the answer is missing
+            if time.monotonic() < next_check[0]:
+                return False
+            try:
+                reached = self.state(target, RECHECK_S) == GOAL_STATE[transition]
+            except SwapError:  # no answer either; after a shutdown the node may be gone
+                reached = transition == "shutdown" and not self._client(target, "get_state").service_is_ready()
+            next_check[0] = time.monotonic() + RECHECK_S
+            return reached
+
+        try:
+            res = call_once(client, req, self._spin_once, goal_reached, timeout)
+        except TimeoutError:
+            raise SwapError(f"{target}: change_state '{transition}' did not answer within {timeout} s") from None
+        if res is not None and not res.success:
             raise SwapError(f"{target}: transition '{transition}' failed (state {self.state(target, timeout)})")
 
     def parameters(self, target: str, names: tuple[str, ...], timeout: float = 5.0) -> dict:

@@ -5,8 +5,8 @@ have matched the client's response reader. Fast DDS then waits 100 ms for that m
 response (ros2/rmw_fastrtps#390, #467) — on a loaded two-core machine, right after start-up, discovery can take
 longer, and a single `call_async` then never completes. For idempotent requests (`reset_episode` with a seed,
 `get_state`, `get_parameters`) re-sending is the cure (:func:`call_idempotent`); others (a reset that starts
-a running episode) are sent once and their effect is watched for as well (:func:`call_once`); a lifecycle
-`change_state` is sent once and the node's state asked while its answer is missing (``lifecycle.py``).
+a running episode, a lifecycle `change_state`) are sent once and their effect is watched for as well
+(:func:`call_once`: the new episode's status; the node's lifecycle state, asked every 2 s in ``lifecycle.py``).
 """
 
 from __future__ import annotations
@@ -38,10 +38,10 @@ def call_idempotent(client: Any, request: Any, spin_once: Callable[[float], None
 
 def call_once(client: Any, request: Any, spin_once: Callable[[float], None], effect_seen: Callable[[], bool],
               timeout: float = 30.0) -> Any | None:
-    """Send a request that must not be repeated (``reset_episode`` that starts the episode) and spin until it is
-    answered or ``effect_seen()`` shows its effect another way (e.g. the new episode's status arrived): the answer
-    may have been lost (module docstring). Returns the response, or None when only the effect was seen;
-    TimeoutError after ``timeout`` s with neither."""
+    """Send a request that must not be repeated (``reset_episode`` that starts the episode, a lifecycle transition)
+    and spin until it is answered or ``effect_seen()`` shows its effect another way (e.g. the new episode's status
+    arrived): the answer may have been lost (module docstring). Returns the response, or None when only the effect
+    was seen; TimeoutError after ``timeout`` s with neither."""
     future = client.call_async(request)
     t0 = time.monotonic()
     while not future.done():
