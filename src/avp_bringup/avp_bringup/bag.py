@@ -22,6 +22,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from avp_bringup.bagwriter import SplitBagWriter
 from avp_common.conversions import time_to_ns
+from avp_common.qos import GROUND_TRUTH
 
 #: topic -> (type, latched). The default recording set of the graph (markers/scan are left out: derivable).
 GRAPH_TOPICS: dict[str, tuple[str, bool]] = {
@@ -88,9 +89,9 @@ class BagRecorder(Node):
         self._subs = []
         for topic, (typename, latched) in topics.items():
             conn = self.writer.add_connection(topic, typename, typestore=self.ts, offered_qos_profiles=[_qos(latched)])
-            # reader queue: 30 s of steps (as the ground-truth writer keeps), so a recorder stalled on a split or
-            # an fsync drops nothing
-            qos = QoSProfile(depth=1 if latched else 300, history=HistoryPolicy.KEEP_LAST,
+            # reader queue as deep as the ground-truth writer keeps (30 s of steps): a recorder stalled on a split
+            # or an fsync drops nothing
+            qos = QoSProfile(depth=1 if latched else GROUND_TRUTH.depth, history=HistoryPolicy.KEEP_LAST,
                              reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
             self._subs.append(self.create_subscription(message_class(typename), topic,
