@@ -182,3 +182,30 @@ def test_avp_launch_starts_graph_and_ctrl_c_stops_it(ros, tmp_path):
     assert len(pids) == 2
     for pid in pids:  # every node process is gone
         assert subprocess.run(["kill", "-0", str(pid)], capture_output=True).returncode != 0
+
+
+def test_run_node_treats_errors_after_shutdown_as_shutdown(ros_env, monkeypatch):
+    """avp_common.node_main.run_node: rclpy failing because the context was already shut down (what a Ctrl-C whose
+    KeyboardInterrupt got swallowed leaves behind) returns 0; the same failure with the context alive propagates."""
+    from avp_common.node_main import run_node
+
+    for k, v in ros_env.items():
+        monkeypatch.setenv(k, v)
+
+    def node_that(shutdown_first: bool):
+        def factory():
+            node = rclpy.create_node("run_node_probe")
+
+            def tick():
+                if shutdown_first:
+                    rclpy.shutdown()
+                    node.create_guard_condition(lambda: None)  # rclpy's own RCLError: the context is not valid
+                raise RuntimeError("a fault in a callback")
+
+            node.create_timer(0.05, tick)
+            return node
+        return factory
+
+    assert run_node(node_that(shutdown_first=True), "probe") == 0
+    with pytest.raises(RuntimeError, match="a fault in a callback"):
+        run_node(node_that(shutdown_first=False), "probe")

@@ -13,7 +13,8 @@ from avp_common.params import ParameterError
 
 def run_node(factory: Callable[[], object], label: str, args=None) -> int:
     """Build the node with ``factory`` and spin it. A bad parameter/map at start-up prints one line
-    (``[label] start-up failed: ...``) and returns 2; Ctrl-C / external shutdown return 0."""
+    (``[label] start-up failed: ...``) and returns 2; Ctrl-C / external shutdown return 0 (also when rclpy raises
+    because the context is already shut down); any other error propagates."""
     rclpy.init(args=args)
     node = None
     try:
@@ -24,6 +25,11 @@ def run_node(factory: Callable[[], object], label: str, args=None) -> int:
         return 2
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        # Ctrl-C whose KeyboardInterrupt was swallowed (raised inside a __del__) after rclpy's SIGINT handler had
+        # shut the context down: the executor's next wait set fails with RCLError. That is a shutdown, not a fault.
+        if rclpy.ok():
+            raise
     finally:
         if node is not None:
             node.destroy_node()
