@@ -209,3 +209,27 @@ def test_run_node_treats_errors_after_shutdown_as_shutdown(ros_env, monkeypatch)
     assert run_node(node_that(shutdown_first=True), "probe") == 0
     with pytest.raises(RuntimeError, match="a fault in a callback"):
         run_node(node_that(shutdown_first=False), "probe")
+
+
+def test_ctrl_c_inside_a_finaliser_prints_nothing(monkeypatch, capsys):
+    """The node processes' unraisable hook: a KeyboardInterrupt raised in a ``__del__`` (a Ctrl-C that landed
+    there) prints no traceback; any other exception in a finaliser still does."""
+    import gc
+
+    from avp_common.node_main import ctrl_c_in_finaliser_hook
+
+    class Finaliser:
+        def __init__(self, exc):
+            self.exc = exc
+
+        def __del__(self):
+            raise self.exc
+
+    monkeypatch.setattr(sys, "unraisablehook", ctrl_c_in_finaliser_hook)
+    Finaliser(KeyboardInterrupt())
+    gc.collect()
+    assert "Traceback" not in capsys.readouterr().err
+    Finaliser(ValueError("a real fault"))
+    gc.collect()
+    err = capsys.readouterr().err
+    assert "Traceback" in err and "a real fault" in err

@@ -11,12 +11,22 @@ from rclpy.executors import ExternalShutdownException
 from avp_common.params import ParameterError
 
 
+def ctrl_c_in_finaliser_hook(unraisable) -> None:
+    """``sys.unraisablehook`` of a node process: a Ctrl-C whose KeyboardInterrupt lands in a finaliser
+    (``__del__``) is swallowed by Python — rclpy's SIGINT handler has shut the context down, and the node exits
+    through :func:`run_node`; nothing to print. Anything else goes to the default hook."""
+    if isinstance(unraisable.exc_value, KeyboardInterrupt):
+        return
+    sys.__unraisablehook__(unraisable)
+
+
 def run_node(factory: Callable[[], object], label: str, args=None) -> int:
     """Build the node with ``factory`` and spin it. A bad parameter/map at start-up prints one line
     (``[label] start-up failed: ...``) and returns 2; Ctrl-C / external shutdown return 0 (also when rclpy raises
     because the context is already shut down); any other error propagates."""
     rclpy.init(args=args)
     node = None
+    hook, sys.unraisablehook = sys.unraisablehook, ctrl_c_in_finaliser_hook
     try:
         node = factory()
         rclpy.spin(node)
@@ -34,4 +44,5 @@ def run_node(factory: Callable[[], object], label: str, args=None) -> int:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        sys.unraisablehook = hook
     return 0
