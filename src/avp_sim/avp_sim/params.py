@@ -39,6 +39,10 @@ SIM_PARAMS: list[ParamSpec] = [
               min=0, max=100, default=2),
     ParamSpec("scenario.passiveness_max", int, "Largest passiveness in reactive mode.", "n_pass", "§VI-B",
               min=0, max=100, default=6),
+    ParamSpec("scenario.passiveness_step", float, "Seconds per unit of passiveness: an agent brakes if its plan "
+              "over the next n_pass units meets the ego. §III-B counts timesteps; 0.1 = the simulator's Δt, 0.5 = "
+              "Nawaz et al.'s timestep (protocol 'paper', docs/experiment.md).", "n_pass", "§III-B, §VI-A",
+              min=0.01, max=5.0, default=0.1),
     ParamSpec("scenario.n_dynamic_min", int, "Fewest dynamic vehicles.", "", "§VI-A", min=0, max=10, default=1),
     ParamSpec("scenario.n_dynamic_max", int, "Most dynamic vehicles.", "", "§VI-A", min=0, max=10, default=2),
     ParamSpec("scenario.outer_row_min", int, "Lowest row (0 = bottom) of the outer columns from which the 2 vacant "
@@ -48,6 +52,17 @@ SIM_PARAMS: list[ParamSpec] = [
     ParamSpec("scenario.maneuver_max_speed", float, "Speed bound of the dynamic vehicles' parking maneuvers "
               "(ParkSim's 8); 1.1 m/s gives ParkSim's pace, 1 s per metre (docs/world.md); 2.0 = earlier reading.",
               "", "§VI-A", min=0.1, max=5.0, default=1.1),
+    ParamSpec("scenario.approach_distance_min", float, "Least distance a dynamic vehicle still drives in its lane to "
+              "its maneuver's start at t = 0 (drawn uniformly).", "", "§VI-A", min=0.0, max=100.0, default=0.0),
+    ParamSpec("scenario.approach_distance_max", float, "Largest such distance (the competition-intensity knob of "
+              "docs/experiment.md).", "", "§VI-A", min=0.0, max=100.0, default=8.0),
+    ParamSpec("scenario.cruise_speed_min", float, "Least lane speed of a dynamic vehicle before it brakes for its "
+              "maneuver.", "", "§VI-A", min=0.1, max=5.0, default=1.5),
+    ParamSpec("scenario.cruise_speed_max", float, "Largest such speed.", "", "§VI-A", min=0.1, max=5.0,
+              default=2.5),
+    ParamSpec("scenario.spawn_closer_than_ego", bool, "Re-draw a dynamic vehicle whose centre at t = 0 is not nearer "
+              "its target spot than the ego's start (§VI-B: agents 'initialized closer to their intended spots').",
+              "", "§VI-B", default=False),
     ParamSpec("ego_max_speed", float, "Ego speed limit; commands are clipped to it and to |ω| <= |v|/R_min.",
               "v", "eq. (1)", min=0.0, default=5.0),
     ParamSpec("lockstep_timeout", float, "Lock-step: wall seconds without a matching command before the "

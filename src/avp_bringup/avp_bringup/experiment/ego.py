@@ -87,6 +87,11 @@ class MethodEgo:
         self.core.reset()
         self.planner.reset()
 
+    def predict(self, obs: Observation, b: np.ndarray, intentions: list) -> tuple[np.ndarray, list]:
+        """The prediction node's step (§V-C): (b_t, predicted trajectories). A reference bound may replace it
+        (``avp_bringup.experiment.oracle.OracleEgo``)."""
+        return b, self.core.predictor.predict(obs, intentions)
+
     def step(self, obs: Observation) -> EgoStep:
         prof = self.profile
         t0 = time.perf_counter()
@@ -95,7 +100,7 @@ class MethodEgo:
         if self.message_precision:
             intentions = [float32_intention(i) for i in intentions]
             ego = float32_intention(ego) if ego is not None else None
-        predictions = self.core.predictor.predict(obs, intentions)  # the prediction node, §V-C
+        b, predictions = self.predict(obs, b, intentions)
         if self.message_precision:
             predictions = [replace(p, probability=float(np.float32(p.probability))) for p in predictions]
             b = float32_beliefs(b)

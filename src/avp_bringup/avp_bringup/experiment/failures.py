@@ -24,7 +24,6 @@ from pathlib import Path
 import numpy as np
 
 from avp_bringup.experiment.metrics import comparable
-from avp_bringup.experiment.profiles import load_profile
 from avp_bringup.experiment.runner import (
     _WORKER,
     RESULTS_FILE,
@@ -33,6 +32,7 @@ from avp_bringup.experiment.runner import (
     _init_worker,
     read_results,
     run_episode_inproc,
+    run_profile,
 )
 
 
@@ -60,7 +60,7 @@ def replay_failure(lot, sim_p: dict, record: dict, cfg: RunConfig) -> dict:
             rows = [int(np.nonzero(world.vehicle_ids == v.id)[0][0]) for v in dyn]
             np.minimum(closest, np.hypot(*(world.states[rows, :2] - world.ego[:2]).T), out=closest)
 
-    again = run_episode_inproc(lot, sim_p, load_profile(record["method"]), record["seed"],
+    again = run_episode_inproc(lot, sim_p, run_profile(record["method"], cfg), record["seed"],
                                record["mode"] == "reactive", cfg, on_step=watch)
     last = targets[-1] if targets else -1
     return {"seed": record["seed"], "mode": record["mode"], "method": record["method"], "status": record["status"],

@@ -14,6 +14,7 @@ pipeline — §VI-A: "all compared methods only differ in how they choose the eg
                                   # nawaz (Nawaz et al.'s occupancy from predictions) or observation (eq. 7 only)
       predictor: bezier           # trajectory predictor of the other agents (avp_perception make_predictor)
       ego_intent: false           # true: the intent CNN on the ego's own BEV orders its candidate spots
+      ground_truth: false         # true only for the oracle bound: true targets and futures (in-process only)
     planner:                      # avp_planner parameters over planner.param.yaml — a planner profile
       use_beliefs: true
       use_predictions: true
@@ -48,7 +49,8 @@ import yaml
 from avp_common.params import ParameterError, check_value
 
 BELIEF_SOURCES = ("intent", "nawaz", "observation")  # = the belief node's belief_source (tests/test_experiment.py)
-TABLE_ORDER = ("bezier", "constant_velocity", "hybrid_astar", "learned", "implicit", "nawaz")  # rows of Table I
+TABLE_ORDER = ("bezier", "constant_velocity", "hybrid_astar", "learned", "implicit", "nawaz",  # rows of Table I
+               "oracle", "blind")  # reference bounds below the paper's six (docs/experiment.md)
 # The planner's wall-clock caps are its only timing-dependent knobs (search.time_cap, decision.decision_time_cap,
 # decision.fallback_time_cap): the experiment lifts them so that iteration caps alone end searches and the
 # same command gives the same episodes (tests/test_dds_lockstep.py does the same).
@@ -70,6 +72,7 @@ class MethodProfile:
     beliefs: str
     predictor: str
     ego_intent: bool
+    ground_truth: bool = False  # the oracle bound: told the true targets and futures (in-process only, .oracle)
     planner: dict[str, Any] = field(default_factory=dict)  # flat dotted keys
     unavailable_reason: str = ""
     source: str = ""
@@ -132,7 +135,7 @@ def profile_from_dict(data: Any, source: str) -> MethodProfile:
 
     name = req(data, "name", str, "")
     per = req(data, "perception", dict, "")
-    unknown = sorted(set(per) - {"beliefs", "predictor", "ego_intent"})
+    unknown = sorted(set(per) - {"beliefs", "predictor", "ego_intent", "ground_truth"})
     if unknown:
         raise ProfileError(f"{source}: field 'perception.{unknown[0]}': unknown key")
     beliefs = req(per, "beliefs", str, "perception.")
@@ -143,6 +146,7 @@ def profile_from_dict(data: Any, source: str) -> MethodProfile:
         raise ProfileError(f"{source}: field 'planner': expected a mapping of avp_planner parameters")
     flat = _flatten(planner)
     ego_intent = req(per, "ego_intent", bool, "perception.")
+    ground_truth = req(per, "ground_truth", bool, "perception.") if "ground_truth" in per else False
     if "use_ego_intention" in flat and flat["use_ego_intention"] is not ego_intent:
         raise ProfileError(f"{source}: field 'planner.use_ego_intention': follows perception.ego_intent "
                            f"({ego_intent}); leave it out")
@@ -157,7 +161,7 @@ def profile_from_dict(data: Any, source: str) -> MethodProfile:
     return MethodProfile(
         name=name, label=str(data.get("label", name)), group=str(data.get("group", "")),
         available=req(data, "available", bool, ""), beliefs=beliefs,
-        predictor=req(per, "predictor", str, "perception."), ego_intent=ego_intent,
+        predictor=req(per, "predictor", str, "perception."), ego_intent=ego_intent, ground_truth=ground_truth,
         planner=flat, unavailable_reason=str(data.get("unavailable_reason", "")), source=source,
     )
 
@@ -234,6 +238,9 @@ def method_node_params(profile: MethodProfile, *, deterministic: bool = False, i
     ProfileError for a profile that cannot run (not available)."""
     if not profile.available:
         raise ProfileError(f"method {profile.name!r} is not available: {profile.unavailable_reason}")
+    if profile.ground_truth:
+        raise ProfileError(f"method {profile.name!r} is an oracle bound (perception.ground_truth): the live graph "
+                           "never feeds ground truth to the ego; run it with avp experiment --transport inproc")
     belief: dict[str, Any] = {"belief_source": profile.beliefs, "ego_intent": profile.ego_intent}
     if intent_weights is not None:
         belief["intent.weights"] = str(intent_weights)

@@ -25,7 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from avp_bringup.experiment.metrics import episode_record, prediction_errors
-from avp_bringup.experiment.runner import Key, RunConfig, sim_values
+from avp_bringup.experiment.protocols import load_protocol
+from avp_bringup.experiment.runner import Key, RunConfig, run_profile, sim_values
 
 NAMESPACE = "/avp"
 DRAIN_S = 10.0  # wall seconds to wait for the last messages after the episode ended
@@ -157,7 +158,8 @@ def run_ros(keys: list[Key], cfg: RunConfig, on_record: Callable[[dict], None], 
     if not cfg.message_precision:
         raise ValueError("--float64-messages applies to --transport inproc only (the graph's messages are float32)")
     sim_p = sim_values(cfg)
-    sim_extra = {k: sim_p[k] for k in ("t_final", "dt", "t_hist")} | dict(cfg.sim_overrides)
+    sim_extra = ({k: sim_p[k] for k in ("t_final", "dt", "t_hist")} | load_protocol(cfg.protocol).sim
+                 | dict(cfg.sim_overrides))
     by_method: dict[str, list[Key]] = {}
     for k in keys:
         by_method.setdefault(k[0], []).append(k)
@@ -168,7 +170,7 @@ def run_ros(keys: list[Key], cfg: RunConfig, on_record: Callable[[dict], None], 
     client = collector.create_client(ResetEpisode, "reset_episode")
     try:
         for method, mkeys in by_method.items():
-            nodes = method_graph(method, deterministic=True, intent_weights=cfg.intent_weights,
+            nodes = method_graph(run_profile(method, cfg), deterministic=True, intent_weights=cfg.intent_weights,
                                  intent_seed=cfg.intent_seed, sim_extra={
                                      **sim_extra, "autostart": False, "publish_markers": False,
                                      "min_debug_subscribers": 1})

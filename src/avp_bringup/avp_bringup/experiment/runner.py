@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from avp_bringup.experiment.profiles import MethodProfile, ProfileError, available_names, load_profile
+from avp_bringup.experiment.protocols import apply_planner, load_protocol
 
 MODES = {"reactive": (True,), "non-reactive": (False,), "both": (False, True)}
 RESULTS_FILE = "episodes.jsonl"
@@ -54,6 +55,11 @@ class RunConfig:
     intent_seed: int = 0
     message_precision: bool = True
     sim_overrides: dict = field(default_factory=dict)  # further avp_sim parameters
+    protocol: str = "default"  # config/protocols/<name>.yaml (.protocols): shared sim + planner set-up
+    planner_overrides: dict = field(default_factory=dict)  # --planner-param: avp_planner values for every method
+
+
+ORACLE_HORIZON = 10.0  # s of true future given to the oracle bound (.oracle)
 
 
 Key = tuple[str, int, str]  # (method, seed, "reactive" | "non_reactive")
@@ -79,6 +85,7 @@ def sim_values(cfg: RunConfig) -> dict[str, Any]:
 
     p = load_yaml_params(Path(get_package_share_directory("avp_sim")) / "config" / "sim.param.yaml", "avp_sim",
                          SIM_PARAMS)
+    p.update(load_protocol(cfg.protocol).sim)
     p.update(cfg.sim_overrides)
     p["t_final"] = float(cfg.t_final)
     return validate_values(p, SIM_PARAMS, "avp experiment")
@@ -95,6 +102,12 @@ def intent_identity(cfg: RunConfig) -> str:
     if not path.is_file():
         raise ValueError(f"--intent-weights {path}: no such file")
     return f"sha256:{hashlib.sha256(path.read_bytes()).hexdigest()} ({cfg.intent_weights or 'shipped'})"
+
+
+def run_profile(name: str, cfg: RunConfig) -> MethodProfile:
+    """The method profile as the run uses it: the protocol's planner parameters, then ``--planner-param``, under
+    the profile's own block (:func:`.protocols.apply_planner`)."""
+    return apply_planner(load_profile(name), load_protocol(cfg.protocol).planner, cfg.planner_overrides)
 
 
 def check_method(profile: MethodProfile) -> str:
@@ -115,6 +128,8 @@ def profile_digest(profile: MethodProfile) -> str:
     """Hash of the profile file; for the learned predictor also of the shipped trajectory weights it loads (so
     episodes of other weights are never mixed into one results folder)."""
     h = hashlib.sha256(Path(profile.source).read_bytes())
+    if profile.planner != load_profile(profile.source).planner:  # protocol / --planner-param values on top
+        h.update(json.dumps(profile.planner, sort_keys=True).encode())
     if profile.predictor == "learned":
         from avp_perception.core.learned_prediction import default_weights_path
 
@@ -135,6 +150,8 @@ def check_run_file(out: Path, ident: dict) -> dict:
     path = out / RUN_FILE
     if path.is_file():
         old = json.loads(path.read_text())
+        if isinstance(old.get("config"), dict):  # fields added since (protocol, ...) read as their defaults
+            old["config"] = {**asdict(RunConfig()), **old["config"]}
         for k in ("sim", "intent", "config"):  # sim first: it names the parameters that differ
             if old.get(k) != ident[k]:
                 if k == "sim" and isinstance(old.get(k), dict):
@@ -206,16 +223,20 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
     ``on_step(world, ego_step)``, if given, is called after every step (the failure analysis watches episodes)."""
     from avp_bringup.experiment.ego import MethodEgo
     from avp_bringup.experiment.metrics import episode_record, prediction_errors
+    from avp_bringup.experiment.oracle import OracleEgo, ground_truth
     from avp_sim.core.factory import make_world
 
     t0 = time.perf_counter()
     world = make_world(lot, sim_p, seed, reactive)
-    ego = MethodEgo(lot, profile, deterministic=True, intent_weights=cfg.intent_weights,
-                    intent_seed=cfg.intent_seed, message_precision=cfg.message_precision)
+    ego = (OracleEgo if profile.ground_truth else MethodEgo)(
+        lot, profile, deterministic=True, intent_weights=cfg.intent_weights, intent_seed=cfg.intent_seed,
+        message_precision=cfg.message_precision)
     preds: dict[int, list] = {}
     timings: list[dict] = []
     while not world.done:
         obs = world.observe()
+        if profile.ground_truth:  # the oracle bound, and only it, is told the simulator's state (.oracle)
+            ego.tell(ground_truth(world, ORACLE_HORIZON))
         out = ego.step(obs)
         preds[out.step] = [p for p in out.predictions if not p.is_pedestrian]
         timings.append(out.timings)
@@ -249,7 +270,7 @@ def _worker_episode(key: Key) -> dict:
     method, seed, mode = key
     profiles = _WORKER["profiles"]
     if method not in profiles:
-        profiles[method] = load_profile(method)
+        profiles[method] = run_profile(method, _WORKER["cfg"])
     return run_episode_inproc(_WORKER["lot"], _WORKER["sim"], profiles[method], seed, mode == "reactive",
                               _WORKER["cfg"])
 
@@ -344,13 +365,16 @@ def episode_keys(methods: list[str], seeds: list[int], modes: tuple[bool, ...]) 
     return [(m, s, mode_name(r)) for s in seeds for r in modes for m in methods]
 
 
-def resolve_methods(spec: str) -> tuple[list[MethodProfile], dict[str, str]]:
+def resolve_methods(spec: str, cfg: RunConfig = RunConfig(), transport: str = "inproc"
+                    ) -> tuple[list[MethodProfile], dict[str, str]]:
     """(runnable profiles, {name: why skipped}) for 'all' or a comma-separated list of names / files."""
     names = available_names() if spec == "all" else [s.strip() for s in spec.split(",") if s.strip()]
     run, skipped = [], {}
     for n in names:
-        prof = load_profile(n)
+        prof = run_profile(n, cfg)
         why = check_method(prof)
+        if not why and prof.ground_truth and transport != "inproc":
+            why = "an oracle bound: ground truth reaches the ego in-process only (--transport inproc)"
         if why:
             skipped[prof.name] = why
         else:
@@ -364,11 +388,18 @@ def run_experiment(args: argparse.Namespace) -> dict:
 
     if args.scenarios < 1:
         raise ValueError(f"--scenarios must be >= 1, got {args.scenarios}")
+    if getattr(args, "sweep", None) or getattr(args, "ablation", False):
+        from avp_bringup.experiment.sweep import run_ablation, run_sweep
+
+        if args.sweep and args.ablation:
+            raise ValueError("--sweep and --ablation: one at a time")
+        return (run_sweep if args.sweep else run_ablation)(args, run_experiment)
     out = Path(args.out)
     cfg = RunConfig(t_final=args.t_final, ade_horizon=args.ade_horizon, intent_weights=args.intent_weights,
                     intent_seed=args.intent_seed, message_precision=not args.float64_messages,
-                    sim_overrides=parse_sim_params(args.sim_param))
-    profiles, skipped = resolve_methods(args.methods)
+                    sim_overrides=parse_sim_params(args.sim_param), protocol=args.protocol,
+                    planner_overrides=parse_planner_params(args.planner_param))
+    profiles, skipped = resolve_methods(args.methods, cfg, args.transport)
     for name, why in skipped.items():
         print(f"[avp experiment] skipping method {name!r}: {why}", file=sys.stderr)
     if not profiles:
@@ -423,7 +454,8 @@ def run_experiment(args: argparse.Namespace) -> dict:
     wanted = set(keys)
     summary = write_summary(out, [r for r in records if record_key(r) in wanted], skipped,
                             {"ade_horizon": cfg.ade_horizon, "t_final": cfg.t_final, "intent": ident["intent"],
-                             "seeds_without_scenario": bad_seeds, "sim_overrides": cfg.sim_overrides})
+                             "seeds_without_scenario": bad_seeds, "sim_overrides": cfg.sim_overrides,
+                             "protocol": cfg.protocol, "planner_overrides": cfg.planner_overrides})
     print(f"[avp experiment] ran {n_run} episodes; summary: {out / 'summary.md'}, plots in {out / 'plots'}/")
     if errors:
         print(f"[avp experiment] {len(errors)} episode(s) raised and are not in the results (listed above); "
@@ -473,6 +505,28 @@ def parse_sim_params(items: list[str] | None) -> dict[str, Any]:
     return out
 
 
+def parse_planner_params(items: list[str] | None) -> dict[str, Any]:
+    """``KEY=VALUE`` items of ``--planner-param`` -> {key: value}, checked against the avp_planner specs."""
+    import yaml
+
+    from avp_bringup.experiment.profiles import _planner_specs
+    from avp_common.params import ParameterError, check_value
+
+    specs = _planner_specs()
+    out: dict[str, Any] = {}
+    for item in items or []:
+        key, sep, raw = item.partition("=")
+        key = key.strip()
+        if not sep or key not in specs:
+            raise ValueError(f"--planner-param {item!r}: expected KEY=VALUE with KEY an avp_planner parameter "
+                             f"(`avp params avp_planner`)")
+        try:
+            out[key] = check_value(specs[key], yaml.safe_load(raw), "--planner-param")
+        except (ParameterError, yaml.YAMLError) as exc:
+            raise ValueError(f"--planner-param {item!r}: {exc}") from None
+    return out
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenarios", type=int, default=500,
                    help="number of scenarios per mode [500, §VI-B]: the first seeds >= --seed-base that the §VI-A "
@@ -493,6 +547,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sim-param", action="append", metavar="KEY=VALUE",
                    help="override an avp_sim parameter for every episode (repeatable), e.g. the earlier scenario "
                    "reading: --sim-param scenario.maneuver_max_speed=2.0 --sim-param scenario.outer_row_max=9")
+    p.add_argument("--protocol", default="default",
+                   help="experiment protocol (config/protocols/: default, paper, ... or a file): avp_sim and "
+                   "avp_planner values shared by every method (docs/experiment.md)")
+    p.add_argument("--planner-param", action="append", metavar="KEY=VALUE",
+                   help="override an avp_planner parameter for every method (repeatable), after the protocol's")
+    p.add_argument("--sweep", metavar="KEY=V1,V2,...",
+                   help="run the whole table once per value of one avp_sim or avp_planner parameter (into "
+                   "OUT/<KEY>=<V>/) and plot the rates against it (OUT/sweep.png, OUT/sweep.md)")
+    p.add_argument("--ablation", action="store_true",
+                   help="run the table once per safety-extras variant (all_on, all_off, no_<extra>) into "
+                   "OUT/<variant>/ and tabulate them (OUT/ablation.md)")
     p.add_argument("--float64-messages", action="store_true",
                    help="do not round beliefs/intentions to the float32 of the messages (inproc only differs)")
     p.add_argument("--episode-timeout", type=float, default=600.0, help="ros: wall seconds per episode")

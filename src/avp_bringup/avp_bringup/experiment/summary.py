@@ -1,23 +1,22 @@
 """The experiment's summary: a Markdown table laid out like Table I with the paper's numbers beside ours,
-``summary.json``, and PNG plots drawn with OpenCV (matplotlib is not a dependency).
+``summary.json``, and PNG plots drawn with matplotlib (:mod:`.plots`).
 
-Plots (``OUT/plots/``): ``success.png`` (success rate per method and mode, 95 % Wilson intervals),
-``min_ade.png`` (minADE mean ± std), ``timings.png`` (distributions of the per-episode mean spot-selection
-and path-planning times, log scale); the paper's values are drawn as black diamonds.
+Plots (``OUT/plots/``): ``success.png`` (success rate per method and mode, 95 % Wilson intervals, axis fitted
+to the data), ``min_ade.png`` (minADE mean ± std), ``timings.png`` (distributions of the per-episode mean
+spot-selection and path-planning times, log scale); the paper's values are drawn as black diamonds.
 """
 
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from avp_bringup.experiment.metrics import aggregate
 from avp_bringup.experiment.paper import EPISODES_PER_MODE, TABLE_I
+from avp_bringup.experiment.plots import plot_bars, plot_timings
 from avp_bringup.experiment.profiles import TABLE_ORDER, ProfileError, load_profile
 
 MODE_ORDER = (("non_reactive", "Non-Reactive Agents"), ("reactive", "Reactive Agents"))
@@ -165,150 +164,3 @@ def compute_section(records: Sequence[Mapping], methods: Sequence[str]) -> list[
     return ["## Compute", "",
             f"Sum of the episodes' wall times (each in one worker process): {total / 3600:.2f} h, i.e. "
             f"{total / 7200:.2f} h of wall time with 2 workers on 2 free cores. Median episode: {cells}.", ""]
-
-
-# ------------------------------------------------------------------------------------------ plotting
-
-W, H = 1000, 560
-LEFT, RIGHT, TOP, BOTTOM = 90, 20, 60, 150
-COLORS = {"non_reactive": (200, 120, 40), "reactive": (60, 140, 230)}  # BGR
-FONT = cv2.FONT_HERSHEY_SIMPLEX
-
-
-def _ascii(s: str) -> str:
-    return s.replace("é", "e").replace("É", "E").encode("ascii", "replace").decode()
-
-
-def _nice_ticks(lo: float, hi: float, n: int = 5) -> np.ndarray:
-    span = max(hi - lo, 1e-12)
-    step = 10 ** math.floor(math.log10(span / n))
-    for f in (1, 2, 2.5, 5, 10):
-        if span / (f * step) <= n:
-            step *= f
-            break
-    return np.arange(math.ceil(lo / step) * step, hi + 1e-9 * span, step)
-
-
-class _Axes:
-    def __init__(self, title: str, ylo: float, yhi: float, log: bool = False):
-        self.img = np.full((H, W, 3), 255, np.uint8)
-        self.log = log
-        self.ylo, self.yhi = (math.log10(ylo), math.log10(yhi)) if log else (ylo, yhi)
-        cv2.putText(self.img, _ascii(title), (LEFT, 35), FONT, 0.7, (0, 0, 0), 2, cv2.LINE_AA)
-        cv2.rectangle(self.img, (LEFT, TOP), (W - RIGHT, H - BOTTOM), (0, 0, 0), 1)
-        if log:
-            ticks = [10.0**e for e in range(math.floor(self.ylo), math.ceil(self.yhi) + 1)]
-        else:
-            ticks = list(_nice_ticks(ylo, yhi))
-        for t in ticks:
-            y = self.y(t)
-            if TOP <= y <= H - BOTTOM:
-                cv2.line(self.img, (LEFT - 5, y), (W - RIGHT, y), (225, 225, 225), 1)
-                cv2.putText(self.img, f"{t:g}", (5, y + 5), FONT, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
-
-    def y(self, v: float) -> int:
-        if self.log:
-            v = math.log10(max(v, 10.0**self.ylo))
-        f = (v - self.ylo) / max(self.yhi - self.ylo, 1e-12)
-        return int(round(H - BOTTOM - f * (H - BOTTOM - TOP)))
-
-    def xlabels(self, labels: Sequence[str]) -> list[float]:
-        n = max(len(labels), 1)
-        width = (W - RIGHT - LEFT) / n
-        centres = [LEFT + width * (i + 0.5) for i in range(n)]
-        for c, lab in zip(centres, labels, strict=True):
-            words, lines, cur = _ascii(lab).split(), [], ""
-            for w in words:
-                if len(cur) + len(w) > 16 and cur:
-                    lines.append(cur)
-                    cur = w
-                else:
-                    cur = (cur + " " + w).strip()
-            lines.append(cur)
-            for j, t in enumerate(lines[:3]):
-                (tw, _), _ = cv2.getTextSize(t, FONT, 0.45, 1)
-                cv2.putText(self.img, t, (int(c - tw / 2), H - BOTTOM + 22 + 18 * j), FONT, 0.45, (0, 0, 0), 1,
-                            cv2.LINE_AA)
-        return centres
-
-    def legend(self, extra_paper: bool = True) -> None:
-        x, y = LEFT + 10, H - 40
-        for mode, name in (("non_reactive", "non-reactive"), ("reactive", "reactive")):
-            cv2.rectangle(self.img, (x, y - 12), (x + 18, y + 2), COLORS[mode], -1)
-            cv2.putText(self.img, name, (x + 24, y), FONT, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
-            x += 170
-        if extra_paper:
-            _diamond(self.img, x + 8, y - 5)
-            cv2.putText(self.img, "paper (Table I)", (x + 24, y), FONT, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
-
-    def save(self, path: Path) -> None:
-        cv2.imwrite(str(path), self.img)
-
-
-def _diamond(img: np.ndarray, x: int, y: int, r: int = 6) -> None:
-    pts = np.array([[x, y - r], [x + r, y], [x, y + r], [x - r, y]], np.int32)
-    cv2.fillConvexPoly(img, pts, (0, 0, 0), cv2.LINE_AA)
-
-
-def plot_bars(path: Path, title: str, methods: Sequence[str], labels: Mapping[str, str], stats: Mapping,
-              key: str, rate: bool) -> None:
-    vals, paper = [], []
-    for m in methods:
-        for mode, _ in MODE_ORDER:
-            s = stats.get((m, mode), {}).get(key)
-            if rate and s and s.get("percent") is not None:
-                vals.append((m, mode, s["percent"], s["ci95"][0], s["ci95"][1]))
-            elif not rate and s and s.get("mean") is not None:
-                vals.append((m, mode, s["mean"], s["mean"] - s["std"], s["mean"] + s["std"]))
-            p = TABLE_I.get(mode, {}).get(m, {}).get(key)
-            if p is not None:
-                paper.append((m, mode, p if rate else p[0]))
-    hi = 100.0 if rate else max([v[4] for v in vals] + [p[2] for p in paper] + [1.0]) * 1.1
-    ax = _Axes(title, 0.0, hi)
-    centres = dict(zip(methods, ax.xlabels([labels.get(m, m) for m in methods]), strict=True))
-    bw = (W - RIGHT - LEFT) / max(len(methods), 1) * 0.35
-    off = {"non_reactive": -0.5 * bw, "reactive": 0.5 * bw}
-    for m, mode, v, lo, hi_ in vals:
-        c = centres[m] + off[mode]
-        cv2.rectangle(ax.img, (int(c - bw / 2 + 2), ax.y(v)), (int(c + bw / 2 - 2), ax.y(0.0)), COLORS[mode], -1)
-        cv2.line(ax.img, (int(c), ax.y(max(lo, 0.0))), (int(c), ax.y(hi_)), (0, 0, 0), 2)
-        for yy in (ax.y(max(lo, 0.0)), ax.y(hi_)):
-            cv2.line(ax.img, (int(c - 6), yy), (int(c + 6), yy), (0, 0, 0), 2)
-    for m, mode, v in paper:
-        _diamond(ax.img, int(centres[m] + off[mode]), ax.y(v))
-    ax.legend()
-    ax.save(path)
-
-
-def plot_timings(path: Path, methods: Sequence[str], labels: Mapping[str, str], records: Sequence[Mapping]) -> None:
-    """Box plots (5-25-50-75-95 %) of per-episode mean spot-selection (left box) and path-planning (right box)
-    times per method, both modes pooled; log scale."""
-    data = {}
-    for m in methods:
-        for key in ("spot_selection_time", "path_planning_time"):
-            v = [r.get("timings", {}).get(key) for r in records if r["method"] == m]
-            data[(m, key)] = np.array([x for x in v if x is not None and x > 0], dtype=float)
-    allv = np.concatenate([v for v in data.values() if len(v)] or [np.array([1e-3, 1.0])])
-    ax = _Axes("Per-episode mean time per step (s), log scale: spot selection | path planning",
-               float(10 ** math.floor(math.log10(allv.min()))), float(10 ** math.ceil(math.log10(allv.max()))),
-               log=True)
-    centres = dict(zip(methods, ax.xlabels([labels.get(m, m) for m in methods]), strict=True))
-    bw = (W - RIGHT - LEFT) / max(len(methods), 1) * 0.3
-    colors = {"spot_selection_time": (90, 170, 90), "path_planning_time": (70, 90, 200)}
-    for m in methods:
-        for j, key in enumerate(("spot_selection_time", "path_planning_time")):
-            v = data[(m, key)]
-            if not len(v):
-                continue
-            c = centres[m] + (j - 0.5) * bw * 1.1
-            p5, p25, p50, p75, p95 = np.percentile(v, [5, 25, 50, 75, 95])
-            cv2.rectangle(ax.img, (int(c - bw / 2), ax.y(p75)), (int(c + bw / 2), ax.y(p25)), colors[key], -1)
-            cv2.line(ax.img, (int(c - bw / 2), ax.y(p50)), (int(c + bw / 2), ax.y(p50)), (0, 0, 0), 2)
-            cv2.line(ax.img, (int(c), ax.y(p95)), (int(c), ax.y(p75)), (0, 0, 0), 1)
-            cv2.line(ax.img, (int(c), ax.y(p25)), (int(c), ax.y(p5)), (0, 0, 0), 1)
-    x, y = LEFT + 10, H - 40
-    for key, name in (("spot_selection_time", "spot selection"), ("path_planning_time", "path planning")):
-        cv2.rectangle(ax.img, (x, y - 12), (x + 18, y + 2), colors[key], -1)
-        cv2.putText(ax.img, name, (x + 24, y), FONT, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
-        x += 190
-    ax.save(path)

@@ -339,8 +339,29 @@ class BezierPredictor(ConstantVelocityPredictor):
         return out
 
 
-PREDICTORS = {BezierPredictor.name: BezierPredictor, ConstantVelocityPredictor.name: ConstantVelocityPredictor}
-PREDICTOR_NAMES = ("bezier", "constant_velocity", "hybrid_astar", "learned")
+class StaticPredictor(ConstantVelocityPredictor):
+    """Every observed dynamic vehicle and pedestrian stays where it is (intentions ignored): the ``blind``
+    reference method of docs/experiment.md, which sees other agents as obstacles at their current pose only."""
+
+    name = "static"
+
+    def predict(self, obs: Observation, intentions: Iterable[Intention] = (),
+                horizon: float | None = None) -> list[PredictedTrajectory]:
+        n = _n_steps(self.horizon(horizon), obs.dt)
+        out = [PredictedTrajectory(agent_id=int(v.id), poses=np.repeat(np.asarray(v.pose, float)[None], n, 0),
+                                   dt=obs.dt, length=float(v.length), width=float(v.width))
+               for v in obs.vehicles if not v.is_static]
+        for q in obs.pedestrians:
+            poses = np.zeros((n, 3))
+            poses[:, :2] = np.asarray(q.position, dtype=float)
+            out.append(PredictedTrajectory(agent_id=int(q.id), poses=poses, dt=obs.dt, is_pedestrian=True,
+                                           radius=float(q.radius)))
+        return out
+
+
+PREDICTORS = {BezierPredictor.name: BezierPredictor, ConstantVelocityPredictor.name: ConstantVelocityPredictor,
+              StaticPredictor.name: StaticPredictor}
+PREDICTOR_NAMES = ("bezier", "constant_velocity", "hybrid_astar", "learned", "static")
 
 
 def make_predictor(name: str, lot: LotMap | None = None, config: PredictionConfig = PredictionConfig()

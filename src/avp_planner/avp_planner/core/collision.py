@@ -350,10 +350,13 @@ class DynamicObstacles:
         width: float,
         vehicle_margin: float = 0.3,
         pedestrian_margin: float = 0.4,
+        keep_current_gap: bool = True,
+        hold_last: bool = True,
     ):
         self.half_l, self.half_w = 0.5 * float(length), 0.5 * float(width)
         self.circum = math.hypot(self.half_l, self.half_w)
         self.vm, self.pm = float(vehicle_margin), float(pedestrian_margin)
+        self.keep_current_gap, self.hold_last = bool(keep_current_gap), bool(hold_last)
         veh = [p for p in predictions if not p.is_pedestrian and len(p.poses)]
         ped = [p for p in predictions if p.is_pedestrian and len(p.poses)]
         self.horizon = max((len(p.poses) for p in (*veh, *ped)), default=0)
@@ -369,6 +372,8 @@ class DynamicObstacles:
         self.ped_pos = np.array([pad(p.poses, 2) for p in ped]).reshape(len(ped), t, 2)
         self.ped_radius = np.array([p.radius for p in ped], dtype=float)
         self.ped_ids = [p.agent_id for p in ped]
+        self.veh_n = np.array([len(p.poses) for p in veh], dtype=np.int64)  # own horizons (hold_last=False)
+        self.ped_n = np.array([len(p.poses) for p in ped], dtype=np.int64)
 
     @property
     def empty(self) -> bool:
@@ -409,23 +414,29 @@ class DynamicObstacles:
         ly = np.maximum(np.abs(-dx * s + dy * c) - self.half_w, 0.0)
         return np.hypot(lx, ly) - self.ped_radius[a]
 
-    def _pairs(self, ego: np.ndarray, centres: np.ndarray, reach: np.ndarray, k0: int):
-        """Candidate (k, agent) pairs whose centres are within reach (k >= k0)."""
+    def _pairs(self, ego: np.ndarray, centres: np.ndarray, reach: np.ndarray, k0: int, own_n: np.ndarray):
+        """Candidate (k, agent) pairs whose centres are within reach (k >= k0). With ``hold_last`` an agent
+        stays at its last predicted pose after its horizon; without, it is no obstacle after ``own_n`` steps."""
         n = len(ego)
         k = np.arange(k0, n)
         j = np.clip(k - 1, 0, self.horizon - 1)
         d = centres[:, j, :] - ego[None, k0:, :2]  # (A, n - k0, 2)
         near = np.einsum("akd,akd->ak", d, d) <= (reach[:, None]) ** 2
+        if not self.hold_last:
+            near &= (k - 1)[None, :] < own_n[:, None]
         aa, kk = np.nonzero(near)
         return kk + k0, aa
 
     def _margins(self, ego0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per-agent margins: the nominal one, or, for an agent already closer than that to the ego's current
         pose (say a reactive car that stopped next to it), its current gap less 5 cm (never below 0), so
-        that the ego may still move away instead of being frozen next to it."""
+        that the ego may still move away instead of being frozen next to it (``keep_current_gap``; off: the
+        nominal margin for every agent, the paper's rule)."""
         pair = np.stack([ego0, ego0])
         vm = np.full(len(self.veh_poses), self.vm)
         pm = np.full(len(self.ped_pos), self.pm)
+        if not self.keep_current_gap:
+            return vm, pm
         if len(vm):
             a = np.arange(len(vm))
             g = self._vehicle_gaps(pair, np.ones(len(vm), dtype=np.int64), a)
@@ -446,12 +457,12 @@ class DynamicObstacles:
         hits = []
         if len(self.veh_poses):
             reach = self.circum + np.hypot(self.veh_half[:, 0], self.veh_half[:, 1]) + self.vm
-            k, a = self._pairs(ego, self.veh_poses[..., :2], reach, k0)
+            k, a = self._pairs(ego, self.veh_poses[..., :2], reach, k0, self.veh_n)
             if len(k):
                 hits.append(k[self._vehicle_gaps(ego, k, a) <= vm[a]])
         if len(self.ped_pos):
             reach = self.circum + self.ped_radius + self.pm
-            k, a = self._pairs(ego, self.ped_pos, reach, k0)
+            k, a = self._pairs(ego, self.ped_pos, reach, k0, self.ped_n)
             if len(k):
                 hits.append(k[self._ped_gaps(ego, k, a) <= pm[a]])
         if not hits:
@@ -471,14 +482,14 @@ class DynamicObstacles:
         total = 0.0
         if len(self.veh_poses):
             r = self.circum + np.hypot(self.veh_half[:, 0], self.veh_half[:, 1]) + reach
-            k, a = self._pairs(ego, self.veh_poses[..., :2], r, 1)
+            k, a = self._pairs(ego, self.veh_poses[..., :2], r, 1, self.veh_n)
             if len(k):
                 g = self._vehicle_gaps(ego, k, a)
                 g = g[g < reach]
                 total += float(np.exp(-decay * np.maximum(g, 0.0)).sum())
         if len(self.ped_pos):
             r = self.circum + self.ped_radius + reach
-            k, a = self._pairs(ego, self.ped_pos, r, 1)
+            k, a = self._pairs(ego, self.ped_pos, r, 1, self.ped_n)
             if len(k):
                 g = self._ped_gaps(ego, k, a)
                 g = g[g < reach]

@@ -288,7 +288,8 @@ class EgoPlanner:
                 preds.append(PredictedTrajectory(agent_id=int(p.id), poses=np.column_stack([pos, np.zeros(n)]),
                                                  dt=dt, is_pedestrian=True, radius=float(p.radius)))
         c = self.settings.collision
-        return DynamicObstacles(preds, obs.ego_length, obs.ego_width, c.vehicle_margin, c.pedestrian_margin)
+        return DynamicObstacles(preds, obs.ego_length, obs.ego_width, c.vehicle_margin, c.pedestrian_margin,
+                                keep_current_gap=c.keep_current_gap, hold_last=c.beyond_horizon == "hold")
 
     @staticmethod
     def _resample(p: PredictedTrajectory, dt: float) -> PredictedTrajectory:

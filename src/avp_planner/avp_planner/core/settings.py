@@ -27,6 +27,8 @@ class CollisionSettings:
     start_relax_distance: float = 0.6  # arc length near the ego's current pose checked with verify_margin only
     vehicle_margin: float = 0.3  # clearance to predicted vehicle footprints (§V-D, time-indexed)
     pedestrian_margin: float = 0.4  # clearance to predicted pedestrian discs
+    keep_current_gap: bool = True  # extra: an agent already nearer than the margin need only keep its gap (§V-D: no)
+    beyond_horizon: str = "hold"  # a prediction after its last pose: "hold" it there | "release" (no obstacle)
 
 
 @dataclass(frozen=True)
@@ -131,6 +133,7 @@ class PlannerSettings:
             ("collision.n_discs", c.n_discs >= 1),
             ("collision.footprint_margin", c.footprint_margin >= 0),
             ("collision.verify_margin", 0 <= c.verify_margin <= c.footprint_margin),
+            ("collision.beyond_horizon", c.beyond_horizon in ("hold", "release")),
             ("search.xy_resolution", s.xy_resolution > 0),
             ("search.heading_bins", s.heading_bins >= 8),
             ("search.primitive_length", s.primitive_length > s.sample_step > 0),

@@ -32,6 +32,9 @@ def scenario_params(p: dict[str, Any]) -> ScenarioParams:
         raise ValueError("parameter 'scenario.n_dynamic_min' must be <= 'scenario.n_dynamic_max'")
     if p["scenario.outer_row_min"] > p["scenario.outer_row_max"]:
         raise ValueError("parameter 'scenario.outer_row_min' must be <= 'scenario.outer_row_max'")
+    for lo, hi in (("approach_distance_min", "approach_distance_max"), ("cruise_speed_min", "cruise_speed_max")):
+        if p[f"scenario.{lo}"] > p[f"scenario.{hi}"]:
+            raise ValueError(f"parameter 'scenario.{lo}' must be <= 'scenario.{hi}'")
     return replace(
         ScenarioParams(),
         dt=p["dt"], t_hist=p["t_hist"], t_final=p["t_final"],
@@ -39,6 +42,10 @@ def scenario_params(p: dict[str, Any]) -> ScenarioParams:
         n_dynamic=(p["scenario.n_dynamic_min"], p["scenario.n_dynamic_max"]),
         outer_spot_groups=outer_rows(p["scenario.outer_row_min"], p["scenario.outer_row_max"]),
         maneuver_max_speed=p["scenario.maneuver_max_speed"],
+        passiveness_step=p["scenario.passiveness_step"],
+        approach_distance=(p["scenario.approach_distance_min"], p["scenario.approach_distance_max"]),
+        cruise_speed=(p["scenario.cruise_speed_min"], p["scenario.cruise_speed_max"]),
+        spawn_closer_than_ego=p["scenario.spawn_closer_than_ego"],
     )
 
 

@@ -62,10 +62,16 @@ class Scenario:
     pedestrians: tuple[PedestrianAgent, ...] = ()
     dt: float = 0.1
     t_hist: float = 4.0
+    passiveness_step: float = 0.1  # s per unit of n_pass (§III-B counts timesteps; see ScenarioParams)
 
     @property
     def hist_steps(self) -> int:
         return int(round(self.t_hist / self.dt))
+
+    @property
+    def passiveness_unit_steps(self) -> int:
+        """Simulator steps per unit of passiveness (>= 1)."""
+        return max(1, int(round(self.passiveness_step / self.dt)))
 
     def dynamic_vehicles(self) -> tuple[VehicleAgent, ...]:
         return tuple(v for v in self.vehicles if not v.parked)
@@ -97,6 +103,14 @@ class ScenarioParams:
     1.0 m/s, the pace of ParkSim's H-OBCA library (its horizon N is the number of Hybrid A* warm-start
     samples, 0.1 m apart, at dt = 0.1 s, so a maneuver of L metres lasts about L seconds). 2.0 m/s was the
     earlier reading (ParkSim's speed bound used as the pace).
+
+    ``passiveness_step``: the length of one unit of passiveness n_pass. §III-B counts it in timesteps Δt; the
+    default 0.1 s is the simulator's Δt (look-ahead 0.2-0.6 s for n_pass 2-6). §VI-A takes "unmentioned
+    variables" from Nawaz et al., whose timestep is 0.5 s (look-ahead 1-3 s): ``avp experiment --protocol paper``.
+    ``approach_distance``: metres each dynamic vehicle still has to drive to its maneuver's start at t = 0 (drawn
+    uniformly); ``cruise_speed``: its lane speed before braking there. ``spawn_closer_than_ego``: re-draw a
+    vehicle whose centre at t = 0 is not nearer its target spot than the ego's start is (§VI-B: "all dynamic
+    agents were initialized closer to their intended spots").
     """
 
     contested_spot_ids: tuple[int, ...] = (10, 11, 12, 13, 14, 20, 21, 22, 23, 24)
@@ -117,6 +131,8 @@ class ScenarioParams:
     t_hist: float = 4.0
     t_final: float = 100.0
     max_attempts: int = 200
+    passiveness_step: float = 0.1  # s per unit of n_pass (0.5 = Nawaz et al.'s timestep)
+    spawn_closer_than_ego: bool = False  # §VI-B: agents start nearer their spot than the ego
 
 
 def _cruise_controls(distance: float, v_cruise: float, decel: float, dt: float) -> np.ndarray:
@@ -206,6 +222,10 @@ def _valid_dynamic(lot: LotMap, agent: VehicleAgent, ego_start: np.ndarray, ego:
     ego_fp = rect_corners(ego_start, ego.length, ego.width)
     if rects_overlap(fp[hist], ego_fp, margin=params.ego_clearance):
         return False
+    if params.spawn_closer_than_ego and agent.target_spot_id >= 0:
+        spot = lot.spot_poses[lot.spot_index(agent.target_spot_id)][:2]
+        if np.hypot(*(states[hist, :2] - spot)) >= np.hypot(*(ego_start[:2] - spot)):
+            return False
     for other in others:
         o = plan_states(other, dt=params.dt)
         n = max(len(o), len(states))
@@ -261,7 +281,8 @@ def generate_paper_scenario(
         parked.append(VehicleAgent(id=s.id, length=params.parked_length, width=params.parked_width,
                                    initial_state=pose, controls=np.zeros((0, 2)), parked=True))
     return Scenario(seed=int(seed), reactive=bool(reactive), ego_start=ego_start, ego=vehicle,
-                    vehicles=tuple(parked + dynamic), dt=params.dt, t_hist=params.t_hist)
+                    vehicles=tuple(parked + dynamic), dt=params.dt, t_hist=params.t_hist,
+                    passiveness_step=params.passiveness_step)
 
 
 @dataclass
@@ -383,7 +404,7 @@ def scenario_from_dict(lot: LotMap, data: dict, source: str, seed: int, reactive
         parked.append(VehicleAgent(id=s.id, length=params.parked_length, width=params.parked_width,
                                    initial_state=pose, controls=np.zeros((0, 2)), parked=True))
     return Scenario(seed=seed, reactive=reactive, ego_start=ego_start, ego=vehicle, vehicles=tuple(parked + dynamic),
-                    dt=params.dt, t_hist=params.t_hist)
+                    dt=params.dt, t_hist=params.t_hist, passiveness_step=params.passiveness_step)
 
 
 def load_scenario_file(lot: LotMap, path, seed: int, reactive: bool, params: ScenarioParams = ScenarioParams(),

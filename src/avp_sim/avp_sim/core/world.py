@@ -47,7 +47,8 @@ class World:
         n = len(sc.vehicles)
         self.vehicle_ids = np.array([v.id for v in sc.vehicles], dtype=np.int64)
         self.vehicle_dims = np.array([[v.length, v.width] for v in sc.vehicles]).reshape(n, 2)
-        self.passiveness = np.array([v.passiveness for v in sc.vehicles], dtype=np.int64)
+        # n_pass in units of scenario.passiveness_step -> look-ahead in simulator steps (§III-B)
+        self.passiveness = np.array([v.passiveness for v in sc.vehicles], dtype=np.int64) * sc.passiveness_unit_steps
         self.target_spot = np.array([v.target_spot_id for v in sc.vehicles], dtype=np.int64)
         self.is_dynamic = np.array([not v.parked for v in sc.vehicles], dtype=bool)
         t_steps = int(round(config.t_final / self.dt)) + self.hist + int(self.passiveness.max(initial=0)) + 2
@@ -66,7 +67,7 @@ class World:
         p = len(sc.pedestrians)
         self.ped_ids = np.array([q.id for q in sc.pedestrians], dtype=np.int64)
         self.ped_radii = np.array([q.radius for q in sc.pedestrians], dtype=float)
-        self.ped_pass = np.array([q.passiveness for q in sc.pedestrians], dtype=np.int64)
+        self.ped_pass = np.array([q.passiveness for q in sc.pedestrians], dtype=np.int64) * sc.passiveness_unit_steps
         self.ped_plans = np.zeros((p, t_steps, 2))
         for i, q in enumerate(sc.pedestrians):
             m = min(len(q.controls), t_steps)
