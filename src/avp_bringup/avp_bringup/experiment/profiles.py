@@ -116,6 +116,19 @@ def _planner_specs():
     return {s.name: s for s in PLANNER_PARAMS}
 
 
+def checked_params(flat: dict[str, Any], specs: dict, source: str, block: str, node: str) -> dict[str, Any]:
+    """``flat`` ({dotted key: value}) with each value checked against ``specs``; ProfileError names the field."""
+    out = {}
+    for key, value in flat.items():
+        if key not in specs:
+            raise ProfileError(f"{source}: field '{block}.{key}': not an {node} parameter")
+        try:
+            out[key] = check_value(specs[key], value, f"{source}: field '{block}'")
+        except ParameterError as exc:
+            raise ProfileError(str(exc)) from None
+    return out
+
+
 def profile_from_dict(data: Any, source: str) -> MethodProfile:
     """Validate a parsed profile; :class:`ProfileError` names ``source`` and the field."""
     if not isinstance(data, dict):
@@ -150,14 +163,7 @@ def profile_from_dict(data: Any, source: str) -> MethodProfile:
     if "use_ego_intention" in flat and flat["use_ego_intention"] is not ego_intent:
         raise ProfileError(f"{source}: field 'planner.use_ego_intention': follows perception.ego_intent "
                            f"({ego_intent}); leave it out")
-    specs = _planner_specs()
-    for key, value in flat.items():
-        if key not in specs:
-            raise ProfileError(f"{source}: field 'planner.{key}': not an avp_planner parameter")
-        try:
-            flat[key] = check_value(specs[key], value, f"{source}: field 'planner'")
-        except ParameterError as exc:
-            raise ProfileError(str(exc)) from None
+    flat = checked_params(flat, _planner_specs(), source, "planner", "avp_planner")
     return MethodProfile(
         name=name, label=str(data.get("label", name)), group=str(data.get("group", "")),
         available=req(data, "available", bool, ""), beliefs=beliefs,
@@ -166,18 +172,26 @@ def profile_from_dict(data: Any, source: str) -> MethodProfile:
     )
 
 
-def load_profile(name_or_path: str | Path) -> MethodProfile:
-    """A shipped profile by name (``bezier``) or a profile file by path."""
+def read_config_yaml(name_or_path: str | Path, directory: Path, what: str, shipped: list[str], noun: str = ""
+                     ) -> tuple[Path, Any]:
+    """(path, parsed YAML) of a shipped config by name (``directory/<name>.yaml``) or of a file by path;
+    :class:`ProfileError` for an unknown name ("unknown ``noun`` 'x'"; default ``what``) or an unreadable file
+    (``what``: 'method profile', 'protocol')."""
     s = str(name_or_path)
     p = Path(s)
     if not (s.endswith((".yaml", ".yml")) or p.is_file()):
-        p = methods_dir() / f"{s}.yaml"
+        p = directory / f"{s}.yaml"
         if not p.is_file():
-            raise ProfileError(f"unknown method {s!r}; shipped profiles: {available_names()} ({methods_dir()})")
+            raise ProfileError(f"unknown {noun or what} {s!r}; shipped: {shipped} ({directory})")
     try:
-        data = yaml.safe_load(p.read_text())
+        return p, yaml.safe_load(p.read_text())
     except (OSError, yaml.YAMLError) as exc:
-        raise ProfileError(f"{p}: cannot read method profile ({exc})") from None
+        raise ProfileError(f"{p}: cannot read {what} ({exc})") from None
+
+
+def load_profile(name_or_path: str | Path) -> MethodProfile:
+    """A shipped profile by name (``bezier``) or a profile file by path."""
+    p, data = read_config_yaml(name_or_path, methods_dir(), "method profile", available_names(), "method")
     prof = profile_from_dict(data, str(p))
     if p.parent == methods_dir() and prof.name != p.stem:
         raise ProfileError(f"{p}: field 'name': {prof.name!r} differs from the file name {p.stem!r}")

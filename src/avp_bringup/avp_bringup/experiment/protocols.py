@@ -25,8 +25,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from avp_bringup.experiment.profiles import MethodProfile, ProfileError
 
 #: planner behaviours beyond §V-D, each {parameter: (on value, off value)}; "off" is the paper's rule. The
@@ -65,19 +63,10 @@ def protocol_names() -> list[str]:
 
 def load_protocol(name_or_path: str) -> Protocol:
     """A shipped protocol by name or a protocol file; ProfileError names the file and the field."""
-    from avp_bringup.experiment.profiles import _flatten, _planner_specs
-    from avp_common.params import ParameterError, check_value
+    from avp_bringup.experiment.profiles import _flatten, _planner_specs, checked_params, read_config_yaml
     from avp_sim.params import SIM_PARAMS
 
-    p = Path(name_or_path)
-    if not (str(name_or_path).endswith((".yaml", ".yml")) or p.is_file()):
-        p = protocols_dir() / f"{name_or_path}.yaml"
-        if not p.is_file():
-            raise ProfileError(f"unknown protocol {name_or_path!r}; shipped protocols: {protocol_names()}")
-    try:
-        data = yaml.safe_load(p.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ProfileError(f"{p}: cannot read protocol ({exc})") from None
+    p, data = read_config_yaml(name_or_path, protocols_dir(), "protocol", protocol_names())
     if not isinstance(data, dict) or not isinstance(data.get("name"), str):
         raise ProfileError(f"{p}: a protocol is a mapping with a string field 'name'")
     unknown = sorted(set(data) - {"name", "description", "sim", "planner"})
@@ -88,15 +77,7 @@ def load_protocol(name_or_path: str) -> Protocol:
         raw = data.get(block) or {}
         if not isinstance(raw, dict):
             raise ProfileError(f"{p}: field '{block}': expected a mapping of parameters")
-        flat = _flatten(raw)
-        for key, value in flat.items():
-            if key not in specs:
-                raise ProfileError(f"{p}: field '{block}.{key}': not an avp_{block} parameter")
-            try:
-                flat[key] = check_value(specs[key], value, f"{p}: field '{block}'")
-            except ParameterError as exc:
-                raise ProfileError(str(exc)) from None
-        out[block] = flat
+        out[block] = checked_params(_flatten(raw), specs, str(p), block, f"avp_{block}")
     return Protocol(name=data["name"], description=str(data.get("description", "")), sim=out["sim"],
                     planner=out["planner"], source=str(p))
 

@@ -482,49 +482,38 @@ def log_invocation(out: Path, args: argparse.Namespace, started: str, wall_s: fl
         f.write(json.dumps(line) + "\n")
 
 
-def parse_sim_params(items: list[str] | None) -> dict[str, Any]:
-    """``KEY=VALUE`` items of ``--sim-param`` (VALUE parsed as YAML) -> {key: value}, checked against the avp_sim
-    parameter specs (ValueError naming the item)."""
+def _parse_params(items: list[str] | None, specs: dict, flag: str, node: str) -> dict[str, Any]:
+    """``KEY=VALUE`` items (VALUE parsed as YAML) -> {key: value}, checked against ``specs`` (ValueError naming
+    the item)."""
     import yaml
 
     from avp_common.params import ParameterError, check_value
-    from avp_sim.params import SIM_PARAMS
 
-    specs = {s.name: s for s in SIM_PARAMS}
     out: dict[str, Any] = {}
     for item in items or []:
         key, sep, raw = item.partition("=")
         key = key.strip()
         if not sep or key not in specs:
-            raise ValueError(f"--sim-param {item!r}: expected KEY=VALUE with KEY an avp_sim parameter "
-                             f"(`avp params avp_sim`)")
+            raise ValueError(f"{flag} {item!r}: expected KEY=VALUE with KEY an {node} parameter (`avp params {node}`)")
         try:
-            out[key] = check_value(specs[key], yaml.safe_load(raw), "--sim-param")
+            out[key] = check_value(specs[key], yaml.safe_load(raw), flag)
         except (ParameterError, yaml.YAMLError) as exc:
-            raise ValueError(f"--sim-param {item!r}: {exc}") from None
+            raise ValueError(f"{flag} {item!r}: {exc}") from None
     return out
+
+
+def parse_sim_params(items: list[str] | None) -> dict[str, Any]:
+    """``--sim-param`` items, checked against the avp_sim parameter specs."""
+    from avp_sim.params import SIM_PARAMS
+
+    return _parse_params(items, {s.name: s for s in SIM_PARAMS}, "--sim-param", "avp_sim")
 
 
 def parse_planner_params(items: list[str] | None) -> dict[str, Any]:
-    """``KEY=VALUE`` items of ``--planner-param`` -> {key: value}, checked against the avp_planner specs."""
-    import yaml
-
+    """``--planner-param`` items, checked against the avp_planner specs."""
     from avp_bringup.experiment.profiles import _planner_specs
-    from avp_common.params import ParameterError, check_value
 
-    specs = _planner_specs()
-    out: dict[str, Any] = {}
-    for item in items or []:
-        key, sep, raw = item.partition("=")
-        key = key.strip()
-        if not sep or key not in specs:
-            raise ValueError(f"--planner-param {item!r}: expected KEY=VALUE with KEY an avp_planner parameter "
-                             f"(`avp params avp_planner`)")
-        try:
-            out[key] = check_value(specs[key], yaml.safe_load(raw), "--planner-param")
-        except (ParameterError, yaml.YAMLError) as exc:
-            raise ValueError(f"--planner-param {item!r}: {exc}") from None
-    return out
+    return _parse_params(items, _planner_specs(), "--planner-param", "avp_planner")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
