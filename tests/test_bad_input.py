@@ -365,7 +365,7 @@ def test_bad_requests_into_a_running_simulator(ros_env, tmp_path, monkeypatch):
     data = yaml.safe_load(SCENARIO.read_text())
     data["dynamic_vehicles"][0]["target_spot"] = 30
     bad_scenario.write_text(yaml.safe_dump(data))
-    graph = Graph([_sim(seed=2, publish_markers=False)], tmp_path, env=ros_env)
+    graph = Graph([_sim(seed=2, publish_markers=False, scenario_dir=str(tmp_path))], tmp_path, env=ros_env)
     graph.start()
     try:
         spin(30, lambda: len(gts) >= 1)
@@ -378,12 +378,12 @@ def test_bad_requests_into_a_running_simulator(ros_env, tmp_path, monkeypatch):
         assert client.wait_for_service(timeout_sec=10)
         r1 = reset(seed=1, reactive=True, scenario_file=str(tmp_path / "nope.yaml"))
         r2 = reset(seed=1, reactive=True, scenario_file=str(bad_scenario))
-        assert not r1.success and "no such scenario file" in r1.message and "\n" not in r1.message
+        assert not r1.success and "scenario_file: not a file of the served" in r1.message and "\n" not in r1.message
         assert not r2.success and "dynamic_vehicles[0].target_spot" in r2.message and "\n" not in r2.message
         send(0, 1.0, 0.0)  # the episode that was running is untouched by the failed resets
         spin(10, lambda: any(g.step == 1 for g in gts))
         assert any(g.step == 1 for g in gts)
-        ok = reset(seed=1, reactive=False, scenario_file=str(SCENARIO))
+        ok = reset(seed=1, reactive=False, scenario_file=SCENARIO.name)  # a bundled scenario, by name
         assert ok.success and ok.n_vehicles == 37
         spin(10, lambda: status and status[-1].seed == 7)
         assert status[-1].seed == 7 and status[-1].reactive  # the file's seed and reactive flag

@@ -83,6 +83,14 @@ def test_approach_distance_moves_the_spawn_back_along_the_lane(paper_lot):
     assert compared >= 3
 
 
+def test_cruise_speed_is_the_lane_speed_before_the_maneuver(paper_lot):
+    one = replace(ScenarioParams(), n_dynamic=(1, 1), approach_distance=(8.0, 8.0))
+    for v in (1.0, 2.4):
+        sc = generate_paper_scenario(paper_lot, 1, False, replace(one, cruise_speed=(v, v)))
+        speeds = sc.dynamic_vehicles()[0].controls[:20, 0]  # the first 2 s of the history: cruising
+        assert np.allclose(speeds, v)
+
+
 def test_spawn_closer_than_ego_redraws_far_spawns(paper_lot):
     # an ego started lower down the middle road, so that lane spawns 8-16 m back can be farther than it
     params = replace(ScenarioParams(), approach_distance=(8.0, 16.0), ego_start=(21.5, 20.0, -math.pi / 2))

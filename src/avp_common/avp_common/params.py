@@ -110,13 +110,17 @@ def validate_values(values: dict[str, Any], specs: list[ParamSpec], where: str) 
 
 
 def declare_and_validate(node, specs: list[ParamSpec], param_file: str = "") -> dict[str, Any]:
-    """Declare ``specs`` on an rclpy node (no defaults: the YAML must give every key) and validate."""
+    """Declare ``specs`` on an rclpy node (no defaults: the YAML must give every key) and validate.
+
+    Every parameter is declared **read-only**: the nodes read their parameters once (at start-up or lifecycle
+    configure), so a value set later from another process would be reported but never run with. A
+    ``set_parameters`` call is refused by rclpy with a reason naming the parameter (docs/bad_input.md)."""
     from rcl_interfaces.msg import ParameterDescriptor
 
     where = f"node '{node.get_name()}'" + (f" (params file {param_file})" if param_file else "")
     values = {}
     for s in specs:
-        desc = ParameterDescriptor(description=s.description, dynamic_typing=True)
+        desc = ParameterDescriptor(description=s.description, dynamic_typing=True, read_only=True)
         param = node.declare_parameter(s.name, None, desc)
         values[s.name] = param.value
     return {s.name: check_value(s, values[s.name], where) for s in specs}

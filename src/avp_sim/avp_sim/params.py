@@ -65,6 +65,11 @@ SIM_PARAMS: list[ParamSpec] = [
               "", "§VI-B", default=False),
     ParamSpec("ego_max_speed", float, "Ego speed limit; commands are clipped to it and to |ω| <= |v|/R_min.",
               "v", "eq. (1)", min=0.0, default=5.0),
+    ParamSpec("scenario_dir", str, "A directory whose scenario files reset_episode may serve besides the bundled "
+              "config/scenarios ('' = none); a path outside them is refused unread (docs/bad_input.md).",
+              default=""),
+    ParamSpec("scenario_max_bytes", int, "Largest scenario (file or scenario_yaml text) reset_episode reads.",
+              min=1, max=100_000_000, default=1_000_000),
     ParamSpec("lockstep_timeout", float, "Lock-step: wall seconds without a matching command before the "
               "observation is re-sent with a warning.", min=0.05, default=5.0),
     ParamSpec("command_watchdog", float, "Real-time: a command older than this (wall seconds) is ignored and "

@@ -33,6 +33,7 @@ from avp_common.qos import DEBUG, GROUND_TRUTH, LATCHED, STATUS, STEP
 from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation
 from avp_msgs.srv import ResetEpisode
 from avp_sim.core.factory import load_lot_param, make_world, world_config
+from avp_sim.core.scenario_source import requested_scenario, served_dirs
 from avp_sim.core.world import COLLISION, RUNNING, SUCCESS, TIMEOUT, World
 from avp_sim.markers import world_markers
 from avp_sim.params import SIM_PARAMS
@@ -54,6 +55,7 @@ class SimNode(Node):
         self.p = declare_and_validate(self, SIM_PARAMS)
         world_config(self.p)  # validates the sensor block at start-up
         self.lot = load_lot_param(self.p["lot_file"])
+        self.scenario_dirs = served_dirs(self.p["scenario_dir"])  # what reset_episode may read (scenario_source)
         self.dt = self.p["dt"]
         self.lockstep = self.p["mode"] == "lockstep"
         self.pub_lot = self.create_publisher(type(lot_to_msg(self.lot)), "lot_map", LATCHED)
@@ -84,8 +86,8 @@ class SimNode(Node):
         )
 
     # ---------------------------------------------------------------- episodes
-    def _new_episode(self, seed: int, reactive: bool, scenario_file: str = "") -> World:
-        self.world = make_world(self.lot, self.p, seed, reactive, scenario_file)
+    def _new_episode(self, seed: int, reactive: bool, scenario: tuple[str, object] | None = None) -> World:
+        self.world = make_world(self.lot, self.p, seed, reactive, scenario_data=scenario)
         seed, reactive = self.world.scenario.seed, self.world.scenario.reactive
         self.seed, self.reactive = seed, reactive
         self.started = False
@@ -97,7 +99,9 @@ class SimNode(Node):
 
     def _on_reset(self, req: ResetEpisode.Request, resp: ResetEpisode.Response) -> ResetEpisode.Response:
         try:
-            w = self._new_episode(int(req.seed), bool(req.reactive), req.scenario_file)
+            scenario = requested_scenario(req.scenario_file, req.scenario_yaml, self.scenario_dirs,
+                                          self.p["scenario_max_bytes"])
+            w = self._new_episode(int(req.seed), bool(req.reactive), scenario)
             if not self.lockstep:
                 self._publish_step()
             resp.success, resp.message, resp.n_vehicles = True, "ok", len(w.scenario.vehicles)

@@ -303,6 +303,8 @@ class ScenarioSummary:
 
 # ------------------------------------------------------------------------------------------ scenario files
 
+MAX_DYNAMIC_VEHICLES = 64  # a scenario file's dynamic vehicles (bounded work per request, issue #20)
+
 #: keys of a scenario file and of each dynamic_vehicles entry
 _FILE_KEYS = {"seed", "reactive", "ego_start", "vacant_spot_ids", "dynamic_vehicles"}
 _DYN_KEYS = {"target_spot", "maneuver", "cruise_speed", "approach_distance", "passiveness"}
@@ -365,7 +367,9 @@ def scenario_from_dict(lot: LotMap, data: dict, source: str, seed: int, reactive
         vacant.append(sid)
     dyn_list = data.get("dynamic_vehicles", [])
     if not isinstance(dyn_list, list):
-        raise ScenarioError(f"{source}: dynamic_vehicles: expected a list, got {dyn_list!r}")
+        raise ScenarioError(f"{source}: dynamic_vehicles: expected a list, got {type(dyn_list).__name__}")
+    if len(dyn_list) > MAX_DYNAMIC_VEHICLES:
+        raise ScenarioError(f"{source}: dynamic_vehicles: {len(dyn_list)} vehicles, at most {MAX_DYNAMIC_VEHICLES}")
     names = {"/".join(k): k for k in ALL_MANEUVERS}
     dynamic: list[VehicleAgent] = []
     for j, d in enumerate(dyn_list):
@@ -412,13 +416,17 @@ def load_scenario_file(lot: LotMap, path, seed: int, reactive: bool, params: Sce
     """Read a scenario YAML file (see :func:`scenario_from_dict`; example: avp_sim/scenarios/two_cars.yaml)."""
     from pathlib import Path
 
-    import yaml
+    from avp_sim.core.scenario_source import parse_scenario_text
 
     p = Path(path)
     try:
-        data = yaml.safe_load(p.read_text())
+        raw = p.read_bytes()
     except FileNotFoundError:
         raise ScenarioError(f"{p}: no such scenario file") from None
-    except (OSError, yaml.YAMLError) as exc:
-        raise ScenarioError(f"{p}: not valid YAML ({' '.join(str(exc).split())})") from None
+    except OSError as exc:
+        raise ScenarioError(f"{p}: cannot read ({exc.strerror})") from None
+    try:
+        data = parse_scenario_text(raw, str(p))
+    except ScenarioError as exc:  # the message names the file; it never quotes the file's content
+        raise ScenarioError(str(exc)) from None
     return scenario_from_dict(lot, data, str(p), seed, reactive, params, vehicle)

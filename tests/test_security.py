@@ -1,0 +1,141 @@
+"""Issue #20, tried as another process on the same DDS domain would: the reset service reads no file it is not
+configured to serve and quotes no file's content; node parameters cannot be changed from outside.
+
+Real processes over real DDS (the simulator and the planner started by avp_bringup.graph), a real rclpy client in
+this process. Oracles: the process's own /proc RSS, wall-clock answer times, the simulator's ground truth.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+rclpy = pytest.importorskip("rclpy")
+
+from geometry_msgs.msg import TwistStamped  # noqa: E402
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
+from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
+
+from avp_bringup.graph import Graph, NodeSpec  # noqa: E402
+from avp_bringup.services import call_idempotent  # noqa: E402
+from avp_common.conversions import step_to_time  # noqa: E402
+from avp_common.qos import GROUND_TRUTH, STEP  # noqa: E402
+from avp_msgs.msg import GroundTruth, Observation  # noqa: E402
+from avp_msgs.srv import ResetEpisode  # noqa: E402
+
+SCENARIO = Path(__file__).resolve().parents[1] / "src/avp_sim/config/scenarios/two_cars.yaml"
+REFUSED = "scenario_file: not a file of the served scenario directories"
+
+
+def _rss_mb(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    raise AssertionError("no VmRSS")
+
+
+@pytest.fixture()
+def node(ros_env, monkeypatch):
+    for k, v in ros_env.items():
+        monkeypatch.setenv(k, v)
+    rclpy.init()
+    n = rclpy.create_node("intruder", namespace="/avp")
+    yield n, ros_env
+    n.destroy_node()
+    rclpy.try_shutdown()
+
+
+def _call(n, client, req, timeout=20.0):
+    return call_idempotent(client, req, lambda s: rclpy.spin_once(n, timeout_sec=s), timeout=timeout)
+
+
+def test_reset_service_reads_only_served_scenarios(node, tmp_path):
+    n, env = node
+    served = tmp_path / "served"
+    served.mkdir()
+    (served / "broken.yaml").write_text("secret_token: hunter2\nvacant_spot_ids: [1, 2\n  - : :\n")
+    outside = tmp_path / "outside.yaml"
+    outside.write_text("secret_token: hunter2\n  bad: [\n")
+    gts: list[GroundTruth] = []
+    n.create_subscription(GroundTruth, "debug/ground_truth", gts.append, GROUND_TRUTH)
+    n.create_subscription(Observation, "observation", lambda m: None, STEP)
+    cmd = n.create_publisher(TwistStamped, "cmd", STEP)
+    spec = NodeSpec("avp_sim", "avp_sim", "sim_node", "config/sim.param.yaml",
+                    {"seed": 3, "publish_markers": False, "scenario_dir": str(served)})
+    with Graph([spec], tmp_path, env=env) as g:
+        client = n.create_client(ResetEpisode, "reset_episode")
+        assert client.wait_for_service(timeout_sec=20)
+        t0 = time.monotonic()
+        while not gts and time.monotonic() - t0 < 30:
+            rclpy.spin_once(n, timeout_sec=0.05)
+        assert gts and gts[0].step == 0
+        pid = g.procs["avp_sim"].pid
+        _call(n, client, ResetEpisode.Request(seed=3, reactive=True, scenario_file="/nonexistent.yaml"))  # warm-up
+        rss0 = _rss_mb(pid)
+        replies = {}
+        for name in ("/dev/zero", str(outside), "/etc/passwd", "/nonexistent.yaml", "../outside.yaml"):
+            t = time.monotonic()
+            r = _call(n, client, ResetEpisode.Request(seed=3, reactive=True, scenario_file=name))
+            replies[name] = (r, time.monotonic() - t)
+        for name, (r, dt) in replies.items():
+            assert not r.success and REFUSED in r.message, (name, r.message)
+            assert dt < 1.0, f"{name}: answered after {dt:.2f} s"
+            assert "hunter2" not in r.message and "secret" not in r.message
+        # the same answer whether the file exists or not: no existence oracle
+        assert replies["/etc/passwd"][0].message == replies["/nonexistent.yaml"][0].message
+        broken = _call(n, client, ResetEpisode.Request(seed=3, reactive=True, scenario_file="broken.yaml"))
+        assert not broken.success and "scenario_file: not valid YAML (line" in broken.message
+        assert "hunter2" not in broken.message and "secret" not in broken.message
+        base = yaml.safe_load(SCENARIO.read_text())
+        bad_texts = {
+            "ego_start[0]": {**base, "ego_start": [float("nan"), 38.0, 0.0]},
+            "dynamic_vehicles": {**base, "dynamic_vehicles": [base["dynamic_vehicles"][0]] * 10_000},
+            "ego_start: the ego's footprint": {**base, "ego_start": [-50.0, 0.0, 0.0]},
+        }
+        for needle, data in bad_texts.items():
+            r = _call(n, client, ResetEpisode.Request(seed=3, reactive=True, scenario_yaml=yaml.safe_dump(data)))
+            assert not r.success and needle in r.message, (needle, r.message)
+        big = _call(n, client, ResetEpisode.Request(seed=3, reactive=True, scenario_yaml="#" * 2_000_000))
+        assert not big.success and "scenario_yaml: larger than 1000000 bytes" in big.message
+        both = _call(n, client, ResetEpisode.Request(seed=3, scenario_file="two_cars.yaml", scenario_yaml="{}"))
+        assert not both.success and "give one of them" in both.message
+        assert _rss_mb(pid) - rss0 < 50.0, "the probes grew the simulator's memory"
+        # the running episode is untouched: step 0 of seed 3 answers a command
+        m = TwistStamped()
+        m.header.stamp = step_to_time(0, 0.1)
+        m.twist.linear.x = 1.0
+        cmd.publish(m)
+        t0 = time.monotonic()
+        while not any(x.step == 1 for x in gts) and time.monotonic() - t0 < 10:
+            rclpy.spin_once(n, timeout_sec=0.05)
+        assert any(x.step == 1 for x in gts)
+        ok = _call(n, client, ResetEpisode.Request(seed=1, reactive=False, scenario_yaml=SCENARIO.read_text()))
+        assert ok.success and ok.n_vehicles == 37
+        assert g.poll()["avp_sim"] is None
+    assert "Traceback" not in (tmp_path / "avp_sim.log").read_text()
+
+
+def _param(name: str, value: float) -> Parameter:
+    return Parameter(name=name, value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value))
+
+
+def test_parameters_cannot_be_changed_from_another_process(node, tmp_path):
+    n, env = node
+    sim = NodeSpec("avp_sim", "avp_sim", "sim_node", "config/sim.param.yaml", {"publish_markers": False})
+    planner = NodeSpec("avp_planner", "avp_planner", "planner", "config/planner.param.yaml")
+    with Graph([sim, planner], tmp_path, env=env) as g:
+        for node_name, key, value, good in (("avp_sim", "dt", -1.0, 0.1), ("avp_sim", "ego_max_speed", 1000.0, 5.0),
+                                            ("avp_planner", "collision.vehicle_margin", -5.0, 0.3),
+                                            ("avp_planner", "control.v_max", 50.0, 2.0)):
+            setter = n.create_client(SetParameters, f"/avp/{node_name}/set_parameters")
+            getter = n.create_client(GetParameters, f"/avp/{node_name}/get_parameters")
+            assert setter.wait_for_service(timeout_sec=20) and getter.wait_for_service(timeout_sec=20)
+            r = _call(n, setter, SetParameters.Request(parameters=[_param(key, value)]))
+            assert len(r.results) == 1 and not r.results[0].successful, (node_name, key)
+            assert key in r.results[0].reason and "read-only" in r.results[0].reason
+            got = _call(n, getter, GetParameters.Request(names=[key]))
+            assert got.values[0].double_value == pytest.approx(good)  # what the node runs with, unchanged
+        assert all(rc is None for rc in g.poll().values())
