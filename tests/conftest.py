@@ -15,10 +15,18 @@ def paper_lot():
     return load_bundled_lot("paper_lot")
 
 
+@pytest.fixture(scope="session")
+def cmd_key_file(tmp_path_factory):
+    """The command key of the tests' graphs (avp_common.cmd_auth), not the user's own."""
+    return str(tmp_path_factory.mktemp("cmd_key") / "cmd.key")
+
+
 @pytest.fixture()
-def ros_env():
-    """Environment for child ROS processes: a domain id of this test's own, localhost discovery."""
+def ros_env(cmd_key_file):
+    """Environment for child ROS processes: a domain id of this test's own, localhost discovery, the tests'
+    command key (the test process signs with it too once the ``ros``-style fixtures copy this environment)."""
     env = dict(os.environ)
+    env["AVP_CMD_KEY_FILE"] = cmd_key_file
     env["ROS_DOMAIN_ID"] = str(random.Random(os.getpid() * 7919 + random.randrange(1000)).randint(1, 101))
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env["PYTHONUNBUFFERED"] = "1"

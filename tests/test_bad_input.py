@@ -330,6 +330,7 @@ def test_bad_requests_into_a_running_simulator(ros_env, tmp_path, monkeypatch):
     one line each, the simulator does not step on them and keeps running; a valid scenario file works."""
     from geometry_msgs.msg import TwistStamped
 
+    from avp_common.cmd_auth import CommandSigner
     from avp_common.conversions import step_to_time
     from avp_common.qos import STATUS, STEP
     from avp_msgs.msg import EpisodeStatus, GroundTruth, Observation
@@ -355,7 +356,7 @@ def test_bad_requests_into_a_running_simulator(ros_env, tmp_path, monkeypatch):
         m = TwistStamped()
         m.header.stamp = step_to_time(step, 0.1)
         m.twist.linear.x, m.twist.angular.z = v, om
-        pub.publish(m)
+        pub.publish(CommandSigner().sign(m))  # authenticated: these commands test the checks behind it
 
     def reset(**kw):  # re-sent while unanswered: a response can be lost while discovery settles
         return call_idempotent(client, ResetEpisode.Request(**kw), lambda s: rclpy.spin_once(node, timeout_sec=s),

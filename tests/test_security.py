@@ -21,6 +21,7 @@ from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
 
 from avp_bringup.graph import Graph, NodeSpec  # noqa: E402
 from avp_bringup.services import call_idempotent  # noqa: E402
+from avp_common.cmd_auth import CommandSigner  # noqa: E402
 from avp_common.conversions import step_to_time  # noqa: E402
 from avp_common.qos import GROUND_TRUTH, STEP  # noqa: E402
 from avp_msgs.msg import GroundTruth, Observation  # noqa: E402
@@ -107,7 +108,7 @@ def test_reset_service_reads_only_served_scenarios(node, tmp_path):
         m = TwistStamped()
         m.header.stamp = step_to_time(0, 0.1)
         m.twist.linear.x = 1.0
-        cmd.publish(m)
+        cmd.publish(CommandSigner().sign(m))
         t0 = time.monotonic()
         while not any(x.step == 1 for x in gts) and time.monotonic() - t0 < 10:
             rclpy.spin_once(n, timeout_sec=0.05)
@@ -139,3 +140,53 @@ def test_parameters_cannot_be_changed_from_another_process(node, tmp_path):
             got = _call(n, getter, GetParameters.Request(names=[key]))
             assert got.values[0].double_value == pytest.approx(good)  # what the node runs with, unchanged
         assert all(rc is None for rc in g.poll().values())
+
+
+def test_hijacked_commands_do_not_steer_the_ego(paper_lot, node, tmp_path):
+    """Issue #20 item 9, the attack as measured: a process answers every observation at once with its own
+    cmd stamped like it (v = 3 m/s straight). The simulator drops the untagged commands, the episode equals the
+    in-process run of the same driver bit for bit, and the simulator names the foreign publisher."""
+    import numpy as np
+    from test_dds_lockstep import SEED, T_FINAL, _inprocess_trajectory
+
+    from avp_bringup.graph import default_graph, with_params
+    from avp_bringup.monitor import EpisodeMonitor
+
+    n, env = node
+    expected, world, _ = _inprocess_trajectory(paper_lot, "scripted", "bezier")
+    sent = []
+    attacker = n.create_publisher(TwistStamped, "cmd", STEP)
+
+    def hijack(obs: Observation) -> None:
+        m = TwistStamped()
+        m.header.stamp = obs.header.stamp
+        m.header.frame_id = "ego"
+        m.twist.linear.x = 3.0
+        attacker.publish(m)
+        sent.append(obs.header.stamp)
+
+    n.create_subscription(Observation, "observation", hijack, STEP)
+    nodes = default_graph("scripted")
+    n_subs = nodes[0].extra_params["min_subscribers"]
+    nodes[0] = with_params(nodes[0], seed=SEED, reactive=True, t_final=T_FINAL, publish_markers=False,
+                           min_subscribers=n_subs + 2, min_debug_subscribers=1)  # + attacker + monitor
+    monitor = EpisodeMonitor()
+    with Graph(nodes, tmp_path, env=env) as g:
+        t0 = time.monotonic()
+        while not monitor.finished and time.monotonic() - t0 < 120:
+            rclpy.spin_once(monitor, timeout_sec=0.02)
+            rclpy.spin_once(n, timeout_sec=0.0)
+        assert monitor.finished, "episode did not finish"
+        t1 = time.monotonic()
+        while len(monitor.gt) < monitor.status.step + 1 and time.monotonic() - t1 < 10:
+            rclpy.spin_once(monitor, timeout_sec=0.05)
+        assert all(rc is None for rc in g.poll().values())
+    got = monitor.ego_trajectory()
+    monitor.destroy_node()
+    assert len(sent) > 10, "the attacker answered no steps"
+    assert got.shape == expected.shape and np.array_equal(got, expected)  # the same episode as without it
+    log = (tmp_path / "avp_sim.log").read_text()
+    assert "unauthenticated command(s) dropped" in log and "/avp/intruder" in log
+    # named once when it appeared (with the other publishers on cmd: Jazzy's rclpy does not say which writer sent
+    # a message, so the report lists who could have), then counted at most once a second
+    assert log.count("; new: [") == 1 and "'/avp/intruder'" in log.split("; new: [")[1].splitlines()[0]

@@ -116,6 +116,8 @@ class Graph:
         # SIGKILLed (its port is never drained): the graph's processes talk over UDPv4 loopback instead
         # (docs/architecture.md, "Faults"); FASTDDS_BUILTIN_TRANSPORTS=DEFAULT brings shared memory back.
         self.env.setdefault("FASTDDS_BUILTIN_TRANSPORTS", "UDPv4")
+        # no other host reaches the graph unless the user widens discovery (ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET)
+        self.env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         # reliable writers heartbeat every 50 ms instead of 3 s: a datagram lost on a loaded machine is repaired
         # within about a step instead of holding its stream back for seconds (dds/fastdds_profiles.xml)
         self.env.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(FASTDDS_PROFILES))

@@ -29,6 +29,7 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
+from avp_common.cmd_auth import CommandSigner
 from avp_common.conversions import (
     MessageError,
     beliefs_from_msg,
@@ -106,6 +107,7 @@ class PlannerNode(LifecycleNode):
         self.ego_int: dict[int, IntentionArray] = {}
         self.inputs = (self.obs, self.beliefs, self.preds, self.ego_int)
         self.pub_cmd = self.create_publisher(TwistStamped, "cmd", STEP)
+        self.signer = CommandSigner()
         self.pub_plan = self.create_publisher(Path, "plan", STEP)
         self.pub_decision = self.create_publisher(PlannerDecision, "decision", STEP)
         self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", STEP)
@@ -244,7 +246,7 @@ class PlannerNode(LifecycleNode):
         cmd.header.stamp = stamp
         cmd.header.frame_id = "ego"
         cmd.twist.linear.x, cmd.twist.angular.z = v, om
-        self.pub_cmd.publish(cmd)
+        self.pub_cmd.publish(self.signer.sign(cmd))  # authenticated (avp_common.cmd_auth)
 
     def _publish_decision(self, obs_msg: Observation, d, total: float) -> None:
         path = Path()

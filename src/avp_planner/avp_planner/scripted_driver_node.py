@@ -11,6 +11,7 @@ import sys
 from geometry_msgs.msg import TwistStamped
 from rclpy.node import Node
 
+from avp_common.cmd_auth import CommandSigner
 from avp_common.conversions import MessageError, lot_from_msg, observation_from_msg
 from avp_common.node_main import run_node
 from avp_common.params import ParamSpec, declare_and_validate
@@ -36,6 +37,7 @@ class ScriptedDriverNode(Node):
         self.driver: ScriptedDriver | None = None
         self.pending: Observation | None = None
         self.pub = self.create_publisher(TwistStamped, "cmd", STEP)
+        self.signer = CommandSigner()
         self.create_subscription(LotMap, "lot_map", self._on_lot, LATCHED)
         self.sub_obs = self.create_subscription(Observation, "observation", self._on_obs, STEP)
 
@@ -63,7 +65,7 @@ class ScriptedDriverNode(Node):
         cmd.header.frame_id = "ego"
         cmd.twist.linear.x = float(v)
         cmd.twist.angular.z = float(om)
-        self.pub.publish(cmd)
+        self.pub.publish(self.signer.sign(cmd))  # authenticated (avp_common.cmd_auth)
 
 
 def main(args=None) -> int:
