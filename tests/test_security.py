@@ -190,3 +190,49 @@ def test_hijacked_commands_do_not_steer_the_ego(paper_lot, node, tmp_path):
     # named once when it appeared (with the other publishers on cmd: Jazzy's rclpy does not say which writer sent
     # a message, so the report lists who could have), then counted at most once a second
     assert log.count("; new: [") == 1 and "'/avp/intruder'" in log.split("; new: [")[1].splitlines()[0]
+
+
+def test_extreme_commands_are_clamped(node, tmp_path):
+    """Issue #20 item 5: v = 1e9, ω = -1e9 (tagged, so they reach the checks) move the ego at most ego_max_speed·dt
+    per step with |ω| <= |v|/R_min; a stamp far in the future or negative never makes the simulator step; no
+    state is ever non-finite."""
+    import math
+
+    n, env = node
+    gts: list[GroundTruth] = []
+    n.create_subscription(GroundTruth, "debug/ground_truth", gts.append, GROUND_TRUTH)
+    n.create_subscription(Observation, "observation", lambda m: None, STEP)
+    cmd = n.create_publisher(TwistStamped, "cmd", STEP)
+    signer = CommandSigner()
+
+    def send(sec: int, nanosec: int, v: float, om: float) -> None:
+        m = TwistStamped()
+        m.header.stamp.sec, m.header.stamp.nanosec = sec, nanosec
+        m.twist.linear.x, m.twist.angular.z = v, om
+        cmd.publish(signer.sign(m))
+
+    def spin(seconds: float, cond=lambda: False) -> None:
+        t0 = time.monotonic()
+        while not cond() and time.monotonic() - t0 < seconds:
+            rclpy.spin_once(n, timeout_sec=0.02)
+
+    spec = NodeSpec("avp_sim", "avp_sim", "sim_node", "config/sim.param.yaml",
+                    {"seed": 4, "publish_markers": False, "ego_max_speed": 5.0})
+    with Graph([spec], tmp_path, env=env) as g:
+        spin(30, lambda: bool(gts))
+        assert gts and gts[0].step == 0
+        send(2_000_000_000, 0, 1.0, 0.0)  # far in the future
+        send(-5, 0, 1.0, 0.0)  # negative
+        spin(1.0)
+        assert max(x.step for x in gts) == 0
+        for k in range(3):
+            send(0, k * 100_000_000, 1e9, -1e9)
+            spin(5, lambda k=k: any(x.step == k + 1 for x in gts))
+        assert g.poll()["avp_sim"] is None
+    ego = [next(a for a in x.agents if a.kind == 0) for x in sorted(gts, key=lambda m: m.step)]
+    assert [x.step for x in sorted(gts, key=lambda m: m.step)][:4] == [0, 1, 2, 3]
+    for a, b in zip(ego, ego[1:4], strict=False):
+        assert all(math.isfinite(v) for v in (b.pose.x, b.pose.y, b.pose.theta))
+        assert math.hypot(b.pose.x - a.pose.x, b.pose.y - a.pose.y) <= 5.0 * 0.1 + 1e-6
+        dth = math.atan2(math.sin(b.pose.theta - a.pose.theta), math.cos(b.pose.theta - a.pose.theta))
+        assert abs(dth) <= 5.0 / 3.22 * 0.1 + 1e-3  # |ω| <= v_max / R_min
