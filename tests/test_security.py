@@ -91,13 +91,16 @@ def test_reset_service_reads_only_served_scenarios(node, tmp_path):
         assert not broken.success and "scenario_file: not valid YAML (line" in broken.message
         assert "hunter2" not in broken.message and "secret" not in broken.message
         base = yaml.safe_load(SCENARIO.read_text())
+        one = {k: base["dynamic_vehicles"][0][k] for k in ("target_spot", "maneuver")}
         bad_texts = {
             "ego_start[0]": {**base, "ego_start": [float("nan"), 38.0, 0.0]},
-            "dynamic_vehicles": {**base, "dynamic_vehicles": [base["dynamic_vehicles"][0]] * 10_000},
+            "dynamic_vehicles": {**base, "dynamic_vehicles": [dict(one) for _ in range(10_000)]},
+            "YAML aliases": "a: &x [1, 2]\nvacant_spot_ids: *x\n",
             "ego_start: the ego's footprint": {**base, "ego_start": [-50.0, 0.0, 0.0]},
         }
         for needle, data in bad_texts.items():
-            r = _call(n, client, ResetEpisode.Request(seed=3, reactive=True, scenario_yaml=yaml.safe_dump(data)))
+            text = data if isinstance(data, str) else yaml.safe_dump(data)
+            r = _call(n, client, ResetEpisode.Request(seed=3, reactive=True, scenario_yaml=text))
             assert not r.success and needle in r.message, (needle, r.message)
         big = _call(n, client, ResetEpisode.Request(seed=3, reactive=True, scenario_yaml="#" * 2_000_000))
         assert not big.success and "scenario_yaml: larger than 1000000 bytes" in big.message

@@ -12,7 +12,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from avp_world.geometry import rect_corners, rects_overlap
 
@@ -151,6 +150,13 @@ def _require(d: Any, key: str, where: str) -> Any:
     return d[key]
 
 
+#: bounds of a lot map (issue #20): the DLP lot has 364 spots in a file of a few kB
+MAX_LOT_BYTES = 5_000_000
+MAX_SPOTS = 5000
+MAX_ROADS = 1000
+MAX_BOUNDARY_VERTICES = 10_000
+
+
 def lot_from_dict(data: Any, source: str = "<memory>") -> LotMap:
     """Build and validate a :class:`LotMap` from parsed YAML. Raises :class:`LotMapError`."""
     src = source
@@ -162,15 +168,15 @@ def lot_from_dict(data: Any, source: str = "<memory>") -> LotMap:
     name = str(data.get("name", Path(source).stem))
 
     raw_boundary = _require(data, "boundary", src)
-    if not isinstance(raw_boundary, list) or len(raw_boundary) < 3:
-        raise LotMapError(f"{src}: boundary: expected a list of >= 3 [x, y] vertices")
+    if not isinstance(raw_boundary, list) or not 3 <= len(raw_boundary) <= MAX_BOUNDARY_VERTICES:
+        raise LotMapError(f"{src}: boundary: expected a list of 3 to {MAX_BOUNDARY_VERTICES} [x, y] vertices")
     boundary = np.array([_point(p, f"{src}: boundary[{i}]") for i, p in enumerate(raw_boundary)])
     entrance = np.array(_point(_require(data, "entrance", src), f"{src}: entrance"))
 
     roads: list[Road] = []
     raw_roads = _require(data, "roads", src)
-    if not isinstance(raw_roads, list) or not raw_roads:
-        raise LotMapError(f"{src}: roads: expected a non-empty list")
+    if not isinstance(raw_roads, list) or not 1 <= len(raw_roads) <= MAX_ROADS:
+        raise LotMapError(f"{src}: roads: expected a list of 1 to {MAX_ROADS} roads")
     for i, r in enumerate(raw_roads):
         w = f"{src}: roads[{i}]"
         start = _point(_require(r, "start", w), f"{w}.start")
@@ -186,8 +192,9 @@ def lot_from_dict(data: Any, source: str = "<memory>") -> LotMap:
         first = _point(_require(row, "first_center", w), f"{w}.first_center")
         step = _point(_require(row, "step", w), f"{w}.step")
         count = _require(row, "count", w)
-        if isinstance(count, bool) or not isinstance(count, int) or count < 1:
-            raise LotMapError(f"{w}.count: expected a positive integer, got {count!r}")
+        if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= MAX_SPOTS - len(spots):
+            raise LotMapError(f"{w}.count: expected an integer in [1, {MAX_SPOTS - len(spots)}] (at most "
+                              f"{MAX_SPOTS} spots in a lot), got {count!r}")
         heading = _num(_require(row, "heading", w), f"{w}.heading")
         length = _num(_require(row, "length", w), f"{w}.length", positive=True)
         width = _num(_require(row, "width", w), f"{w}.width", positive=True)
@@ -195,12 +202,18 @@ def lot_from_dict(data: Any, source: str = "<memory>") -> LotMap:
             spots.append(
                 Spot(len(spots), first[0] + k * step[0], first[1] + k * step[1], heading, length, width)
             )
-    for i, s in enumerate(data.get("spots", []) or []):
+    raw_spots = data.get("spots", []) or []
+    if not isinstance(raw_spots, list) or len(raw_spots) + len(spots) > MAX_SPOTS:
+        raise LotMapError(f"{src}: spots: expected a list; at most {MAX_SPOTS} spots in a lot")
+    for i, s in enumerate(raw_spots):
         w = f"{src}: spots[{i}]"
         c = _point(_require(s, "center", w), f"{w}.center")
+        sid = s.get("id", len(spots)) if isinstance(s, dict) else None
+        if isinstance(sid, bool) or not isinstance(sid, int):
+            raise LotMapError(f"{w}.id: expected an integer, got {type(sid).__name__}")
         spots.append(
             Spot(
-                int(s.get("id", len(spots))),
+                sid,
                 c[0],
                 c[1],
                 _num(_require(s, "heading", w), f"{w}.heading"),
@@ -236,9 +249,16 @@ def _validate_geometry(lot: LotMap) -> None:
     # pairwise overlap with a small tolerance so that spots sharing an edge are accepted
     c = lot.spot_corners
     n = len(c)
-    if n > 1:
-        ii, jj = np.triu_indices(n, 1)
+    if n > 1:  # candidate pairs from an R-tree (a lot of 5000 spots has 12.5 M pairs), confirmed exactly
+        from shapely import STRtree
+
         shrunk = rect_corners(lot.spot_poses, lot.spot_dims[:, 0] - 2e-3, lot.spot_dims[:, 1] - 2e-3)
+        polys = [Polygon(q) for q in shrunk]
+        ii, jj = STRtree(polys).query(polys, predicate="intersects")
+        keep = ii < jj
+        ii, jj = ii[keep], jj[keep]
+        order = np.lexsort((jj, ii))  # the first pair in (i, j) order, as the full pairwise check reported
+        ii, jj = ii[order], jj[order]
         bad = rects_overlap(shrunk[ii], shrunk[jj])
         if bad.any():
             k = int(np.argmax(bad))
@@ -249,15 +269,17 @@ def _validate_geometry(lot: LotMap) -> None:
 
 def load_lot(path: str | Path) -> LotMap:
     """Load and validate a lot map YAML file. Raises :class:`LotMapError` naming file and field."""
+    from avp_world.safe_yaml import YamlInputError, load_bounded, read_bounded
+
     p = Path(path)
     if not p.is_file():
         raise LotMapError(f"{p}: no such lot map file")
     try:
-        data = yaml.safe_load(p.read_text())
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" line {mark.line + 1}" if mark is not None else ""
-        raise LotMapError(f"{p}:{where} not valid YAML ({getattr(exc, 'problem', exc)})") from None
+        data = load_bounded(read_bounded(p, MAX_LOT_BYTES), str(p), MAX_LOT_BYTES)
+    except OSError as exc:
+        raise LotMapError(f"{p}: cannot read ({exc.strerror})") from None
+    except YamlInputError as exc:
+        raise LotMapError(str(exc)) from None
     return lot_from_dict(data, source=str(p))
 
 

@@ -426,7 +426,7 @@ def load_scenario_file(lot: LotMap, path, seed: int, reactive: bool, params: Sce
     except OSError as exc:
         raise ScenarioError(f"{p}: cannot read ({exc.strerror})") from None
     try:
-        data = parse_scenario_text(raw, str(p))
+        data = parse_scenario_text(raw, str(p), max(len(raw), 1))
     except ScenarioError as exc:  # the message names the file; it never quotes the file's content
         raise ScenarioError(str(exc)) from None
     return scenario_from_dict(lot, data, str(p), seed, reactive, params, vehicle)

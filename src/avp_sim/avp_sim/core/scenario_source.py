@@ -17,9 +17,8 @@ import stat
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from avp_sim.core.scenario import ScenarioError
+from avp_world.safe_yaml import YamlInputError, load_bounded
 
 DEFAULT_MAX_BYTES = 1_000_000
 
@@ -73,21 +72,13 @@ def read_capped(path: Path, max_bytes: int) -> bytes:
     return data
 
 
-def parse_scenario_text(data: bytes | str, field: str) -> Any:
-    """YAML of a scenario; ScenarioError naming ``field`` with line, column and problem only (never the text)."""
-    if isinstance(data, bytes):
-        try:
-            data = data.decode("utf-8")
-        except UnicodeDecodeError as exc:
-            raise ScenarioError(f"{field}: not UTF-8 text (byte {exc.start})") from None
+def parse_scenario_text(data: bytes | str, field: str, max_bytes: int = DEFAULT_MAX_BYTES) -> Any:
+    """YAML of a scenario (:func:`avp_world.safe_yaml.load_bounded`: size cap, UTF-8, no aliases);
+    ScenarioError naming ``field`` with line, column and problem only (never the text)."""
     try:
-        return yaml.safe_load(data)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark
-        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
-        raise ScenarioError(f"{field}: not valid YAML ({where}{exc.problem or 'syntax error'})") from None
-    except yaml.YAMLError:
-        raise ScenarioError(f"{field}: not valid YAML") from None
+        return load_bounded(data, field, max_bytes)
+    except YamlInputError as exc:
+        raise ScenarioError(str(exc)) from None
 
 
 def requested_scenario(scenario_file: str, scenario_yaml: str, dirs: list[Path],
@@ -99,8 +90,9 @@ def requested_scenario(scenario_file: str, scenario_yaml: str, dirs: list[Path],
         if len(scenario_yaml.encode("utf-8", "surrogatepass")) > max_bytes:
             raise ScenarioError(f"scenario_yaml: larger than {max_bytes} bytes (simulator parameter "
                                 "scenario_max_bytes)")
-        return "scenario_yaml", parse_scenario_text(scenario_yaml, "scenario_yaml")
+        return "scenario_yaml", parse_scenario_text(scenario_yaml, "scenario_yaml", max_bytes)
     if scenario_file:
         path = resolve_scenario_file(scenario_file, dirs)
-        return f"scenario_file {path.name}", parse_scenario_text(read_capped(path, max_bytes), "scenario_file")
+        return f"scenario_file {path.name}", parse_scenario_text(read_capped(path, max_bytes), "scenario_file",
+                                                                 max_bytes)
     return None
