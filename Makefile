@@ -6,7 +6,7 @@ setup:
 	@bash tools/bootstrap.sh
 
 demo: setup
-	@source tools/env.sh && ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-42} avp demo --seed $${SEED:-1} --method $${METHOD:-bezier} \
+	@source tools/env.sh && avp demo --seed $${SEED:-1} --method $${METHOD:-bezier} \
 		$${REALTIME:+--realtime}
 
 test: setup

@@ -7,6 +7,8 @@ this process. Oracles: the process's own /proc RSS, wall-clock answer times, the
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -239,3 +241,38 @@ def test_extreme_commands_are_clamped(node, tmp_path):
         assert math.hypot(b.pose.x - a.pose.x, b.pose.y - a.pose.y) <= 5.0 * 0.1 + 1e-6
         dth = math.atan2(math.sin(b.pose.theta - a.pose.theta), math.cos(b.pose.theta - a.pose.theta))
         assert abs(dth) <= 5.0 / 3.22 * 0.1 + 1e-3  # |ω| <= v_max / R_min
+
+
+def test_two_demos_at_once_do_not_cross_talk(ros_env, tmp_path):
+    """Issue #20 item 8: two `avp demo` started together without ROS_DOMAIN_ID each claim a domain of their own
+    (avp_bringup.domain) and record the same episode as a lone run, bit for bit."""
+    import os
+
+    import numpy as np
+
+    from avp_bringup.bag import read_episode
+
+    env = {k: v for k, v in ros_env.items() if k != "ROS_DOMAIN_ID"}
+    env["TMPDIR"] = str(tmp_path)  # the lock files of this test's own, away from any graph the user runs
+
+    def demo(tag: str) -> subprocess.Popen:
+        return subprocess.Popen([sys.executable, "-m", "avp_bringup.cli", "demo", "--ego", "scripted", "--seed", "2",
+                                 "--t-final", "6", "--no-gif", "--out", str(tmp_path / tag),
+                                 "--bag", str(tmp_path / f"bag_{tag}")], env=env, stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, text=True)
+
+    runs = [demo("a"), demo("b")]
+    outs = [p.communicate(timeout=240)[0] for p in runs]
+    lone = demo("lone")
+    outs.append(lone.communicate(timeout=240)[0])
+    assert all(p.returncode == 0 for p in (*runs, lone)), outs
+    domains = [next(ln for ln in o.splitlines() if "ROS_DOMAIN_ID=" in ln) for o in outs[:2]]
+    assert domains[0] != domains[1], domains  # two graphs, two domains
+    trajectories = []
+    for tag in ("a", "b", "lone"):
+        ep = read_episode(tmp_path / f"bag_{tag}")
+        trajectories.append(np.array([[a.pose.x, a.pose.y, a.pose.theta] for g in ep["ground_truth"]
+                                      for a in g.agents if a.kind == 0]))
+    assert len(trajectories[2]) == 61
+    assert np.array_equal(trajectories[0], trajectories[2]) and np.array_equal(trajectories[1], trajectories[2])
+    assert os.path.isdir(tmp_path / "a") and os.path.isdir(tmp_path / "b")

@@ -470,6 +470,27 @@ def main(argv: list[str] | None = None) -> int:
     add_trajectory_arguments(p)
     p.set_defaults(func=cmd_train_trajectory)
     args = parser.parse_args(argv)
+    return _in_domain(args)
+
+
+def _in_domain(args: argparse.Namespace) -> int:
+    """Run the command in its DDS domain (avp_bringup.domain): a new graph claims a free ROS_DOMAIN_ID unless the
+    environment sets one; a tool for a running graph joins the one running graph's domain."""
+    from avp_bringup import domain
+
+    starts_graph = args.command in ("launch", "demo") or (args.command == "experiment"
+                                                          and getattr(args, "transport", "") == "ros")
+    try:
+        if starts_graph:
+            d, claimed = domain.claim_domain()
+            if claimed:
+                print(f"[avp] ROS_DOMAIN_ID={d} (a domain of this graph's own; set ROS_DOMAIN_ID to choose one)",
+                      flush=True)
+        elif args.command in ("swap-planner", "record", "replay"):
+            domain.join_running_domain()
+    except (RuntimeError, ValueError) as exc:
+        print(f"[avp {args.command}] {exc}", file=sys.stderr)
+        return 2
     return args.func(args)
 
 
