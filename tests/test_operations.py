@@ -391,3 +391,62 @@ def test_sigkill_pipeline_nodes_in_realtime(ros, tmp_path):
         assert any(not np.allclose(poses[k][:2], poses[k_restart][:2]) for k in later), name
     m = probe.status.metrics
     assert probe.finished and not m.collision and probe.status.state in (2, 4), probe.status
+
+
+def test_sigstopped_nodes_in_realtime_hold_the_ego_then_resume(ros, tmp_path):
+    """Issue #20 item 1: in real time the belief node, then the prediction node, then the planner hang (SIGSTOP)
+    for 5 s while the ego drives. The ego stops within a few steps and holds still (the planner answers the
+    overdue steps with v = ω = 0 and says so once — stale_input_timeout —, or, with the planner hung, the
+    simulator's watchdog holds it and says so once); on SIGCONT the episode drives on and finishes without a
+    collision."""
+    env = ros
+    nodes = default_graph()
+    nodes[0] = _with(nodes[0], mode="realtime", seed=3, t_final=90.0, publish_markers=False)
+    probe = _EgoProbe()
+    graph = Graph(nodes, tmp_path / "logs", env=env)
+    graph.start()
+    stalls = []  # (node, step at SIGSTOP, step at SIGCONT)
+
+    def driving() -> bool:
+        k = probe.last()
+        return k > 5 and k - 1 in probe.poses and np.hypot(
+            *np.subtract(probe.poses[k][:2], probe.poses[k - 1][:2])) > 0.03
+
+    try:
+        t0 = time.monotonic()
+        for name in ("avp_belief", "avp_prediction", "avp_planner"):
+            probe.spin(150, driving)
+            assert driving() and not probe.finished, f"the ego is not driving before {name} hangs"
+            probe.spin(0.0)
+            k_stop = probe.last()
+            graph.kill_node(name, signal.SIGSTOP)
+            probe.spin(5.0)
+            probe.spin(0.0)
+            k_cont = probe.last()
+            graph.kill_node(name, signal.SIGCONT)
+            stalls.append((name, k_stop, k_cont))
+            assert graph.procs["avp_sim"].poll() is None and k_cont >= k_stop + 30, (name, k_stop, k_cont)
+        probe.spin(200 - (time.monotonic() - t0), lambda: probe.finished)
+        probe.spin(0.5)
+        rc = graph.poll()
+    finally:
+        graph.stop()
+        probe.node.destroy_node()
+    assert all(v is None for v in rc.values()), rc
+    poses = probe.poses
+    for name, k_stop, k_cont in stalls:
+        window = [k for k in range(k_stop, k_cont + 1) if k in poses]
+        moving = [k for k in window[1:] if not np.allclose(poses[k][:2], poses[k - 1][:2], atol=1e-9)]
+        # the steps answered before the hang (and within stale_input_timeout = 5 steps) may still move the ego
+        assert all(k <= k_stop + 8 for k in moving), (name, k_stop, moving)
+        print(f"[stall] {name}: SIGSTOP at step {k_stop}, last ego motion {max(moving, default=k_stop) - k_stop} "
+              f"step(s) later, {k_cont - k_stop} steps stalled")  # docs/benchmarks.md (pytest -s)
+    m = probe.status.metrics
+    assert probe.finished and not m.collision and probe.status.state == 2, probe.status
+    planner_log = (tmp_path / "logs" / "avp_planner.log").read_text()
+    sim_log = (tmp_path / "logs" / "avp_sim.log").read_text()
+    # one line as each stall starts (the belief node's stall starves the prediction node too), one as it ends
+    assert "stale inputs: no beliefs" in planner_log and "stale inputs: no predictions for" in planner_log
+    assert planner_log.count("inputs fresh again") >= 2
+    assert planner_log.count("stale inputs:") == planner_log.count("inputs fresh again")
+    assert "the ego holds still" in sim_log and "commands again at step" in sim_log

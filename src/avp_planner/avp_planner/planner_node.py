@@ -46,8 +46,16 @@ from avp_common.params import (
     declare_and_validate,
     specs_from_dataclass,
 )
-from avp_common.qos import LATCHED, STEP
-from avp_msgs.msg import IntentionArray, LotMap, Observation, PlannerDecision, PredictedTrajectoryArray, SpotBeliefs
+from avp_common.qos import LATCHED, STATUS, STEP
+from avp_msgs.msg import (
+    EpisodeStatus,
+    IntentionArray,
+    LotMap,
+    Observation,
+    PlannerDecision,
+    PredictedTrajectoryArray,
+    SpotBeliefs,
+)
 from avp_planner.core.settings import DEFAULT_SETTINGS
 
 NODE_PARAMS = [
@@ -57,11 +65,17 @@ NODE_PARAMS = [
               "observation only.", "b_t", "§V-B", default=False),
     ParamSpec("use_predictions", bool, "Wait for and use predicted trajectories (#4); false = none.", "",
               "§V-C", default=False),
+    ParamSpec("stale_input_timeout", float, "Real time only (the simulator's episode_status says lock_step false): "
+              "an observation whose beliefs / predictions / ego_intention have not come within this many wall "
+              "seconds is answered with v = ω = 0 and one log line (a hung perception node, issue #20); 0 = off. "
+              "Lock-step always waits: a late input never changes the episode.", "", "", min=0.0, max=60.0,
+              default=0.5),
     ParamSpec("use_ego_intention", bool, "Wait for ego_intention (the belief node's ego_intent) and try the "
               "candidate spots in decreasing eta_0,i until one has a safe plan (Table I 'Implicit'); false = the "
               "lowest c_park.", "eta_0,i", "§VI-B-3", default=False),
 ]
 PLANNER_PARAMS = NODE_PARAMS + specs_from_dataclass(DEFAULT_SETTINGS)
+MAX_PENDING = 100  # observations kept while their other inputs are awaited (10 s of steps)
 MODES = {"idle": PlannerDecision.MODE_IDLE, "park": PlannerDecision.MODE_PARK, "explore": PlannerDecision.MODE_EXPLORE}
 
 
@@ -95,6 +109,12 @@ class PlannerNode(LifecycleNode):
         p = declare_and_validate(self, PLANNER_PARAMS)
         self.use_beliefs, self.use_predictions = p["use_beliefs"], p["use_predictions"]
         self.use_ego_intention = p["use_ego_intention"]
+        self.stale_timeout = p["stale_input_timeout"]
+        self.realtime = False  # from the simulator's latched episode_status (lock_step)
+        self.obs_wall: dict[int, float] = {}  # wall time each pending observation arrived
+        self.stale_since: float | None = None  # start of the current stall (one log line each way)
+        self.held_steps = 0
+        self.zeroed: set[int] = set()  # steps answered with v = ω = 0 during the stall
         self.settings = dataclass_from_values(DEFAULT_SETTINGS, p).validate()
         self.planner = None
         self.lot = None
@@ -119,6 +139,8 @@ class PlannerNode(LifecycleNode):
             self.create_subscription(PredictedTrajectoryArray, "predictions", self._on_preds, STEP)
         if self.use_ego_intention:
             self.create_subscription(IntentionArray, "ego_intention", self._on_ego_intention, STEP)
+        self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
+        self.create_timer(0.05, self._check_stale)
         if p["autostart"]:
             self.trigger_configure()
             self.trigger_activate()
@@ -191,6 +213,11 @@ class PlannerNode(LifecycleNode):
             return  # re-sent observation still pending
         self.last_step = k
         self.obs[k] = msg
+        self.obs_wall[k] = time.monotonic()
+        for old in sorted(self.obs)[:-MAX_PENDING]:  # bounded: a hung input node must not grow the queue
+            del self.obs[old]
+        for old in [s for s in self.obs_wall if s not in self.obs]:
+            del self.obs_wall[old]
         if not self.active:  # keep only the newest inputs while inactive
             for d in self.inputs:
                 for old in [s for s in d if s < k]:
@@ -216,6 +243,11 @@ class PlannerNode(LifecycleNode):
                 or (self.use_ego_intention and k not in self.ego_int)):
             return
         msg = self.obs.pop(k)
+        if self.stale_since is not None:
+            self.get_logger().info(f"inputs fresh again at step {k} after {time.monotonic() - self.stale_since:.1f} s "
+                                   f"({self.held_steps} steps held still)")
+            self.stale_since, self.held_steps = None, 0
+            self.zeroed.clear()
         topic = self.sub_obs.topic_name
         try:
             obs = observation_from_msg(msg)
@@ -240,6 +272,34 @@ class PlannerNode(LifecycleNode):
             self.get_logger().error(f"{self.sub_obs.topic_name} step {k}: {decision.reason}; holding still")
         self._publish_cmd(msg.header.stamp, float(v), float(om))
         self._publish_decision(msg, decision, total)
+
+    def _on_status(self, msg: EpisodeStatus) -> None:
+        self.realtime = not bool(msg.lock_step)
+
+    def _check_stale(self) -> None:
+        """Real time: once the oldest pending observation has waited ``stale_input_timeout`` for its other inputs,
+        answer the newest observation with v = ω = 0 (each once; a real decision for it may still follow and
+        replaces it at the simulator) until a step is decided again (see the parameter)."""
+        if not (self.realtime and self.active and self.stale_timeout > 0 and self.obs):
+            return
+        now = time.monotonic()
+        oldest = min(self.obs)
+        if self.stale_since is None and now - self.obs_wall.get(oldest, now) < self.stale_timeout:
+            return
+        k = max(self.obs)
+        if self.stale_since is None:
+            missing = [name for name, use, d in (("beliefs", self.use_beliefs, self.beliefs),
+                                                 ("predictions", self.use_predictions, self.preds),
+                                                 ("ego_intention", self.use_ego_intention, self.ego_int))
+                       if use and oldest not in d]
+            self.stale_since = now
+            self.get_logger().error(f"stale inputs: no {', '.join(missing) or 'input'} for step {oldest} within "
+                                    f"{self.stale_timeout} s (stale_input_timeout); holding still until they come")
+        if k in self.zeroed:
+            return
+        self.zeroed.add(k)
+        self.held_steps += 1
+        self._publish_cmd(self.obs[k].header.stamp, 0.0, 0.0)
 
     def _publish_cmd(self, stamp, v: float, om: float) -> None:
         cmd = TwistStamped()

@@ -97,6 +97,8 @@ class SimNode(Node):
         self.seed, self.reactive = seed, reactive
         self.started = False
         self.latest_cmd = None
+        self.holding_since: int | None = None  # real time: step the ego began holding still (no command)
+        self.started_moving = False  # the first command of the episode came (no hold report before it)
         self.debug_step = -1  # last step whose ground truth went out (a re-send repeats only the observation)
         dyn = [(v.id, v.target_spot_id, v.maneuver, v.passiveness) for v in self.world.scenario.dynamic_vehicles()]
         self.get_logger().info(f"episode seed={seed} reactive={reactive}: dynamic vehicles {dyn}")
@@ -167,12 +169,13 @@ class SimNode(Node):
         if not self.started:
             self._publish_step()
             return
-        v, om = 0.0, 0.0
+        v, om, fresh = 0.0, 0.0, False
         if self.latest_cmd is not None:
             cv, com, wall, stamp = self.latest_cmd
             lag = (step_to_ns(w.step_index, self.dt) - stamp) / step_to_ns(1, self.dt)  # steps behind
             if time.monotonic() - wall <= self.p["command_watchdog"] and 0 <= lag <= self.p["command_max_lag"]:
-                v, om = cv, com
+                v, om, fresh = cv, com, True
+        self._report_hold(w.step_index, fresh)
         w.step(v, om)
         self._publish_step()
 
@@ -197,6 +200,20 @@ class SimNode(Node):
                 f"(cmd_auth; docs/bad_input.md); publishers on it: {sorted(self.cmd_publishers[1])}"
                 + (f"; new: {new}" if new else ""))
         return False
+
+    def _report_hold(self, k: int, fresh: bool) -> None:
+        """Real time: one line when the ego starts holding still for want of a current command (a hung or dead
+        planner, or one waiting for its inputs), one when commands come again."""
+        if not fresh and self.holding_since is None and self.started_moving:
+            self.holding_since = k
+            self.get_logger().warning(
+                f"{self.sub_cmd.topic_name}: no current command for step {k} (command_watchdog "
+                f"{self.p['command_watchdog']} s, command_max_lag {self.p['command_max_lag']}); the ego holds still")
+        elif fresh and self.holding_since is not None:
+            self.get_logger().info(f"{self.sub_cmd.topic_name}: commands again at step {k} after "
+                                   f"{k - self.holding_since} held steps")
+            self.holding_since = None
+        self.started_moving |= fresh
 
     def _on_cmd(self, msg: TwistStamped) -> None:
         if not self._authentic(msg):
