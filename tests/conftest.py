@@ -17,7 +17,7 @@ def paper_lot():
 
 @pytest.fixture(scope="session")
 def cmd_key_file(tmp_path_factory):
-    """The command key of the tests' graphs (avp_common.cmd_auth), not the user's own."""
+    """The message key of the tests' graphs (avp_common.msg_auth), not the user's own."""
     return str(tmp_path_factory.mktemp("cmd_key") / "cmd.key")
 
 

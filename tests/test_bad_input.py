@@ -162,10 +162,13 @@ class _Feeder:
         self.node = rclpy.create_node("feeder", namespace=ns)
         self.lot = lot
         self.cmds: list[int] = []
-        self.pub_lot = self.node.create_publisher(LotMap, "lot_map", LATCHED)
-        self.pub_obs = self.node.create_publisher(Observation, "observation", STEP)
-        self.pub_bel = self.node.create_publisher(SpotBeliefs, "beliefs", STEP)
-        self.pub_pred = self.node.create_publisher(PredictedTrajectoryArray, "predictions", STEP)
+        from avp_common.msg_auth import Authenticator
+
+        auth = Authenticator(self.node)  # a holder of the key: what it sends tests the checks behind the tag
+        self.pub_lot = auth.publisher(LotMap, "lot_map", LATCHED)
+        self.pub_obs = auth.publisher(Observation, "observation", STEP)
+        self.pub_bel = auth.publisher(SpotBeliefs, "beliefs", STEP)
+        self.pub_pred = auth.publisher(PredictedTrajectoryArray, "predictions", STEP)
         self.node.create_subscription(TwistStamped, "cmd", self._on_cmd, STEP)
         self.lot_msg = lot_to_msg(lot)
         self.pub_lot.publish(self.lot_msg)
@@ -330,8 +333,8 @@ def test_bad_requests_into_a_running_simulator(ros_env, tmp_path, monkeypatch):
     one line each, the simulator does not step on them and keeps running; a valid scenario file works."""
     from geometry_msgs.msg import TwistStamped
 
-    from avp_common.cmd_auth import CommandSigner
     from avp_common.conversions import step_to_time
+    from avp_common.msg_auth import load_key, sign
     from avp_common.qos import STATUS, STEP
     from avp_msgs.msg import EpisodeStatus, GroundTruth, Observation
     from avp_msgs.srv import ResetEpisode
@@ -356,7 +359,7 @@ def test_bad_requests_into_a_running_simulator(ros_env, tmp_path, monkeypatch):
         m = TwistStamped()
         m.header.stamp = step_to_time(step, 0.1)
         m.twist.linear.x, m.twist.angular.z = v, om
-        pub.publish(CommandSigner().sign(m))  # authenticated: these commands test the checks behind it
+        pub.publish(sign(load_key(), m))  # tagged: these commands test the checks behind the tag
 
     def reset(**kw):  # re-sent while unanswered: a response can be lost while discovery settles
         return call_idempotent(client, ResetEpisode.Request(**kw), lambda s: rclpy.spin_once(node, timeout_sec=s),

@@ -16,8 +16,8 @@ from geometry_msgs.msg import TwistStamped  # noqa: E402
 
 from avp_bringup.graph import Graph, NodeSpec  # noqa: E402
 from avp_bringup.services import call_idempotent, call_once  # noqa: E402
-from avp_common.cmd_auth import CommandSigner  # noqa: E402
 from avp_common.conversions import step_to_time  # noqa: E402
+from avp_common.msg_auth import load_key, sign  # noqa: E402
 from avp_common.qos import STATUS, STEP  # noqa: E402
 from avp_msgs.msg import EpisodeStatus, GroundTruth, Observation  # noqa: E402
 from avp_msgs.srv import ResetEpisode  # noqa: E402
@@ -52,7 +52,7 @@ class Probe:
         m = TwistStamped()
         m.header.stamp = step_to_time(step, 0.1)
         m.twist.linear.x, m.twist.angular.z = v, om
-        self.cmd.publish(CommandSigner().sign(m))  # the simulator takes authenticated commands only
+        self.cmd.publish(sign(load_key(), m))  # the simulator takes tagged commands only
 
 
 @pytest.fixture()

@@ -23,8 +23,8 @@ from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
 
 from avp_bringup.graph import Graph, NodeSpec  # noqa: E402
 from avp_bringup.services import call_idempotent  # noqa: E402
-from avp_common.cmd_auth import CommandSigner  # noqa: E402
 from avp_common.conversions import step_to_time  # noqa: E402
+from avp_common.msg_auth import load_key, sign  # noqa: E402
 from avp_common.qos import GROUND_TRUTH, STEP  # noqa: E402
 from avp_msgs.msg import GroundTruth, Observation  # noqa: E402
 from avp_msgs.srv import ResetEpisode  # noqa: E402
@@ -113,7 +113,7 @@ def test_reset_service_reads_only_served_scenarios(node, tmp_path):
         m = TwistStamped()
         m.header.stamp = step_to_time(0, 0.1)
         m.twist.linear.x = 1.0
-        cmd.publish(CommandSigner().sign(m))
+        cmd.publish(sign(load_key(), m))
         t0 = time.monotonic()
         while not any(x.step == 1 for x in gts) and time.monotonic() - t0 < 10:
             rclpy.spin_once(n, timeout_sec=0.05)
@@ -191,7 +191,7 @@ def test_hijacked_commands_do_not_steer_the_ego(paper_lot, node, tmp_path):
     assert len(sent) > 10, "the attacker answered no steps"
     assert got.shape == expected.shape and np.array_equal(got, expected)  # the same episode as without it
     log = (tmp_path / "avp_sim.log").read_text()
-    assert "unauthenticated command(s) dropped" in log and "/avp/intruder" in log
+    assert "unauthenticated message(s) dropped" in log and "/avp/intruder" in log
     # named once when it appeared (with the other publishers on cmd: Jazzy's rclpy does not say which writer sent
     # a message, so the report lists who could have), then counted at most once a second
     assert log.count("; new: [") == 1 and "'/avp/intruder'" in log.split("; new: [")[1].splitlines()[0]
@@ -208,13 +208,13 @@ def test_extreme_commands_are_clamped(node, tmp_path):
     n.create_subscription(GroundTruth, "debug/ground_truth", gts.append, GROUND_TRUTH)
     n.create_subscription(Observation, "observation", lambda m: None, STEP)
     cmd = n.create_publisher(TwistStamped, "cmd", STEP)
-    signer = CommandSigner()
+    key = load_key()
 
     def send(sec: int, nanosec: int, v: float, om: float) -> None:
         m = TwistStamped()
         m.header.stamp.sec, m.header.stamp.nanosec = sec, nanosec
         m.twist.linear.x, m.twist.angular.z = v, om
-        cmd.publish(signer.sign(m))
+        cmd.publish(sign(key, m))
 
     def spin(seconds: float, cond=lambda: False) -> None:
         t0 = time.monotonic()
@@ -276,3 +276,57 @@ def test_two_demos_at_once_do_not_cross_talk(ros_env, tmp_path):
     assert len(trajectories[2]) == 61
     assert np.array_equal(trajectories[0], trajectories[2]) and np.array_equal(trajectories[1], trajectories[2])
     assert os.path.isdir(tmp_path / "a") and os.path.isdir(tmp_path / "b")
+
+
+def test_foreign_inputs_are_dropped_by_the_planner(paper_lot, ros_env, tmp_path, monkeypatch):
+    """Issue #20 item 11: a planner takes observation / beliefs / predictions only from holders of the key. An
+    intruder's untagged inputs for a step get no command and the intruder is named; the tagged ones of the
+    configured publishers (the feeder playing the simulator and the perception nodes) are answered."""
+    from dataclasses import replace
+
+    from test_bad_input import _Feeder
+
+    from avp_common.conversions import step_to_ns
+    from avp_msgs.msg import PredictedTrajectoryArray, SpotBeliefs
+    from avp_sim.core.scenario import generate_paper_scenario
+    from avp_sim.core.world import World, WorldConfig
+
+    for k, v in ros_env.items():
+        monkeypatch.setenv(k, v)
+    ns = "/authin"
+    base = World(paper_lot, generate_paper_scenario(paper_lot, 3, True), WorldConfig(t_final=100.0)).observe()
+    rclpy.init()
+    try:
+        feeder = _Feeder(paper_lot, ns)
+        intruder = rclpy.create_node("intruder", namespace=ns)
+        bad = {t: intruder.create_publisher(m, t, STEP) for t, m in (
+            ("observation", Observation), ("beliefs", SpotBeliefs), ("predictions", PredictedTrajectoryArray))}
+        spec = NodeSpec("planner_under_test", "avp_planner", "planner", "config/planner.param.yaml",
+                        {"use_beliefs": True, "use_predictions": True})
+        graph = Graph([spec], tmp_path, env=ros_env)
+        cmd = graph.command(spec)
+        cmd[cmd.index("__ns:=/avp")] = f"__ns:={ns}"
+        graph.command = lambda s: cmd
+        with graph:
+            assert feeder.spin(30, lambda: all(feeder.node.count_subscribers(f"{ns}/{t}") > 0
+                                               for t in ("observation", "beliefs", "predictions"))
+                               and feeder.node.count_publishers(f"{ns}/cmd") > 0), "planner not up"
+            o, b, p = feeder.messages(replace(base, step=1))
+            for topic, msg in (("beliefs", b), ("predictions", p), ("observation", o)):
+                bad[topic].publish(msg)  # the intruder's step 1: untagged
+            feeder.spin(2.0)
+            rclpy.spin_once(intruder, timeout_sec=0.0)
+            assert not any(c[0] == step_to_ns(1, base.dt) for c in feeder.cmds), "an untagged input was answered"
+            o, b, p = feeder.messages(replace(base, step=2))
+            feeder.pub_bel.publish(b)
+            feeder.pub_pred.publish(p)
+            feeder.pub_obs.publish(o)
+            assert feeder.spin(30, lambda: any(c[0] == step_to_ns(2, base.dt) for c in feeder.cmds))
+        log = (tmp_path / "planner_under_test.log").read_text()
+        for topic in ("observation", "beliefs", "predictions"):
+            line = next(ln for ln in log.splitlines() if f"{ns}/{topic}: 1 unauthenticated message(s)" in ln)
+            assert f"'{ns}/intruder'" in line, line
+        intruder.destroy_node()
+        feeder.node.destroy_node()
+    finally:
+        rclpy.try_shutdown()

@@ -41,6 +41,7 @@ from avp_common.conversions import (
     lot_from_msg,
     observation_from_msg,
 )
+from avp_common.msg_auth import Authenticator
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
 from avp_common.qos import DEBUG, LATCHED, STEP
@@ -85,13 +86,14 @@ class BeliefNode(Node):
         self.nawaz: NawazOccupancy | None = None
         # (step, beliefs msg, intentions msg, ego_intention msg or None, observation msg, core output)
         self.cache: tuple | None = None
-        self.pub_beliefs = self.create_publisher(SpotBeliefs, "beliefs", STEP)
-        self.pub_intentions = self.create_publisher(IntentionArray, "intentions", STEP)
-        self.pub_ego = self.create_publisher(IntentionArray, "ego_intention", STEP) if self.ego_intent else None
+        self.auth = Authenticator(self, p["auth_inputs"])  # tagged outputs, inputs from key holders only
+        self.pub_beliefs = self.auth.publisher(SpotBeliefs, "beliefs", STEP)
+        self.pub_intentions = self.auth.publisher(IntentionArray, "intentions", STEP)
+        self.pub_ego = self.auth.publisher(IntentionArray, "ego_intention", STEP) if self.ego_intent else None
         self.pub_bev = self.create_publisher(Image, "debug/bev", DEBUG)
         self.pub_occupancy = self.create_publisher(OccupancyGrid, "debug/occupancy", DEBUG)
-        self.create_subscription(LotMap, "lot_map", self._on_lot, LATCHED)
-        self.sub_obs = self.create_subscription(Observation, "observation", self._on_obs, STEP)
+        self.auth.subscription(LotMap, "lot_map", self._on_lot, LATCHED)
+        self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP)
         self.get_logger().info(f"belief source '{self.source}'" + (", ego intention on ego_intention"
                                                                     if self.ego_intent else ""))
 

@@ -30,6 +30,9 @@ def _annotate(specs: list[ParamSpec], notes: dict[str, dict[str, Any]]) -> list[
 
 
 BELIEF_NODE_PARAMS = [
+    ParamSpec("auth_inputs", bool, "Take lot_map and observation only when tagged with the user's key "
+              "(avp_common.msg_auth); others are dropped and their publishers named. Outputs are always tagged.",
+              default=True),
     ParamSpec("belief_source", str, "What follows eq. (7): intent = eq. (8) with the intent CNN of every observed "
               "dynamic vehicle (the paper; intentions published); nawaz = Nawaz et al.'s occupancy P_T on the observed "
               "vacant spots from constant-velocity predictions computed in this node (nawaz.*; Table I 'Explicit, "
@@ -92,6 +95,9 @@ BELIEF_PARAMS: list[ParamSpec] = (BELIEF_NODE_PARAMS + _annotate(specs_from_data
                                   + _annotate(specs_from_dataclass(NawazConfig(), "nawaz."), _NAWAZ_NOTES))
 
 PREDICTION_NODE_PARAMS = [
+    ParamSpec("auth_inputs", bool, "Take lot_map and observation (and intentions) only when tagged with the user's key "
+              "(avp_common.msg_auth); others are dropped and their publishers named. Outputs are always tagged.",
+              default=True),
     ParamSpec("method", str, "Trajectory predictor: the paper's intention-conditioned Bezier curves, constant "
               "velocity, Hybrid A* paths to the intended goals, or the learned transformer (learned.*, §VI-B-1).",
               "", "§V-C", choices=PREDICTOR_NAMES, default="bezier"),

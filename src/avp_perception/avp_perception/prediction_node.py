@@ -32,6 +32,7 @@ from avp_common.conversions import (
     predictions_to_msg,
     time_to_ns,
 )
+from avp_common.msg_auth import Authenticator
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
 from avp_common.qos import LATCHED, STEP
@@ -53,10 +54,11 @@ class PredictionNode(Node):
         self.intentions: dict[int, IntentionArray] = {}
         self.last_step = -1
         self.cache: tuple[int, PredictedTrajectoryArray] | None = None
-        self.pub = self.create_publisher(PredictedTrajectoryArray, "predictions", STEP)
-        self.create_subscription(LotMap, "lot_map", self._on_lot, LATCHED)
-        self.sub_obs = self.create_subscription(Observation, "observation", self._on_obs, STEP)
-        self.sub_int = self.create_subscription(IntentionArray, "intentions", self._on_intentions, STEP)
+        self.auth = Authenticator(self, p["auth_inputs"])  # tagged outputs, inputs from key holders only
+        self.pub = self.auth.publisher(PredictedTrajectoryArray, "predictions", STEP)
+        self.auth.subscription(LotMap, "lot_map", self._on_lot, LATCHED)
+        self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP)
+        self.sub_int = self.auth.subscription(IntentionArray, "intentions", self._on_intentions, STEP)
         self.get_logger().info(f"prediction method '{self.method}'")
 
     def _on_lot(self, msg: LotMap) -> None:

@@ -29,7 +29,6 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
-from avp_common.cmd_auth import CommandSigner
 from avp_common.conversions import (
     MessageError,
     beliefs_from_msg,
@@ -39,6 +38,7 @@ from avp_common.conversions import (
     predictions_from_msg,
 )
 from avp_common.lifecycle import guard_lifecycle_services
+from avp_common.msg_auth import Authenticator
 from avp_common.node_main import run_node
 from avp_common.params import (
     ParamSpec,
@@ -65,6 +65,9 @@ NODE_PARAMS = [
               "observation only.", "b_t", "§V-B", default=False),
     ParamSpec("use_predictions", bool, "Wait for and use predicted trajectories (#4); false = none.", "",
               "§V-C", default=False),
+    ParamSpec("auth_inputs", bool, "Take lot_map, observation, beliefs, predictions and ego_intention only when "
+              "tagged with the user's key (avp_common.msg_auth); others are dropped and their publishers named.",
+              default=True),
     ParamSpec("stale_input_timeout", float, "Real time only (the simulator's episode_status says lock_step false): "
               "an observation whose beliefs / predictions / ego_intention have not come within this many wall "
               "seconds is answered with v = ω = 0 and one log line (a hung perception node, issue #20); 0 = off. "
@@ -126,19 +129,19 @@ class PlannerNode(LifecycleNode):
         self.preds: dict[int, PredictedTrajectoryArray] = {}
         self.ego_int: dict[int, IntentionArray] = {}
         self.inputs = (self.obs, self.beliefs, self.preds, self.ego_int)
-        self.pub_cmd = self.create_publisher(TwistStamped, "cmd", STEP)
-        self.signer = CommandSigner()
+        self.auth = Authenticator(self, p["auth_inputs"])  # inputs from holders of the key only, cmd tagged
+        self.pub_cmd = self.auth.publisher(TwistStamped, "cmd", STEP)
         self.pub_plan = self.create_publisher(Path, "plan", STEP)
         self.pub_decision = self.create_publisher(PlannerDecision, "decision", STEP)
         self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", STEP)
-        self.create_subscription(LotMap, "lot_map", self._on_lot, LATCHED)
-        self.sub_obs = self.create_subscription(Observation, "observation", self._on_obs, STEP)
+        self.auth.subscription(LotMap, "lot_map", self._on_lot, LATCHED)
+        self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP)
         if self.use_beliefs:
-            self.create_subscription(SpotBeliefs, "beliefs", self._on_beliefs, STEP)
+            self.auth.subscription(SpotBeliefs, "beliefs", self._on_beliefs, STEP)
         if self.use_predictions:
-            self.create_subscription(PredictedTrajectoryArray, "predictions", self._on_preds, STEP)
+            self.auth.subscription(PredictedTrajectoryArray, "predictions", self._on_preds, STEP)
         if self.use_ego_intention:
-            self.create_subscription(IntentionArray, "ego_intention", self._on_ego_intention, STEP)
+            self.auth.subscription(IntentionArray, "ego_intention", self._on_ego_intention, STEP)
         self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
         self.create_timer(0.05, self._check_stale)
         if p["autostart"]:
@@ -306,7 +309,7 @@ class PlannerNode(LifecycleNode):
         cmd.header.stamp = stamp
         cmd.header.frame_id = "ego"
         cmd.twist.linear.x, cmd.twist.angular.z = v, om
-        self.pub_cmd.publish(self.signer.sign(cmd))  # authenticated (avp_common.cmd_auth)
+        self.pub_cmd.publish(cmd)  # tagged (avp_common.msg_auth)
 
     def _publish_decision(self, obs_msg: Observation, d, total: float) -> None:
         path = Path()

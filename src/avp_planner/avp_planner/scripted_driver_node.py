@@ -11,8 +11,8 @@ import sys
 from geometry_msgs.msg import TwistStamped
 from rclpy.node import Node
 
-from avp_common.cmd_auth import CommandSigner
 from avp_common.conversions import MessageError, lot_from_msg, observation_from_msg
+from avp_common.msg_auth import Authenticator
 from avp_common.node_main import run_node
 from avp_common.params import ParamSpec, declare_and_validate
 from avp_common.qos import LATCHED, STEP
@@ -36,10 +36,10 @@ class ScriptedDriverNode(Node):
         self.config = ScriptedDriverConfig(**p)
         self.driver: ScriptedDriver | None = None
         self.pending: Observation | None = None
-        self.pub = self.create_publisher(TwistStamped, "cmd", STEP)
-        self.signer = CommandSigner()
-        self.create_subscription(LotMap, "lot_map", self._on_lot, LATCHED)
-        self.sub_obs = self.create_subscription(Observation, "observation", self._on_obs, STEP)
+        self.auth = Authenticator(self)  # tagged cmd; lot_map and observation only from holders of the key
+        self.pub = self.auth.publisher(TwistStamped, "cmd", STEP)
+        self.auth.subscription(LotMap, "lot_map", self._on_lot, LATCHED)
+        self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP)
 
     def _on_lot(self, msg: LotMap) -> None:
         try:
@@ -65,7 +65,7 @@ class ScriptedDriverNode(Node):
         cmd.header.frame_id = "ego"
         cmd.twist.linear.x = float(v)
         cmd.twist.angular.z = float(om)
-        self.pub.publish(self.signer.sign(cmd))  # authenticated (avp_common.cmd_auth)
+        self.pub.publish(cmd)  # tagged (avp_common.msg_auth)
 
 
 def main(args=None) -> int:

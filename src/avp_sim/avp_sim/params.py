@@ -65,8 +65,9 @@ SIM_PARAMS: list[ParamSpec] = [
               "", "§VI-B", default=False),
     ParamSpec("ego_max_speed", float, "Ego speed limit; commands are clipped to it and to |ω| <= |v|/R_min.",
               "v", "eq. (1)", min=0.0, default=5.0),
-    ParamSpec("cmd_auth", bool, "Take only commands tagged with the user's command key (avp_common.cmd_auth, "
-              "$AVP_CMD_KEY_FILE); others are dropped and their publishers named.", default=True),
+    ParamSpec("auth_inputs", bool, "Take only commands tagged with the user's key (avp_common.msg_auth, "
+              "$AVP_CMD_KEY_FILE); others are dropped and their publishers named. Outputs are always tagged.",
+              default=True),
     ParamSpec("scenario_dir", str, "A directory whose scenario files reset_episode may serve besides the bundled "
               "config/scenarios ('' = none); a path outside them is refused unread (docs/bad_input.md).",
               default=""),

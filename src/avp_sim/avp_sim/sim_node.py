@@ -26,8 +26,8 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
-from avp_common.cmd_auth import load_key, verify
 from avp_common.conversions import lot_to_msg, observation_to_msg, step_to_ns, step_to_time, time_to_ns
+from avp_common.msg_auth import Authenticator
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
 from avp_common.qos import DEBUG, GROUND_TRUTH, LATCHED, STATUS, STEP
@@ -57,20 +57,19 @@ class SimNode(Node):
         world_config(self.p)  # validates the sensor block at start-up
         self.lot = load_lot_param(self.p["lot_file"])
         self.scenario_dirs = served_dirs(self.p["scenario_dir"])  # what reset_episode may read (scenario_source)
-        self.cmd_key = load_key() if self.p["cmd_auth"] else None  # only tagged commands steer the ego
-        self.n_unauthenticated, self.last_unauthenticated_log = 0, -1e9
-        self.cmd_publishers: tuple[float, set[str]] = (-1e9, set())
-        self.reported_publishers: set[str] = set()
+
         self.dt = self.p["dt"]
         self.lockstep = self.p["mode"] == "lockstep"
-        self.pub_lot = self.create_publisher(type(lot_to_msg(self.lot)), "lot_map", LATCHED)
-        self.pub_obs = self.create_publisher(Observation, "observation", STEP)
+        # lot_map and observation are tagged, only tagged commands steer the ego (avp_common.msg_auth)
+        self.auth = Authenticator(self, self.p["auth_inputs"])
+        self.pub_lot = self.auth.publisher(type(lot_to_msg(self.lot)), "lot_map", LATCHED)
+        self.pub_obs = self.auth.publisher(Observation, "observation", STEP)
         self.pub_status = self.create_publisher(EpisodeStatus, "episode_status", STATUS)
         self.pub_gt = self.create_publisher(GroundTruth, "debug/ground_truth", GROUND_TRUTH)
         self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", DEBUG)
         self.pub_scan = self.create_publisher(LaserScan, "debug/scan", DEBUG)
         self.pub_clock = self.create_publisher(Clock, "/clock", 10)
-        self.sub_cmd = self.create_subscription(TwistStamped, "cmd", self._on_cmd, STEP)
+        self.sub_cmd = self.auth.subscription(TwistStamped, "cmd", self._on_cmd, STEP)
         self.srv = self.create_service(ResetEpisode, "reset_episode", self._on_reset)
         self.pub_lot.publish(lot_to_msg(self.lot))
         self.world: World | None = None
@@ -179,45 +178,7 @@ class SimNode(Node):
         w.step(v, om)
         self._publish_step()
 
-    def _authentic(self, msg: TwistStamped) -> bool:
-        """``cmd_auth``: the command carries the tag of the user's command key (avp_common.cmd_auth). Dropped
-        ones are reported at most once a second with their count, and at once when a new publisher appears on
-        ``cmd`` (its node name: the graph's publisher list; Jazzy's rclpy does not say which writer sent what)."""
-        if self.cmd_key is None or verify(self.cmd_key, msg.header.frame_id, time_to_ns(msg.header.stamp),
-                                          msg.twist.linear.x, msg.twist.angular.z):
-            return True
-        self.n_unauthenticated += 1
-        now = time.monotonic()
-        if now - self.cmd_publishers[0] >= 1.0:
-            infos = self.get_publishers_info_by_topic(self.sub_cmd.topic_name)
-            self.cmd_publishers = (now, {f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in infos})
-        new = sorted(self.cmd_publishers[1] - self.reported_publishers)
-        if new or now - self.last_unauthenticated_log >= 1.0:
-            self.reported_publishers |= set(new)
-            self.last_unauthenticated_log = now
-            self.get_logger().error(
-                f"{self.sub_cmd.topic_name}: {self.n_unauthenticated} unauthenticated command(s) dropped so far "
-                f"(cmd_auth; docs/bad_input.md); publishers on it: {sorted(self.cmd_publishers[1])}"
-                + (f"; new: {new}" if new else ""))
-        return False
-
-    def _report_hold(self, k: int, fresh: bool) -> None:
-        """Real time: one line when the ego starts holding still for want of a current command (a hung or dead
-        planner, or one waiting for its inputs), one when commands come again."""
-        if not fresh and self.holding_since is None and self.started_moving:
-            self.holding_since = k
-            self.get_logger().warning(
-                f"{self.sub_cmd.topic_name}: no current command for step {k} (command_watchdog "
-                f"{self.p['command_watchdog']} s, command_max_lag {self.p['command_max_lag']}); the ego holds still")
-        elif fresh and self.holding_since is not None:
-            self.get_logger().info(f"{self.sub_cmd.topic_name}: commands again at step {k} after "
-                                   f"{k - self.holding_since} held steps")
-            self.holding_since = None
-        self.started_moving |= fresh
-
     def _on_cmd(self, msg: TwistStamped) -> None:
-        if not self._authentic(msg):
-            return
         v, om = float(msg.twist.linear.x), float(msg.twist.angular.z)
         if not (math.isfinite(v) and math.isfinite(om)):
             self.get_logger().error(f"{self.sub_cmd.topic_name}: command with NaN/inf (v={v}, omega={om}) dropped")

@@ -27,8 +27,8 @@ import rclpy
 from geometry_msgs.msg import TwistStamped
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
-from avp_common.cmd_auth import CommandSigner
 from avp_common.lifecycle import guard_lifecycle_services
+from avp_common.msg_auth import load_key, sign
 from avp_common.node_main import run_node
 from avp_common.params import ParamSpec, declare_and_validate
 from avp_common.qos import STEP
@@ -51,7 +51,7 @@ class MinimalPlanner(LifecycleNode):
         self.latest: Observation | None = None  # newest observation (answered on activation)
         # a lifecycle publisher publishes only while the node is active
         self.pub_cmd = self.create_lifecycle_publisher(TwistStamped, "cmd", STEP)
-        self.signer = CommandSigner()  # tags each cmd with the user's command key (avp_common.cmd_auth)
+        self.key = load_key()  # the user's key: this planner's commands are tagged with it (avp_common.msg_auth)
         self.sub_obs = self.create_subscription(Observation, "observation", self._on_obs, STEP)
 
     # lifecycle: configure/activate/deactivate/shutdown (avp swap-planner drives these)
@@ -99,7 +99,7 @@ class MinimalPlanner(LifecycleNode):
         cmd.header.frame_id = "ego"
         cmd.twist.linear.x = float(v)
         cmd.twist.angular.z = 0.0
-        self.pub_cmd.publish(self.signer.sign(cmd))  # the simulator takes only authenticated commands
+        self.pub_cmd.publish(sign(self.key, cmd))  # the simulator takes only tagged commands (avp_common.msg_auth)
 
 
 def main(args=None) -> int:

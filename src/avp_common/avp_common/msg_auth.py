@@ -1,0 +1,163 @@
+"""Authenticated messages between the graph's nodes (issue #20 items 9 and 11): only a holder of the user's key
+can feed the ego pipeline or steer the ego.
+
+The Fast DDS of the ROS 2 wheels has no DDS security (no SROS2), and Jazzy's rclpy does not tell a subscriber
+which writer sent a message, so a node cannot tell its configured publisher's message from another process's by
+origin. Instead every message of the pipeline carries a tag in ``header.frame_id = "<frame>#<tag>"``: the first
+32 hex digits of HMAC-SHA256(key, the bytes sent, with the tag's place filled with '0's). The sender publishes the
+serialised bytes it tagged; the receiver subscribes raw, checks the bytes it got, then deserialises. A node with
+``auth_inputs: true`` drops an input whose tag does not verify and names the publishers on that topic (once per
+new one, then a count at most once a second). A copy of a message is the sender's own (same content); a changed
+one cannot be forged without the key.
+
+Tagged: ``lot_map`` and ``observation`` (simulator), ``beliefs``, ``intentions``, ``ego_intention`` (belief
+node), ``predictions`` (prediction node), ``cmd`` (every ego node; a custom planner wraps its publisher with
+:meth:`Authenticator.publisher`). The key: 32 random bytes in ``$AVP_CMD_KEY_FILE``, default
+``~/.local/state/avp/cmd.key``, created on first use with mode 0600 in a 0700 directory; every node of the
+user's graphs, `avp swap-planner`'s planners and custom planners read the same file — a swapped-in planner's
+hand-over is its access to it. Not stopped: a process of the same user (it can read the file), readers of any
+topic (nothing is encrypted); a deployment needs SROS2 with a security-enabled DDS (docs/bad_input.md).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+from rclpy.serialization import deserialize_message, serialize_message
+
+KEY_ENV = "AVP_CMD_KEY_FILE"
+KEY_BYTES = 32
+TAG_HEX = 32
+
+
+def key_path() -> Path:
+    """Where the key lives (``$AVP_CMD_KEY_FILE`` or ``~/.local/state/avp/cmd.key``)."""
+    env = os.environ.get(KEY_ENV, "")
+    return Path(env) if env else Path.home() / ".local" / "state" / "avp" / "cmd.key"
+
+
+def load_key(path: Path | None = None) -> bytes:
+    """The key, created (0600, in a 0700 directory) if there is none yet; OSError if unreadable or short."""
+    p = path or key_path()
+    if not p.exists():
+        p.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+        try:
+            fd = os.open(p, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        except FileExistsError:  # another node created it meanwhile
+            pass
+        else:
+            with os.fdopen(fd, "wb") as f:
+                f.write(os.urandom(KEY_BYTES))
+    key = p.read_bytes()
+    if len(key) < 16:
+        raise OSError(f"{p}: message key shorter than 16 bytes")
+    return key
+
+
+_PLACEHOLDER = b"0" * TAG_HEX
+_FRAME_LEN_AT = 12  # CDR: 4-byte encapsulation header, header.stamp (int32 sec, uint32 nanosec), frame_id length
+
+
+def _frame_span(data: bytes | bytearray) -> tuple[int, int] | None:
+    """(start, end) of the tag's 32 characters at the end of ``header.frame_id`` in a serialised message whose
+    first field is its ``header``; None if the frame carries no tag slot."""
+    if len(data) < _FRAME_LEN_AT + 4:
+        return None
+    order = "little" if data[1] & 1 else "big"  # CDR_LE / CDR_BE encapsulation
+    n = int.from_bytes(data[_FRAME_LEN_AT:_FRAME_LEN_AT + 4], order)  # characters + the terminating NUL
+    end = _FRAME_LEN_AT + 4 + n - 1
+    start = end - TAG_HEX
+    if n < TAG_HEX + 2 or end > len(data) or data[start - 1:start] != b"#":
+        return None
+    return start, end
+
+
+def sign(key: bytes, msg: Any) -> bytes:
+    """``msg`` (a message whose first field is its ``header``) serialised with its tag in ``header.frame_id``:
+    publish these bytes (``Publisher.publish`` takes them). The tag covers the exact bytes sent, so the receiver
+    checks what it got (CDR padding is not deterministic from one serialisation to the next)."""
+    base = msg.header.frame_id.partition("#")[0]
+    msg.header.frame_id = f"{base}#{_PLACEHOLDER.decode()}"
+    data = bytearray(serialize_message(msg))
+    span = _frame_span(data)
+    assert span is not None
+    tag = hmac.new(key, bytes(data), hashlib.sha256).hexdigest()[:TAG_HEX].encode()
+    data[span[0]:span[1]] = tag
+    msg.header.frame_id = f"{base}#{tag.decode()}"
+    return bytes(data)
+
+
+def verify(key: bytes, data: bytes) -> bool:
+    """True iff the serialised message ``data`` carries its tag under ``key``."""
+    span = _frame_span(data)
+    if span is None:
+        return False
+    tag = bytes(data[span[0]:span[1]])
+    blank = bytearray(data)
+    blank[span[0]:span[1]] = _PLACEHOLDER
+    return hmac.compare_digest(tag, hmac.new(key, bytes(blank), hashlib.sha256).hexdigest()[:TAG_HEX].encode())
+
+
+class _SigningPublisher:
+    """A publisher that tags what it publishes; everything else is the rclpy publisher's."""
+
+    def __init__(self, pub, key: bytes):
+        self._pub, self._key = pub, key
+
+    def publish(self, msg) -> None:
+        self._pub.publish(sign(self._key, msg))
+
+    def __getattr__(self, name: str):
+        return getattr(self._pub, name)
+
+
+class Authenticator:
+    """Per node: tags its outputs, checks its inputs (``check_inputs``), reports what it drops."""
+
+    def __init__(self, node, check_inputs: bool = True, key: bytes | None = None):
+        self.node = node
+        self.key = key if key is not None else load_key()
+        self.check_inputs = bool(check_inputs)
+        self.dropped: dict[str, int] = {}
+        self._last_log: dict[str, float] = {}
+        self._publishers: dict[str, tuple[float, set[str]]] = {}
+        self._reported: dict[str, set[str]] = {}
+
+    def publisher(self, msg_type, topic: str, qos):
+        return _SigningPublisher(self.node.create_publisher(msg_type, topic, qos), self.key)
+
+    def subscription(self, msg_type, topic: str, callback, qos):
+        """A subscription that checks the tag on the received bytes, then deserialises and calls ``callback``."""
+        holder: dict = {}
+
+        def checked(data: bytes) -> None:
+            if self.check_inputs and not verify(self.key, data):
+                self._report(holder["sub"].topic_name)
+                return
+            callback(deserialize_message(data, msg_type))
+
+        holder["sub"] = self.node.create_subscription(msg_type, topic, checked, qos, raw=True)
+        return holder["sub"]
+
+    def _report(self, topic: str) -> None:
+        """One line when a new publisher shows up on ``topic`` while its messages fail, else one a second."""
+        n = self.dropped[topic] = self.dropped.get(topic, 0) + 1
+        now = time.monotonic()
+        seen_at, pubs = self._publishers.get(topic, (-1e9, set()))
+        if now - seen_at >= 1.0:
+            infos = self.node.get_publishers_info_by_topic(topic)
+            pubs = {f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in infos}
+            self._publishers[topic] = (now, pubs)
+        reported = self._reported.setdefault(topic, set())
+        new = sorted(pubs - reported)
+        if new or now - self._last_log.get(topic, -1e9) >= 1.0:
+            reported |= set(new)
+            self._last_log[topic] = now
+            self.node.get_logger().error(
+                f"{topic}: {n} unauthenticated message(s) dropped so far (auth_inputs; docs/bad_input.md); "
+                f"publishers on it: {sorted(pubs)}" + (f"; new: {new}" if new else ""))
