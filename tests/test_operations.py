@@ -332,6 +332,22 @@ class _EgoProbe:
         while time.monotonic() - t0 < seconds and not (until is not None and until()):
             rclpy.spin_once(self.node, timeout_sec=0.02)
 
+    def driving(self) -> bool:
+        """The ego moved in the newest step."""
+        k = self.last()
+        return k > 5 and k - 1 in self.poses and np.hypot(
+            *np.subtract(self.poses[k][:2], self.poses[k - 1][:2])) > 0.03
+
+    def close(self, graph: Graph) -> None:
+        graph.stop()
+        self.node.destroy_node()
+
+    def run_to_end(self, graph: Graph, t0: float, limit: float = 200.0) -> dict:
+        """Spin until the episode ends (at most ``limit`` s after ``t0``); the graph's exit codes."""
+        self.spin(limit - (time.monotonic() - t0), lambda: self.finished)
+        self.spin(0.5)
+        return graph.poll()
+
 
 def test_sigkill_pipeline_nodes_in_realtime(ros, tmp_path):
     """Real time: each pipeline node in turn is SIGKILLed while the ego drives; the simulator keeps
@@ -346,16 +362,11 @@ def test_sigkill_pipeline_nodes_in_realtime(ros, tmp_path):
     graph.start()
     kills = []  # (node, last step seen before the kill, step the node was restarted at)
 
-    def driving() -> bool:  # the ego moved in the newest step
-        k = probe.last()
-        return k > 5 and k - 1 in probe.poses and np.hypot(
-            *np.subtract(probe.poses[k][:2], probe.poses[k - 1][:2])) > 0.03
-
     try:
         t0 = time.monotonic()
         for spec in pipeline:
-            probe.spin(150, driving)
-            assert driving() and not probe.finished, "the ego is not driving"
+            probe.spin(150, probe.driving)
+            assert probe.driving() and not probe.finished, "the ego is not driving"
             probe.spin(0.0)  # take what is already delivered: the simulator is at the newest step
             k_kill = probe.last()
             graph.kill_node(spec.name)
@@ -372,12 +383,9 @@ def test_sigkill_pipeline_nodes_in_realtime(ros, tmp_path):
                                               round(time.monotonic() - t_kill, 2), graph.log_tail("avp_sim"))
             graph.start_node(spec)
             kills.append((spec.name, k_kill, k_restart))
-        probe.spin(200 - (time.monotonic() - t0), lambda: probe.finished)
-        probe.spin(0.5)
-        rc = graph.poll()
+        rc = probe.run_to_end(graph, t0)
     finally:
-        graph.stop()
-        probe.node.destroy_node()
+        probe.close(graph)
     assert all(v is None for v in rc.values()), rc
     poses = probe.poses
     for name, k_kill, k_restart in kills:
@@ -407,16 +415,11 @@ def test_sigstopped_nodes_in_realtime_hold_the_ego_then_resume(ros, tmp_path):
     graph.start()
     stalls = []  # (node, step at SIGSTOP, step at SIGCONT)
 
-    def driving() -> bool:
-        k = probe.last()
-        return k > 5 and k - 1 in probe.poses and np.hypot(
-            *np.subtract(probe.poses[k][:2], probe.poses[k - 1][:2])) > 0.03
-
     try:
         t0 = time.monotonic()
         for name in ("avp_belief", "avp_prediction", "avp_planner"):
-            probe.spin(150, driving)
-            assert driving() and not probe.finished, f"the ego is not driving before {name} hangs"
+            probe.spin(150, probe.driving)
+            assert probe.driving() and not probe.finished, f"the ego is not driving before {name} hangs"
             probe.spin(0.0)
             k_stop = probe.last()
             graph.kill_node(name, signal.SIGSTOP)
@@ -426,12 +429,9 @@ def test_sigstopped_nodes_in_realtime_hold_the_ego_then_resume(ros, tmp_path):
             graph.kill_node(name, signal.SIGCONT)
             stalls.append((name, k_stop, k_cont))
             assert graph.procs["avp_sim"].poll() is None and k_cont >= k_stop + 30, (name, k_stop, k_cont)
-        probe.spin(200 - (time.monotonic() - t0), lambda: probe.finished)
-        probe.spin(0.5)
-        rc = graph.poll()
+        rc = probe.run_to_end(graph, t0)
     finally:
-        graph.stop()
-        probe.node.destroy_node()
+        probe.close(graph)
     assert all(v is None for v in rc.values()), rc
     poses = probe.poses
     for name, k_stop, k_cont in stalls:
