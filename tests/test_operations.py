@@ -340,13 +340,16 @@ class _EgoProbe:
 
     def close(self, graph: Graph) -> None:
         graph.stop()
-        self.node.destroy_node()
+        if not getattr(self, "closed", False):
+            self.node.destroy_node()
+            self.closed = True
 
-    def run_to_end(self, graph: Graph, t0: float, limit: float = 200.0) -> dict:
-        """Spin until the episode ends (at most ``limit`` s after ``t0``); the graph's exit codes."""
+    def run_to_end(self, graph: Graph, t0: float, limit: float = 200.0) -> None:
+        """Spin until the episode ends (at most ``limit`` s after ``t0``); every node must still be running."""
         self.spin(limit - (time.monotonic() - t0), lambda: self.finished)
         self.spin(0.5)
-        return graph.poll()
+        rc = graph.poll()
+        assert all(v is None for v in rc.values()), rc
 
 
 def test_sigkill_pipeline_nodes_in_realtime(ros, tmp_path):
@@ -383,10 +386,9 @@ def test_sigkill_pipeline_nodes_in_realtime(ros, tmp_path):
                                               round(time.monotonic() - t_kill, 2), graph.log_tail("avp_sim"))
             graph.start_node(spec)
             kills.append((spec.name, k_kill, k_restart))
-        rc = probe.run_to_end(graph, t0)
+        probe.run_to_end(graph, t0)  # ... and every node still running then
     finally:
         probe.close(graph)
-    assert all(v is None for v in rc.values()), rc
     poses = probe.poses
     for name, k_kill, k_restart in kills:
         window = [k for k in range(k_kill + 1, k_restart + 1) if k in poses]
@@ -429,10 +431,9 @@ def test_sigstopped_nodes_in_realtime_hold_the_ego_then_resume(ros, tmp_path):
             graph.kill_node(name, signal.SIGCONT)
             stalls.append((name, k_stop, k_cont))
             assert graph.procs["avp_sim"].poll() is None and k_cont >= k_stop + 30, (name, k_stop, k_cont)
-        rc = probe.run_to_end(graph, t0)
+        probe.run_to_end(graph, t0)  # ... and every node still running then
     finally:
         probe.close(graph)
-    assert all(v is None for v in rc.values()), rc
     poses = probe.poses
     for name, k_stop, k_cont in stalls:
         window = [k for k in range(k_stop, k_cont + 1) if k in poses]
