@@ -270,3 +270,54 @@ def test_parked_cars_inside_occupied_spots_leave_the_static_world_unchanged(pape
     assert planner._static_world(obs, b) is world and world.key == key
     obs2 = make_obs(paper_lot, (21.5, 30, -math.pi / 2), vacant=[], vehicles=(out,))
     assert planner._static_world(obs2, b) is world and world.key != key
+
+
+def test_idle_replan_steps(paper_lot):
+    """decision.idle_replan_steps: after an idle decision the ego stays put without searching until N steps have
+    passed (protocols paper/contested: 5, Nawaz's 0.5 s step); 1 searches every step (the default)."""
+    from dataclasses import replace
+
+    ego = (21.5, 20.0, -math.pi / 2)
+    walls = [static_car(500, 21.5, 10.0, 0.0, length=5.0), static_car(501, 21.5, 29.0, 0.0, length=5.0)]
+    every = EgoPlanner(paper_lot, PlannerSettings())
+    five = EgoPlanner(paper_lot, replace(PlannerSettings(), decision=replace(PlannerSettings().decision,
+                                                                             idle_replan_steps=5)))
+    reasons = {1: [], 5: []}
+    for k in range(7):
+        obs = make_obs(paper_lot, ego, vehicles=walls, step=k)
+        reasons[1].append(every.decide(obs).reason)
+        d = five.decide(obs)
+        assert d.mode == "idle" and d.command == (0.0, 0.0)
+        reasons[5].append(d.reason)
+    assert all("no safe" in r for r in reasons[1])
+    searched = [k for k, r in enumerate(reasons[5]) if "no safe" in r]
+    assert searched == [0, 5] and all("idle_replan_steps" in r for k, r in enumerate(reasons[5]) if k not in searched)
+    # a spot that frees up is taken at the next re-plan, not before
+    five.reset()
+    five.decide(make_obs(paper_lot, ego, vehicles=walls, step=0))
+    assert five.decide(make_obs(paper_lot, ego, vacant=[13], vehicles=walls, step=1)).mode == "idle"
+    assert five.decide(make_obs(paper_lot, ego, vacant=[13], vehicles=walls, step=5)).mode == "park"
+
+
+def test_failed_searches_are_not_repeated(paper_lot, monkeypatch):
+    """The same search in the same scene from the same pose fails the same way: the planner remembers failed
+    searches (FAILED_SEARCH_CACHE; here spot 0 fails a 3-iteration budget) and does not run them again — the
+    decisions are unchanged; another scene (spot 5 vacant instead) is searched."""
+    from dataclasses import replace
+
+    from avp_planner.core.hybrid_astar import HybridAStar
+
+    ego = (21.5, 30.0, -math.pi / 2)
+    s = PlannerSettings()
+    p = EgoPlanner(paper_lot, replace(s, search=replace(s.search, max_iterations=3)))
+    spot0 = p.spot_goals(paper_lot.spot_index(0)).tobytes()
+    searched = []
+    real = HybridAStar.plan
+    monkeypatch.setattr(HybridAStar, "plan",
+                        lambda self, goals, *a, **k: searched.append(goals.tobytes()) or real(self, goals, *a, **k))
+    first = p.decide(make_obs(paper_lot, ego, vacant=[0], step=0))
+    assert searched.count(spot0) == 1 and len(p._failed_searches) == 1 and first.mode == "explore"
+    again = p.decide(make_obs(paper_lot, ego, vacant=[0], step=10))  # not where the plan expects: re-plans
+    assert searched.count(spot0) == 1 and again.mode == first.mode  # spot 0 not searched again
+    p.decide(make_obs(paper_lot, ego, vacant=[5], step=20))
+    assert p.spot_goals(paper_lot.spot_index(5)).tobytes() in searched

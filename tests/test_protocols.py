@@ -147,6 +147,7 @@ def test_paper_protocol_sets_each_departure():
     assert default.sim == {} and default.planner == {}
     assert paper.sim["scenario.passiveness_step"] == 0.5 and paper.sim["scenario.spawn_closer_than_ego"] is True
     assert paper.planner["control.v_max"] == 3.0 and paper.planner["decision.max_wait"] == 4.0
+    assert load_protocol("contested").planner == paper.planner  # contested differs in the scenarios only
     for params in SAFETY_EXTRAS.values():  # every safety extra off: the paper's idle = stay put
         for key, (_on, off) in params.items():
             assert paper.planner[key] == off

@@ -79,6 +79,10 @@ PARK, EXPLORE, IDLE = "park", "explore", "idle"
 STILL_SPEED = 0.3  # m/s: an agent slower than this counts as standing still (detour instead of waiting)
 EXPLORE_BACK_AFTER = 3.0  # s the road ahead must stay blocked by agents only before turning back (§V-D-2)
 WORLD_CACHE_SIZE = 8  # static worlds kept (see EgoPlanner._static_world)
+#: failed searches remembered by (static world, ego pose, goals, limits): the same search fails the same way, so a
+#: stand-still ego in an unchanged scene does not search again for seconds per step (iteration-limited failures
+#: only; one ended by the wall-clock cap is not repeatable)
+FAILED_SEARCH_CACHE = 512
 CONTAINED_MARGIN = 0.3  # m: a static vehicle this far inside an occupied spot is left out of the raster
 
 
@@ -170,6 +174,8 @@ class EgoPlanner:
         self._last_park_attempt: tuple | None = None
         self._park_attempt_step = -(10**9)
         self._front_blocked_step: int | None = None  # since when the road ahead is blocked by agents only
+        self._idle_until = -(10**9)  # idle_replan_steps: no new search before this step after an idle decision
+        self._failed_searches: dict[tuple, PlanResult] = {}  # see FAILED_SEARCH_CACHE
 
     # ------------------------------------------------------------------------------------------ inputs
     def _check_inputs(self, obs: Observation, beliefs, predictions) -> str:
@@ -472,10 +478,18 @@ class EgoPlanner:
             if (lb >= best and self.settings.decision.branch_and_bound) or time.perf_counter() > t_end:
                 break
             t0 = time.perf_counter()
-            res: PlanResult = astar.plan(goals, max_iterations=max_iterations,
-                                         time_cap=min(self.settings.search.time_cap, max(t_end - t0, 1e-3)),
-                                         max_length=self.settings.decision.explore_max_length if mode == EXPLORE
-                                         else None)
+            max_length = self.settings.decision.explore_max_length if mode == EXPLORE else None
+            memo = (astar.world.key, astar.ego.tobytes(), np.asarray(goals, float).tobytes(), max_iterations,
+                    max_length)
+            res: PlanResult | None = self._failed_searches.get(memo)
+            if res is None:
+                res = astar.plan(goals, max_iterations=max_iterations,
+                                 time_cap=min(self.settings.search.time_cap, max(t_end - t0, 1e-3)),
+                                 max_length=max_length)
+                if not res.success and not res.reason.startswith("time cap"):  # a repeatable failure
+                    self._failed_searches[memo] = res
+                    while len(self._failed_searches) > FAILED_SEARCH_CACHE:
+                        self._failed_searches.pop(next(iter(self._failed_searches)))
             dt_q = time.perf_counter() - t0
             timing["path_planning_time"] += dt_q
             stats.setdefault("queries", []).append({"mode": mode, "target": int(it) if mode == PARK else -1,
@@ -549,6 +563,13 @@ class EgoPlanner:
             self._plan = None
             return self._finish(Decision(IDLE, reason=bad), timing, t_start)
         d = self.settings.decision
+        if self._plan is None and obs.step < self._idle_until:  # stay put until the next idle re-plan (§V-D-3)
+            if beliefs is None:
+                self.update_beliefs(obs)
+            return self._finish(Decision(IDLE, reason=f"waiting: re-plan at step {self._idle_until} "
+                                                      "(idle_replan_steps)", poses=np.asarray(obs.ego_pose,
+                                                                                             float)[None].copy()),
+                                timing, t_start)
         b = self.update_beliefs(obs).copy() if beliefs is None else np.asarray(beliefs, dtype=float)
         ego = np.asarray(obs.ego_pose, dtype=float)
         t0 = time.perf_counter()
@@ -642,6 +663,7 @@ class EgoPlanner:
                 stats["evasive"] = True
                 return self._finish(self._execute(plan, len(cands), plan.note, True), timing, t_start, stats)
         reason = "no safe parking or exploration plan" + (f" ({why})" if why else "")
+        self._idle_until = obs.step + d.idle_replan_steps
         return self._finish(Decision(IDLE, n_candidates=len(cands), reason=reason, poses=ego[None].copy()),
                             timing, t_start, stats)
 

@@ -107,6 +107,7 @@ class DecisionSettings:
     evasive: bool = True  # if standing still is predicted to be hit, drive the plan that is hit latest
     decision_time_cap: float = 0.4  # seconds of searching per decision step (remaining candidates skipped)
     park_retry_steps: int = 5  # while exploring, parking is re-tried at least this often (and on any change)
+    idle_replan_steps: int = 1  # after an idle decision (no safe plan) search again only this many steps later
 
 
 @dataclass(frozen=True)
@@ -150,6 +151,7 @@ class PlannerSettings:
             ("decision.candidate_threshold", 0.0 <= d.candidate_threshold < d.belief_threshold),
             ("decision.sensing_radius", d.sensing_radius > 0),
             ("decision.wait_step", d.wait_step > 0 and d.max_wait >= 0),
+            ("decision.idle_replan_steps", d.idle_replan_steps >= 1),
             ("decision.fallback_prediction", d.fallback_prediction in ("constant_velocity", "static", "none")),
         ]
         for name, ok in checks:
