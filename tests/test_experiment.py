@@ -294,6 +294,15 @@ def test_sim_param_overrides_are_checked_and_part_of_the_run_identity(tmp_path):
     check_run_file(tmp_path, run_identity(RunConfig(), prof))  # same settings: accepted
     with pytest.raises(ValueError, match=r"scenario\.maneuver_max_speed, scenario\.outer_row_max"):
         check_run_file(tmp_path, run_identity(RunConfig(sim_overrides=old), prof))
+    # a parameter added to avp_sim since a folder's run counts as its default there; another value does not
+    import json
+
+    run = json.loads((tmp_path / "run.json").read_text())
+    del run["sim"]["scenario.passiveness_step"]
+    (tmp_path / "run.json").write_text(json.dumps(run))
+    check_run_file(tmp_path, run_identity(RunConfig(), prof))
+    with pytest.raises(ValueError, match=r"scenario\.passiveness_step"):
+        check_run_file(tmp_path, run_identity(RunConfig(sim_overrides={"scenario.passiveness_step": 0.5}), prof))
 
 
 def test_same_command_twice_gives_identical_episodes(tmp_path):

@@ -152,6 +152,10 @@ def check_run_file(out: Path, ident: dict) -> dict:
         old = json.loads(path.read_text())
         if isinstance(old.get("config"), dict):  # fields added since (protocol, ...) read as their defaults
             old["config"] = {**asdict(RunConfig()), **old["config"]}
+        if isinstance(old.get("sim"), dict):  # avp_sim parameters added since read as their defaults
+            from avp_sim.params import SIM_PARAMS
+
+            old["sim"] = {**{s.name: s.default for s in SIM_PARAMS if s.name not in old["sim"]}, **old["sim"]}
         for k in ("sim", "intent", "config"):  # sim first: it names the parameters that differ
             if old.get(k) != ident[k]:
                 if k == "sim" and isinstance(old.get(k), dict):
