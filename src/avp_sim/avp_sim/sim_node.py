@@ -178,6 +178,20 @@ class SimNode(Node):
         w.step(v, om)
         self._publish_step()
 
+    def _report_hold(self, k: int, fresh: bool) -> None:
+        """Real time: one line when the ego starts holding still for want of a current command (a hung or dead
+        planner, or one waiting for its inputs), one when commands come again."""
+        if not fresh and self.holding_since is None and self.started_moving:
+            self.holding_since = k
+            self.get_logger().warning(
+                f"{self.sub_cmd.topic_name}: no current command for step {k} (command_watchdog "
+                f"{self.p['command_watchdog']} s, command_max_lag {self.p['command_max_lag']}); the ego holds still")
+        elif fresh and self.holding_since is not None:
+            self.get_logger().info(f"{self.sub_cmd.topic_name}: commands again at step {k} after "
+                                   f"{k - self.holding_since} held steps")
+            self.holding_since = None
+        self.started_moving |= fresh
+
     def _on_cmd(self, msg: TwistStamped) -> None:
         v, om = float(msg.twist.linear.x), float(msg.twist.angular.z)
         if not (math.isfinite(v) and math.isfinite(om)):
