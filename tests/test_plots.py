@@ -155,3 +155,13 @@ def test_sweep_rejects_mismatched_rows(tmp_path):
     with pytest.raises(ValueError, match="2 rows for 3 values"):
         plot_sweep(tmp_path / "x.png", "k", [1, 2, 3], {"bezier": [sweep_row(1, 1), sweep_row(1, 1)]})
     assert not (tmp_path / "x.png").exists()
+
+
+def test_all_successful_methods_plot(tmp_path):
+    """k = n = 94: the upper Wilson bound comes out as 99.99999999999999 %, a hair below the rate — the chart must draw
+    (`avp experiment --summary-only` failed with "'yerr' must not contain negative values" on such a run)."""
+    recs = [record(m, mode, True, s) for m in ("bezier", "oracle") for mode in ("reactive", "non_reactive")
+            for s in range(94)]
+    stats = aggregate(recs)
+    p = plot_bars(tmp_path / "success.png", "Success", ["bezier", "oracle"], {}, stats, "success", rate=True)
+    assert p.stat().st_size > 5000

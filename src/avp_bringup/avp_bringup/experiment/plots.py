@@ -117,7 +117,9 @@ def plot_bars(path: Path, title: str, methods: Sequence[str], labels: Mapping[st
         x = i + off[mode]
         if not rate:
             ax.bar(x, v, width=0.34, color=MODE_COLORS[mode], alpha=0.85)
-        ax.errorbar(x, v, yerr=[[v - lo], [hi - v]], fmt="o" if rate else "none", color=MODE_COLORS[mode],
+        # clipped at 0: a Wilson bound can miss the rate by 1e-14 (k = n = 94), and matplotlib refuses a negative error
+        ax.errorbar(x, v, yerr=[[max(v - lo, 0.0)], [max(hi - v, 0.0)]], fmt="o" if rate else "none",
+                    color=MODE_COLORS[mode],
                     ecolor="black" if not rate else MODE_COLORS[mode], markersize=7, capsize=5, elinewidth=1.5)
     for i, mode, v in paper:
         ax.plot([i + off[mode]], [v], **PAPER_STYLE)
