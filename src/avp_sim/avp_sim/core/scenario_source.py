@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from avp_sim.core.scenario import ScenarioError
-from avp_world.safe_yaml import YamlInputError, load_bounded
+from avp_world.safe_yaml import YamlInputError, load_bounded, read_bounded
 
 DEFAULT_MAX_BYTES = 1_000_000
 
@@ -65,8 +65,7 @@ def resolve_scenario_file(name: str, dirs: list[Path]) -> Path:
 
 def read_capped(path: Path, max_bytes: int) -> bytes:
     """At most ``max_bytes`` of a regular file; ScenarioError naming ``scenario_file`` if it is larger."""
-    with open(path, "rb") as f:
-        data = f.read(max_bytes + 1)
+    data = read_bounded(path, max_bytes)
     if len(data) > max_bytes:
         raise ScenarioError(f"scenario_file: larger than {max_bytes} bytes (simulator parameter scenario_max_bytes)")
     return data
