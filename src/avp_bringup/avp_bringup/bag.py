@@ -5,7 +5,8 @@ storage file) with the message definitions embedded, so Foxglove/Lichtblick and 
 the custom avp_msgs types. The writer (:class:`avp_bringup.bagwriter.SplitBagWriter`) is opened and
 closed explicitly (never inside `with`): Ctrl-C / SIGTERM close it cleanly, and it finishes a storage file
 ("split": summary, index, footer, metadata.yaml rewritten atomically) every ``split_period`` wall seconds,
-so a SIGKILLed recorder leaves a bag that reads back up to its last finished split.
+so a SIGKILLed recorder leaves a bag that reads back up to its last finished split. A full disk stops the
+recorder with one error (``BagRecorder.error``); the bag stays readable and the graph goes on.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from avp_bringup.bagwriter import SplitBagWriter
+from avp_bringup.bagwriter import BagStorageError, SplitBagWriter
 from avp_common.conversions import time_to_ns
 from avp_common.qos import GROUND_TRUTH
 
@@ -84,6 +85,7 @@ class BagRecorder(Node):
         # finish the open split also when no message arrives (e.g. after the episode ended)
         self._rotate_timer = self.create_timer(min(0.25, split_period / 2), self._rotate)
         self.closed = False
+        self.error: str | None = None  # set when the file system failed and recording stopped
         self.clock_ns = 0
         self.counts: dict[str, int] = {}
         self._subs = []
@@ -106,46 +108,62 @@ class BagRecorder(Node):
             if is_clock:
                 msg = self.ts.deserialize_cdr(raw, "rosgraph_msgs/msg/Clock")
                 self.clock_ns = int(msg.clock.sec) * 1_000_000_000 + int(msg.clock.nanosec)
-            self.writer.write(conn, self.clock_ns, raw)
+            try:
+                self.writer.write(conn, self.clock_ns, raw)
+            except BagStorageError as exc:
+                self._stop(exc)
+                return
             self.counts[topic] = self.counts.get(topic, 0) + 1
 
         return cb
 
     def _rotate(self) -> None:
         if not self.closed:
-            self.writer.maybe_rotate()
+            try:
+                self.writer.maybe_rotate()
+            except BagStorageError as exc:
+                self._stop(exc)
+
+    def _stop(self, exc: BagStorageError) -> None:
+        """The file system failed (disk full, ...): stop recording with one error; the node and graph go on."""
+        self.closed = True
+        self.error = str(exc)
+        self.get_logger().error(f"recording stopped: {exc}")
 
     def close(self) -> None:
         if not self.closed:
             self.closed = True
-            self.writer.close()
+            try:
+                self.writer.close()
+            except BagStorageError as exc:
+                self.error = str(exc)
+                self.get_logger().error(f"recording stopped: {exc}")
 
 
 # ------------------------------------------------------------------------------------------- metrics
 
 
 def read_episode(bag: Path) -> dict:
-    """Lot, ground truth and the last status of the (last) episode in a bag."""
-    from rosbags.highlevel import AnyReader
-
+    """Lot, ground truth and the last status of the (last) episode in a bag (read by
+    :class:`avp_bringup.bagread.BagReader`: a damaged bag gives one error naming the file)."""
+    from avp_bringup.bagread import BagReader
     from avp_common.conversions import lot_from_msg
 
     lot = None
     gts: dict[int, object] = {}
     status = None
-    with AnyReader([Path(bag)], default_typestore=make_typestore()) as reader:
-        conns = [c for c in reader.connections if c.topic in ("/avp/lot_map", "/avp/debug/ground_truth",
-                                                              "/avp/episode_status")]
-        for conn, _t, raw in reader.messages(connections=conns):
-            msg = reader.deserialize(raw, conn.msgtype)
-            if conn.topic == "/avp/lot_map":
-                lot = lot_from_msg(msg, source=f"{bag}:/avp/lot_map")
-            elif conn.topic == "/avp/debug/ground_truth":
-                if int(msg.step) == 0:
-                    gts = {}  # a new episode started (reset): keep the last one
-                gts[int(msg.step)] = msg
-            else:
-                status = msg
+    reader = BagReader(bag)
+    for topic, msgtype, _t, raw in reader.messages(("/avp/lot_map", "/avp/debug/ground_truth",
+                                                     "/avp/episode_status")):
+        msg = reader.deserialize(raw, msgtype)
+        if topic == "/avp/lot_map":
+            lot = lot_from_msg(msg, source=f"{bag}:/avp/lot_map")
+        elif topic == "/avp/debug/ground_truth":
+            if int(msg.step) == 0:
+                gts = {}  # a new episode started (reset): keep the last one
+            gts[int(msg.step)] = msg
+        else:
+            status = msg
     if lot is None or not gts or status is None:
         raise ValueError(f"{bag}: needs /avp/lot_map, /avp/debug/ground_truth and /avp/episode_status")
     return {"lot": lot, "ground_truth": [gts[k] for k in sorted(gts)], "status": status}

@@ -182,6 +182,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
         monitor.destroy_node()
         recorder.destroy_node()
         rclpy.try_shutdown()
+    if recorder.error:
+        print(f"[avp demo] the episode ran to its end but {recorder.error}", file=sys.stderr)
     print(f"[avp demo] bag: {bag}\n[avp demo]   replay it: avp replay {bag}   metrics from it: avp metrics {bag}")
     print(f"[avp demo] {metrics['state']} after {metrics['sim_time']:.1f} s sim time ({wall:.1f} s wall); "
           f"wrote {out / 'metrics.json'} and {out / 'episode.png'}")
@@ -263,14 +265,19 @@ def cmd_record(args: argparse.Namespace) -> int:
     try:
         while not stop["flag"] and (args.duration is None or time.monotonic() - t0 < args.duration):
             rclpy.spin_once(rec, timeout_sec=0.1)
+            if rec.error:
+                break
     except KeyboardInterrupt:
         pass
     finally:
         rec.close()
-        print(f"[avp record] closed {args.out}: {rec.counts}")
+        if rec.error:
+            print(f"[avp record] {rec.error}", file=sys.stderr)
+        else:
+            print(f"[avp record] closed {args.out}: {rec.counts}")
         rec.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return 1 if rec.error else 0
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
@@ -295,6 +302,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
         print(f"[avp replay] published {n} messages")
     except KeyboardInterrupt:
         pass
+    except ValueError as exc:  # a corrupt split (bagread.BagReadError): what preceded it was published
+        print(f"[avp replay] {exc}; published {rep.published} messages before it", file=sys.stderr)
+        return 2
     finally:
         rep.close()
         rep.destroy_node()

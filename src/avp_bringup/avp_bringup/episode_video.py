@@ -64,49 +64,45 @@ TOPICS = ("/avp/lot_map", "/avp/observation", "/avp/debug/ground_truth", "/avp/b
 
 def read_recording(bag: Path) -> EpisodeRecording:
     """The last episode of ``bag`` (ValueError if it lacks the lot map or ground truth)."""
-    from rosbags.highlevel import AnyReader
-
-    from avp_bringup.bag import make_typestore
+    from avp_bringup.bagread import BagReader
     from avp_common.conversions import lot_from_msg, observation_from_msg, predictions_from_msg
     from avp_perception.conversions import intentions_from_msg
 
     rec: EpisodeRecording | None = None
     lot = None
-    with AnyReader([Path(bag)], default_typestore=make_typestore()) as reader:
-        conns = [c for c in reader.connections if c.topic in TOPICS]
-        for conn, _t, raw in reader.messages(connections=conns):
-            msg = reader.deserialize(raw, conn.msgtype)
-            topic = conn.topic
-            if topic == "/avp/lot_map":
-                lot = lot_from_msg(msg, source=f"{bag}:/avp/lot_map")
-                rec = rec or EpisodeRecording(lot)
-                continue
-            if rec is None:
-                continue
-            if topic == "/avp/episode_status":
-                rec.status = msg
-                continue
-            k = int(msg.step)
-            if topic == "/avp/debug/ground_truth":
-                if k == 0 and max(rec.ground_truth, default=0) > 0:
-                    rec = EpisodeRecording(lot)  # a new episode (reset): keep the last one (a re-sent step 0 is not)
-                rec.ground_truth[k] = msg
-            elif topic == "/avp/observation":
-                rec.observations.setdefault(k, observation_from_msg(msg))
-            elif topic == "/avp/beliefs":
-                b = dict(zip(np.asarray(msg.spot_ids).tolist(), np.asarray(msg.beliefs, dtype=float).tolist(),
-                             strict=True))
-                rec.beliefs[k] = np.array([b.get(int(i), math.nan) for i in lot.spot_ids])
-            elif topic == "/avp/intentions":
-                rec.intentions[k] = intentions_from_msg(msg, lot)
-            elif topic == "/avp/ego_intention":
-                its = intentions_from_msg(msg, lot)
-                if its:
-                    rec.ego_intention[k] = its[0]
-            elif topic == "/avp/predictions":
-                rec.predictions[k] = predictions_from_msg(msg)
-            elif topic == "/avp/decision":
-                rec.decisions.setdefault(k, msg)
+    reader = BagReader(Path(bag))
+    for topic, msgtype, _t, raw in reader.messages(TOPICS):
+        msg = reader.deserialize(raw, msgtype)
+        if topic == "/avp/lot_map":
+            lot = lot_from_msg(msg, source=f"{bag}:/avp/lot_map")
+            rec = rec or EpisodeRecording(lot)
+            continue
+        if rec is None:
+            continue
+        if topic == "/avp/episode_status":
+            rec.status = msg
+            continue
+        k = int(msg.step)
+        if topic == "/avp/debug/ground_truth":
+            if k == 0 and max(rec.ground_truth, default=0) > 0:
+                rec = EpisodeRecording(lot)  # a new episode (reset): keep the last one (a re-sent step 0 is not)
+            rec.ground_truth[k] = msg
+        elif topic == "/avp/observation":
+            rec.observations.setdefault(k, observation_from_msg(msg))
+        elif topic == "/avp/beliefs":
+            b = dict(zip(np.asarray(msg.spot_ids).tolist(), np.asarray(msg.beliefs, dtype=float).tolist(),
+                         strict=True))
+            rec.beliefs[k] = np.array([b.get(int(i), math.nan) for i in lot.spot_ids])
+        elif topic == "/avp/intentions":
+            rec.intentions[k] = intentions_from_msg(msg, lot)
+        elif topic == "/avp/ego_intention":
+            its = intentions_from_msg(msg, lot)
+            if its:
+                rec.ego_intention[k] = its[0]
+        elif topic == "/avp/predictions":
+            rec.predictions[k] = predictions_from_msg(msg)
+        elif topic == "/avp/decision":
+            rec.decisions.setdefault(k, msg)
     if rec is None or not rec.ground_truth:
         raise ValueError(f"{bag}: needs /avp/lot_map and /avp/debug/ground_truth")
     return rec

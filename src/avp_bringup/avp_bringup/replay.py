@@ -16,31 +16,33 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
-from avp_bringup.bag import make_typestore, message_class
+from avp_bringup.bag import message_class
 
 
 class BagReplayer(Node):
-    def __init__(self, bag: Path, topics: list[str] | None = None, node_name: str = "avp_replay") -> None:
-        from rosbags.highlevel import AnyReader
+    """Republishes ``bag`` (read by :class:`avp_bringup.bagread.BagReader`: a damaged split is read up to its
+    damage or refused with one error naming the file; a topic of a type not installed is skipped with a
+    warning unless asked for by name)."""
 
-        super().__init__(node_name)
+    def __init__(self, bag: Path, topics: list[str] | None = None, node_name: str = "avp_replay") -> None:
+        from avp_bringup.bagread import BagReader, BagReadError
+
         self.bag = Path(bag)
-        self.reader = AnyReader([self.bag], default_typestore=make_typestore())
-        self.reader.open()
-        self.connections = [c for c in self.reader.connections if topics is None or c.topic in topics]
+        self.reader = BagReader(self.bag)
         if topics:
-            missing = sorted(set(topics) - {c.topic for c in self.connections})
+            missing = sorted(set(topics) - set(self.reader.topics))
             if missing:
-                raise ValueError(f"{bag}: no topic(s) {missing} in the bag")
+                raise BagReadError(f"{bag}: no topic(s) {missing} of a known type in the bag")
+        self.topics = [t for t in self.reader.topics.values() if topics is None or t.name in topics]
+        super().__init__(node_name)
         self.pubs = {}
-        for c in self.connections:
-            qos_list = getattr(c.ext, "offered_qos_profiles", []) or []
-            latched = bool(qos_list) and qos_list[0].durability.name == "TRANSIENT_LOCAL"
-            qos = QoSProfile(depth=1 if latched else 100, history=HistoryPolicy.KEEP_LAST,
+        for t in self.topics:
+            qos = QoSProfile(depth=1 if t.latched else 100, history=HistoryPolicy.KEEP_LAST,
                              reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
-            self.pubs[c.topic] = self.create_publisher(message_class(c.msgtype), c.topic, qos)
-        self.has_clock = any(c.topic == "/clock" for c in self.connections)
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL if t.latched else DurabilityPolicy.VOLATILE)
+            self.pubs[t.name] = self.create_publisher(message_class(t.msgtype), t.name, qos)
+        self.connections = self.topics  # the topics replayed (kept under its old name for callers)
+        self.has_clock = "/clock" in self.pubs
         self.clock_pub = None if self.has_clock else self.create_publisher(Clock, "/clock", 10)
         self.published = 0
 
@@ -53,19 +55,20 @@ class BagReplayer(Node):
         return False
 
     def play(self, rate: float = 1.0, start_offset: float = 0.0, spin=None) -> int:
-        start = self.reader.start_time + int(start_offset * 1e9)
         wall0 = time.monotonic()
         t_first = None
-        for conn, t, raw in self.reader.messages(connections=self.connections, start=start):
+        for topic, _type, t, raw in self.reader.messages(self.pubs):
             if t_first is None:
                 t_first = t
+            if t < t_first + int(start_offset * 1e9):
+                continue
             if rate > 0:
-                delay = (t - t_first) / 1e9 / rate - (time.monotonic() - wall0)
+                delay = (t - t_first - int(start_offset * 1e9)) / 1e9 / rate - (time.monotonic() - wall0)
                 if delay > 0:
                     time.sleep(delay)
             if self.clock_pub is not None:
                 self.clock_pub.publish(Clock(clock=_time(t)))
-            self.pubs[conn.topic].publish(bytes(raw))
+            self.pubs[topic].publish(raw)
             self.published += 1
             if spin is not None:
                 spin()
@@ -79,7 +82,7 @@ class BagReplayer(Node):
         return all(pub.wait_for_all_acked(Duration(seconds=timeout)) for pub in self.pubs.values())
 
     def close(self) -> None:
-        self.reader.close()
+        """Nothing to release: the reader opens each split only while it reads it."""
 
 
 def _time(ns: int):

@@ -27,6 +27,7 @@ step * dt) is dropped with one error naming the topic; the node keeps running.
 from __future__ import annotations
 
 import sys
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -44,7 +45,8 @@ from avp_common.conversions import (
 from avp_common.msg_auth import Authenticator
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
-from avp_common.qos import DEBUG, LATCHED, STEP
+from avp_common.qos import DEBUG, LATCHED, RESEND_ANSWER_INTERVAL, STEP, STEP_INPUT
+from avp_common.ratelog import RateLimitedLog
 from avp_msgs.msg import IntentionArray, LotMap, Observation, SpotBeliefs
 from avp_perception.conversions import intentions_to_msg
 from avp_perception.core.debug_views import belief_grid, grid_layout, tile_bevs
@@ -86,6 +88,9 @@ class BeliefNode(Node):
         self.nawaz: NawazOccupancy | None = None
         # (step, beliefs msg, intentions msg, ego_intention msg or None, observation msg, core output)
         self.cache: tuple | None = None
+        self.reject = RateLimitedLog(self.get_logger().error)  # bad inputs: one line a second per reason
+        self.reject_warn = RateLimitedLog(self.get_logger().warning)
+        self.answered_at = -float("inf")  # wall time of the last answer (re-sends are answered at most 1/s)
         self.auth = Authenticator(self, p["auth_inputs"])  # tagged outputs, inputs from key holders only
         self.pub_beliefs = self.auth.publisher(SpotBeliefs, "beliefs", STEP)
         self.pub_intentions = self.auth.publisher(IntentionArray, "intentions", STEP)
@@ -93,7 +98,7 @@ class BeliefNode(Node):
         self.pub_bev = self.create_publisher(Image, "debug/bev", DEBUG)
         self.pub_occupancy = self.create_publisher(OccupancyGrid, "debug/occupancy", DEBUG)
         self.auth.subscription(LotMap, "lot_map", self._on_lot, LATCHED)
-        self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP)
+        self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP_INPUT)
         self.get_logger().info(f"belief source '{self.source}'" + (", ego intention on ego_intention"
                                                                     if self.ego_intent else ""))
 
@@ -125,16 +130,23 @@ class BeliefNode(Node):
         topic = self.sub_obs.topic_name
         step = int(msg.step)
         if step == self.last_step and self.cache is not None and self.cache[0] == step:
+            if time.monotonic() - self.answered_at < RESEND_ANSWER_INTERVAL:
+                return  # a copy of it again: answered already (a flood of copies must not make one of answers)
             _, beliefs, intentions, ego, obs_msg, out = self.cache  # re-sent observation: the same answer again
             self._publish(beliefs, intentions, ego)
             self._publish_debug(obs_msg, out)
+            self.answered_at = time.monotonic()
+            return
+        if 0 < step < self.last_step:
+            self.reject_warn(f"{topic}: step {step} is older than step {self.last_step} (out of order or a stale "
+                             "copy); dropped")
             return
         try:
             obs = observation_from_msg(msg)
             check_stamp(msg.header.stamp, step, obs.dt)
             check_spot_ids(obs, self.lot)
         except (MessageError, ValueError) as exc:
-            self.get_logger().error(f"{topic} step {step}: {exc}; dropped")
+            self.reject(f"{topic} step {step}: {exc}; dropped")
             return
         if step < self.last_step:
             self.get_logger().warning(f"{topic}: step {step} after step {self.last_step}: time went back, new "
@@ -150,6 +162,7 @@ class BeliefNode(Node):
             ego = intentions_to_msg(step, obs.dt, [replace(out.ego_intention, vehicle_id=EGO_VEHICLE_ID)])
         self._publish(beliefs, intentions, ego)
         self.last_step, self.cache = step, (step, beliefs, intentions, ego, msg, out)
+        self.answered_at = time.monotonic()
         self._publish_debug(msg, out)
 
     def _publish(self, beliefs: SpotBeliefs, intentions: IntentionArray, ego: IntentionArray | None) -> None:

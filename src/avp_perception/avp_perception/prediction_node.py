@@ -21,6 +21,7 @@ naming the topic; the node keeps running.
 from __future__ import annotations
 
 import sys
+import time
 
 from rclpy.node import Node
 
@@ -35,7 +36,8 @@ from avp_common.conversions import (
 from avp_common.msg_auth import Authenticator
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
-from avp_common.qos import LATCHED, STEP
+from avp_common.qos import LATCHED, RESEND_ANSWER_INTERVAL, STEP, STEP_INPUT
+from avp_common.ratelog import RateLimitedLog
 from avp_msgs.msg import IntentionArray, LotMap, Observation, PredictedTrajectoryArray
 from avp_perception.conversions import intentions_from_msg
 from avp_perception.core.prediction import make_predictor
@@ -54,11 +56,14 @@ class PredictionNode(Node):
         self.intentions: dict[int, IntentionArray] = {}
         self.last_step = -1
         self.cache: tuple[int, PredictedTrajectoryArray] | None = None
+        self.reject = RateLimitedLog(self.get_logger().error)  # bad inputs: one line a second per reason
+        self.reject_warn = RateLimitedLog(self.get_logger().warning)
+        self.answered_at = -float("inf")  # wall time of the last answer (re-sends are answered at most 1/s)
         self.auth = Authenticator(self, p["auth_inputs"])  # tagged outputs, inputs from key holders only
         self.pub = self.auth.publisher(PredictedTrajectoryArray, "predictions", STEP)
         self.auth.subscription(LotMap, "lot_map", self._on_lot, LATCHED)
-        self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP)
-        self.sub_int = self.auth.subscription(IntentionArray, "intentions", self._on_intentions, STEP)
+        self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP_INPUT)
+        self.sub_int = self.auth.subscription(IntentionArray, "intentions", self._on_intentions, STEP_INPUT)
         self.get_logger().info(f"prediction method '{self.method}'")
 
     def _on_lot(self, msg: LotMap) -> None:
@@ -82,9 +87,15 @@ class PredictionNode(Node):
     def _on_obs(self, msg: Observation) -> None:
         k = int(msg.step)
         if k == self.last_step and self.cache is not None and self.cache[0] == k:
-            self.pub.publish(self.cache[1])  # re-sent observation: the same answer again
+            if time.monotonic() - self.answered_at >= RESEND_ANSWER_INTERVAL:  # not for every copy of a flood
+                self.pub.publish(self.cache[1])  # re-sent observation: the same answer again
+                self.answered_at = time.monotonic()
             return
-        if 0 <= k < self.last_step:
+        if 0 < k < self.last_step:
+            self.reject_warn(f"{self.sub_obs.topic_name}: step {k} is older than step {self.last_step} (out of "
+                             "order or a stale copy); dropped")
+            return
+        if k == 0 and self.last_step > 0:
             self.get_logger().warning(f"{self.sub_obs.topic_name}: step {k} after step {self.last_step}: time went "
                                       "back, new episode")
             self.last_step, self.cache = -1, None
@@ -125,7 +136,7 @@ class PredictionNode(Node):
                 if bad:
                     raise MessageError(f"{what}: unknown spot id {bad[0]}")
         except (MessageError, ValueError) as exc:
-            self.get_logger().error(f"{topic} step {k}: {exc}; dropped")
+            self.reject(f"{topic} step {k}: {exc}; dropped")
             return
         topic = self.sub_int.topic_name
         try:
@@ -134,12 +145,13 @@ class PredictionNode(Node):
                                    f"observation's {time_to_ns(obs_msg.header.stamp)} ns")
             intentions = intentions_from_msg(int_msg, self.lot)
         except MessageError as exc:
-            self.get_logger().error(f"{topic} step {k}: {exc}; dropped")
+            self.reject(f"{topic} step {k}: {exc}; dropped")
             return
         trajectories = self.predictor.predict(obs, intentions)
         out = predictions_to_msg(k, obs.dt, trajectories)
         self.pub.publish(out)
         self.last_step, self.cache = k, (k, out)
+        self.answered_at = time.monotonic()
 
 
 def main(args=None) -> int:

@@ -46,7 +46,8 @@ from avp_common.params import (
     declare_and_validate,
     specs_from_dataclass,
 )
-from avp_common.qos import LATCHED, STATUS, STEP
+from avp_common.qos import LATCHED, STATUS, STEP, STEP_INPUT
+from avp_common.ratelog import RateLimitedLog
 from avp_msgs.msg import (
     EpisodeStatus,
     IntentionArray,
@@ -129,19 +130,21 @@ class PlannerNode(LifecycleNode):
         self.preds: dict[int, PredictedTrajectoryArray] = {}
         self.ego_int: dict[int, IntentionArray] = {}
         self.inputs = (self.obs, self.beliefs, self.preds, self.ego_int)
+        self.reject = RateLimitedLog(self.get_logger().error)  # bad inputs: one line a second per reason
+        self.reject_warn = RateLimitedLog(self.get_logger().warning)
         self.auth = Authenticator(self, p["auth_inputs"])  # inputs from holders of the key only, cmd tagged
         self.pub_cmd = self.auth.publisher(TwistStamped, "cmd", STEP)
         self.pub_plan = self.create_publisher(Path, "plan", STEP)
         self.pub_decision = self.create_publisher(PlannerDecision, "decision", STEP)
         self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", STEP)
         self.auth.subscription(LotMap, "lot_map", self._on_lot, LATCHED)
-        self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP)
+        self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP_INPUT)
         if self.use_beliefs:
-            self.auth.subscription(SpotBeliefs, "beliefs", self._on_beliefs, STEP)
+            self.auth.subscription(SpotBeliefs, "beliefs", self._on_beliefs, STEP_INPUT)
         if self.use_predictions:
-            self.auth.subscription(PredictedTrajectoryArray, "predictions", self._on_preds, STEP)
+            self.auth.subscription(PredictedTrajectoryArray, "predictions", self._on_preds, STEP_INPUT)
         if self.use_ego_intention:
-            self.auth.subscription(IntentionArray, "ego_intention", self._on_ego_intention, STEP)
+            self.auth.subscription(IntentionArray, "ego_intention", self._on_ego_intention, STEP_INPUT)
         self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
         self.create_timer(0.05, self._check_stale)
         if p["autostart"]:
@@ -209,7 +212,7 @@ class PlannerNode(LifecycleNode):
             if self.planner is not None:
                 self.planner.reset()
         elif self.last_step is not None and k < self.last_step:
-            self.get_logger().warning(
+            self.reject_warn(
                 f"{self.sub_obs.topic_name}: step {k} is older than step {self.last_step} (out of order); dropped")
             return
         if k in self.obs:
@@ -261,7 +264,7 @@ class PlannerNode(LifecycleNode):
             topic = self.sub_obs.topic_name.replace("observation", "ego_intention")
             priority = ego_priority_from_msg(self.ego_int.pop(k), self.lot) if self.use_ego_intention else None
         except MessageError as exc:
-            self.get_logger().error(f"{topic} step {k}: {exc}; holding still")
+            self.reject(f"{topic} step {k}: {exc}; holding still")
             self._publish_cmd(msg.header.stamp, 0.0, 0.0)
             return
         for d in self.inputs:  # forget anything older

@@ -30,7 +30,8 @@ from avp_common.conversions import lot_to_msg, observation_to_msg, step_to_ns, s
 from avp_common.msg_auth import Authenticator
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
-from avp_common.qos import DEBUG, GROUND_TRUTH, LATCHED, STATUS, STEP
+from avp_common.qos import DEBUG, GROUND_TRUTH, LATCHED, STATUS, STEP, STEP_INPUT
+from avp_common.ratelog import RateLimitedLog
 from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation
 from avp_msgs.srv import ResetEpisode
 from avp_sim.core.factory import load_lot_param, make_world, world_config
@@ -61,6 +62,8 @@ class SimNode(Node):
         self.dt = self.p["dt"]
         self.lockstep = self.p["mode"] == "lockstep"
         # lot_map and observation are tagged, only tagged commands steer the ego (avp_common.msg_auth)
+        self.reject = RateLimitedLog(self.get_logger().error)  # bad commands: one line a second per reason
+        self.reject_warn = RateLimitedLog(self.get_logger().warning)
         self.auth = Authenticator(self, self.p["auth_inputs"])
         self.pub_lot = self.auth.publisher(type(lot_to_msg(self.lot)), "lot_map", LATCHED)
         self.pub_obs = self.auth.publisher(Observation, "observation", STEP)
@@ -69,7 +72,7 @@ class SimNode(Node):
         self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", DEBUG)
         self.pub_scan = self.create_publisher(LaserScan, "debug/scan", DEBUG)
         self.pub_clock = self.create_publisher(Clock, "/clock", 10)
-        self.sub_cmd = self.auth.subscription(TwistStamped, "cmd", self._on_cmd, STEP)
+        self.sub_cmd = self.auth.subscription(TwistStamped, "cmd", self._on_cmd, STEP_INPUT)
         self.srv = self.create_service(ResetEpisode, "reset_episode", self._on_reset)
         self.pub_lot.publish(lot_to_msg(self.lot))
         self.world: World | None = None
@@ -195,7 +198,7 @@ class SimNode(Node):
     def _on_cmd(self, msg: TwistStamped) -> None:
         v, om = float(msg.twist.linear.x), float(msg.twist.angular.z)
         if not (math.isfinite(v) and math.isfinite(om)):
-            self.get_logger().error(f"{self.sub_cmd.topic_name}: command with NaN/inf (v={v}, omega={om}) dropped")
+            self.reject(f"{self.sub_cmd.topic_name}: command with NaN/inf (v={v}, omega={om}) dropped")
             return
         w = self.world
         if w is None or w.done:
@@ -204,7 +207,7 @@ class SimNode(Node):
         got = time_to_ns(msg.header.stamp)
         if not self.lockstep:
             if got > expected:
-                self.get_logger().warning(
+                self.reject_warn(
                     f"{self.sub_cmd.topic_name}: command stamped {got} ns is ahead of step {w.step_index}; dropped")
                 return
             if self.latest_cmd is None or got >= self.latest_cmd[3]:  # never replaced by an older answer
@@ -212,7 +215,7 @@ class SimNode(Node):
             return
         if not self.started or got != expected:
             if got > expected:
-                self.get_logger().warning(
+                self.reject_warn(
                     f"{self.sub_cmd.topic_name}: command stamped {got} ns is ahead of step {w.step_index}; dropped")
             return  # stale commands (re-sent observations) are ignored
         w.step(v, om)

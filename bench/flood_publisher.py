@@ -1,0 +1,123 @@
+#!/usr/bin/env python3
+"""A foreign publisher gone wild (issue #20 item 2): floods `cmd`, `observation` and `beliefs` of a running graph.
+
+On each topic it publishes ``--rate`` messages a second, cycling through four kinds a real fault or attacker
+would send:
+
+* ``untagged``: a well-formed message of its own (a 3 m/s command, an empty observation, beliefs of 0.5) with
+  the stamp of the graph's latest step, but without the user's HMAC tag;
+* ``forged``: the same with a tag of the right form that does not verify (``frame#<64 hex digits>``);
+* ``garbage``: NaN/inf content under a forged tag;
+* ``replay``: the graph's own latest message on that topic, tagged and byte for byte (a copy: it verifies).
+
+It joins the graph's ROS_DOMAIN_ID (from the environment). When it stops (``--duration`` or SIGTERM/SIGINT) it
+prints one JSON line: messages sent per topic and kind, and the achieved rate.
+
+Usage: python bench/flood_publisher.py [--rate 1000] [--duration 30] [--topics /avp/cmd,/avp/observation,...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import signal
+import sys
+import time
+
+KINDS = ("untagged", "forged", "garbage", "replay")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--rate", type=float, default=1000.0, help="messages per second on each topic")
+    ap.add_argument("--duration", type=float, default=30.0, help="seconds to flood")
+    ap.add_argument("--topics", default="/avp/cmd,/avp/observation,/avp/beliefs")
+    args = ap.parse_args()
+
+    import rclpy
+    from geometry_msgs.msg import TwistStamped
+    from rclpy.serialization import serialize_message
+
+    from avp_common.qos import STEP
+    from avp_msgs.msg import Observation, SpotBeliefs
+
+    types = {"/avp/cmd": TwistStamped, "/avp/observation": Observation, "/avp/beliefs": SpotBeliefs}
+    topics = [t for t in args.topics.split(",") if t]
+    unknown = [t for t in topics if t not in types]
+    if unknown:
+        print(f"flood_publisher: --topics {unknown}: one of {sorted(types)}", file=sys.stderr)
+        return 2
+    rclpy.init()
+    node = rclpy.create_node("avp_flooder")
+    latest: dict[str, bytes] = {}
+    stamp = {"sec": 0, "nanosec": 0, "step": 0}
+
+    def keep(topic: str):
+        def cb(raw: bytes) -> None:
+            latest[topic] = bytes(raw)
+            if topic == "/avp/observation":
+                from rclpy.serialization import deserialize_message
+
+                m = deserialize_message(raw, Observation)
+                stamp.update(sec=m.header.stamp.sec, nanosec=m.header.stamp.nanosec, step=m.step)
+        return cb
+
+    pubs = {t: node.create_publisher(types[t], t, STEP) for t in topics}
+    subs = [node.create_subscription(types[t], t, keep(t), STEP, raw=True) for t in set(topics) | {"/avp/observation"}]
+
+    def forge(msg, bad: bool):
+        msg.header.stamp.sec, msg.header.stamp.nanosec = stamp["sec"], stamp["nanosec"]
+        msg.header.frame_id = ("map" if not isinstance(msg, TwistStamped) else "ego") + "#" + "ab" * 32
+        if isinstance(msg, TwistStamped):
+            msg.twist.linear.x = math.nan if bad else 3.0
+            msg.twist.angular.z = math.inf if bad else 0.0
+        elif isinstance(msg, SpotBeliefs):
+            msg.spot_ids = [0, 1, 2]
+            msg.beliefs = [math.nan, -1.0, 7.0] if bad else [0.5, 0.5, 0.5]
+        else:
+            msg.step = stamp["step"]
+            msg.ego_pose.x = math.nan if bad else 0.0
+        return msg
+
+    def make(topic: str, kind: str):
+        if kind == "replay":
+            return latest.get(topic)
+        msg = forge(types[topic](), kind == "garbage")
+        if kind == "untagged":
+            msg.header.frame_id = msg.header.frame_id.split("#")[0]
+        return serialize_message(msg)
+
+    stop = {"flag": False}
+    signal.signal(signal.SIGTERM, lambda *_: stop.update(flag=True))
+    sent = {t: dict.fromkeys(KINDS, 0) for t in topics}
+    period = 1.0 / args.rate
+    t0 = time.monotonic()
+    i = 0
+    try:
+        while not stop["flag"] and time.monotonic() - t0 < args.duration:
+            kind = KINDS[i % len(KINDS)]
+            for t in topics:
+                data = make(t, kind)
+                if data is not None:
+                    pubs[t].publish(data)
+                    sent[t][kind] += 1
+            i += 1
+            rclpy.spin_once(node, timeout_sec=0.0)
+            lag = t0 + i * period - time.monotonic()
+            if lag > 0:
+                time.sleep(lag)
+    except KeyboardInterrupt:
+        pass
+    wall = time.monotonic() - t0
+    total = {t: sum(v.values()) for t, v in sent.items()}
+    print(json.dumps({"wall_s": round(wall, 2), "sent": sent, "rate_hz": {t: round(n / wall, 1) for t, n in
+                                                                          total.items()}}), flush=True)
+    del subs
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
