@@ -23,7 +23,6 @@ import signal
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 
 FLOODER = Path(__file__).resolve().parent / "flood_publisher.py"

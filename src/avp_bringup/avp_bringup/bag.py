@@ -23,6 +23,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from avp_bringup.bagwriter import BagStorageError, SplitBagWriter
 from avp_common.conversions import time_to_ns
+from avp_common.drain import draining_subscription
 from avp_common.qos import GROUND_TRUTH
 
 #: topic -> (type, latched). The default recording set of the graph (markers/scan are left out: derivable).
@@ -71,12 +72,28 @@ def _qos(latched: bool) -> Qos:
                QosLiveliness.AUTOMATIC, zero, False)
 
 
+#: topics whose messages the graph's nodes tag (avp_common.msg_auth): by default only tagged ones are recorded
+TAGGED_TOPICS = frozenset({"/avp/lot_map", "/avp/observation", "/avp/cmd", "/avp/beliefs", "/avp/intentions",
+                           "/avp/ego_intention", "/avp/predictions"})
+
+
 class BagRecorder(Node):
-    """Raw (CDR) subscriptions written straight into a rosbag2; log time = latest /clock (sim time)."""
+    """Raw (CDR) subscriptions written straight into a rosbag2; log time = latest /clock (sim time).
+
+    ``foreign``: also record messages on :data:`TAGGED_TOPICS` that do not carry the graph's tag. Off by default:
+    the bag is the episode the graph ran, and a flood from another process (issue #20 item 2) is counted in one
+    log line a second instead of being written at its rate (which cost this process more CPU than the flooder).
+    """
 
     def __init__(self, out: Path, topics: dict[str, tuple[str, bool]] | None = None, storage: str = "mcap",
-                 node_name: str = "avp_recorder", split_period: float = 1.0) -> None:
+                 node_name: str = "avp_recorder", split_period: float = 1.0, foreign: bool = False) -> None:
+        from avp_common.msg_auth import load_key
+        from avp_common.ratelog import RateLimitedLog
+
         super().__init__(node_name)
+        self.key = None if foreign else load_key()
+        self.foreign_dropped: dict[str, int] = {}
+        self._foreign_log = RateLimitedLog(self.get_logger().warning)
         self.out = Path(out)
         topics = dict(GRAPH_TOPICS if topics is None else topics)
         self.ts = make_typestore()
@@ -96,14 +113,23 @@ class BagRecorder(Node):
             qos = QoSProfile(depth=1 if latched else GROUND_TRUTH.depth, history=HistoryPolicy.KEEP_LAST,
                              reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
-            self._subs.append(self.create_subscription(message_class(typename), topic,
-                                                       self._callback(topic, conn), qos, raw=True))
+            # bursts (a flood) are taken in one executor round (avp_common.drain)
+            self._subs.append(draining_subscription(self, message_class(typename), topic, self._callback(topic, conn),
+                                                    qos))
 
     def _callback(self, topic, conn):
+        from avp_common.msg_auth import verify
+
         is_clock = topic == "/clock"
+        check = self.key is not None and topic in TAGGED_TOPICS
 
         def cb(raw: bytes) -> None:
             if self.closed:
+                return
+            if check and not verify(self.key, raw):
+                n = self.foreign_dropped[topic] = self.foreign_dropped.get(topic, 0) + 1
+                self._foreign_log.report(topic, f"{topic}: {n} message(s) without the graph's tag not recorded "
+                                                "(another publisher; `avp record --foreign` records them)")
                 return
             if is_clock:
                 msg = self.ts.deserialize_cdr(raw, "rosgraph_msgs/msg/Clock")
@@ -198,4 +224,5 @@ def metrics_from_bag(bag: Path) -> tuple[dict, dict]:
     return recomputed, live
 
 
-__all__ = ["BagRecorder", "GRAPH_TOPICS", "OPTIONAL_TOPICS", "make_typestore", "metrics_from_bag", "time_to_ns"]
+__all__ = ["BagRecorder", "GRAPH_TOPICS", "TAGGED_TOPICS", "OPTIONAL_TOPICS", "make_typestore", "metrics_from_bag",
+           "time_to_ns"]

@@ -253,7 +253,8 @@ def cmd_record(args: argparse.Namespace) -> int:
     from avp_bringup.bagwriter import BagWriteError
 
     try:
-        rec = BagRecorder(Path(args.out), topics, storage=args.storage, split_period=args.split_period)
+        rec = BagRecorder(Path(args.out), topics, storage=args.storage, split_period=args.split_period,
+                          foreign=args.foreign)
     except BagWriteError as exc:
         print(f"[avp record] {exc}", file=sys.stderr)
         rclpy.try_shutdown()
@@ -429,6 +430,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--duration", type=float, default=None, help="stop after this many wall seconds")
     p.add_argument("--split-period", type=float, default=1.0,
                    help="finish a storage file every this many wall seconds (a crash loses at most the open one)")
+    p.add_argument("--foreign", action="store_true",
+                   help="also record messages without the graph's tag on the tagged topics (another publisher's)")
     p.set_defaults(func=cmd_record)
     p = sub.add_parser("replay", help="republish a bag with its sim clock")
     p.add_argument("bag")

@@ -8,6 +8,10 @@ observation k (taken by the simulator's writer; in lock-step, of its last re-sen
 thread, so it does not depend on how busy this process is). Both clocks are the same machine's system clock. In
 real time (sim ``mode: realtime``) a command arriving after observation k+1 was sent comes too late to be used
 (``command_max_lag`` 0): counted as ``late_steps``.
+
+Under a flood (issue #20 item 2) the figure stays honest: ``observation`` and ``cmd`` are taken only with a valid
+tag (``avp_common.msg_auth``, the graph's key), and a copy of an observation within
+``RESEND_ANSWER_INTERVAL`` of the first is a duplicate, not a lock-step re-send.
 """
 
 from __future__ import annotations
@@ -20,9 +24,12 @@ import numpy as np
 from geometry_msgs.msg import TwistStamped
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 
 from avp_common.conversions import observation_from_msg, time_to_ns
-from avp_common.qos import STATUS
+from avp_common.drain import draining_subscription
+from avp_common.msg_auth import load_key, verify
+from avp_common.qos import RESEND_ANSWER_INTERVAL, STATUS
 from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation
 
 #: reader side of the metric streams: a whole episode (t_f = 100 s at dt = 0.1 s, 1000 steps) may queue while the
@@ -48,8 +55,17 @@ class EpisodeMonitor(Node):
         # every step matters (metrics, step times, the DDS tests): deep reader queues ride out a busy CPU
         self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, GROUND_TRUTH_QOS)
         self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
-        self.create_subscription(Observation, "observation", self._on_obs, GROUND_TRUTH_QOS)
-        self.create_subscription(TwistStamped, "cmd", self._on_cmd, GROUND_TRUTH_QOS)
+        self.key = load_key()
+        draining_subscription(self, Observation, "observation", self._tagged(Observation, self._on_obs),
+                              GROUND_TRUTH_QOS, with_info=True)
+        draining_subscription(self, TwistStamped, "cmd", self._tagged(TwistStamped, self._on_cmd), GROUND_TRUTH_QOS,
+                              with_info=True)
+
+    def _tagged(self, msg_type, callback):
+        def cb(raw: bytes, info) -> None:
+            if verify(self.key, raw):  # what the graph's own nodes sent (anything else is a foreign publisher's)
+                callback(deserialize_message(raw, msg_type), info)
+        return cb
 
     def _on_gt(self, msg: GroundTruth) -> None:
         self.gt[int(msg.step)] = msg
@@ -59,12 +75,17 @@ class EpisodeMonitor(Node):
 
     def _on_obs(self, msg: Observation, info) -> None:
         stamp = time_to_ns(msg.header.stamp)
-        if self._last_stamp is not None and stamp < self._last_stamp:  # a new episode: time restarts
+        if self._last_stamp is not None and 0 < stamp < self._last_stamp:
+            return  # an older step (a stale copy): not a new episode
+        if self._last_stamp is not None and stamp < self._last_stamp:  # a new episode: time restarts at 0
             for d in (self.obs_sent, self.next_sent, self.cmd_received):
                 d.clear()
             self._last_stamp = None
         sent = int(info["source_timestamp"])
-        self.obs_sent.setdefault(stamp, []).append(sent)  # more than one: re-sent in lock-step
+        earlier = self.obs_sent.setdefault(stamp, [])
+        if earlier and sent - earlier[-1] < RESEND_ANSWER_INTERVAL * 1e9:
+            return  # a copy (duplicate delivery, or replayed by another process), not a re-send
+        earlier.append(sent)  # more than one: re-sent in lock-step
         if self._last_stamp is not None and self._last_stamp < stamp:
             self.next_sent.setdefault(self._last_stamp, sent)
         self._last_stamp = stamp

@@ -30,6 +30,8 @@ from typing import Any
 
 from rclpy.serialization import deserialize_message, serialize_message
 
+from avp_common.drain import draining_subscription
+
 KEY_ENV = "AVP_CMD_KEY_FILE"
 KEY_BYTES = 32
 TAG_HEX = 32
@@ -141,7 +143,8 @@ class Authenticator:
                 return
             callback(deserialize_message(data, msg_type))
 
-        holder["sub"] = self.node.create_subscription(msg_type, topic, checked, qos, raw=True)
+        # bursts taken in one executor round: a flood costs a wait-set rebuild per batch, not per message
+        holder["sub"] = draining_subscription(self.node, msg_type, topic, checked, qos)
         return holder["sub"]
 
     def _report(self, topic: str) -> None:
