@@ -101,6 +101,11 @@ def run(seed: int, t_final: float, rate: float, lockstep: bool, out: Path) -> di
     return {"metrics": metrics, "rss_mb": rss, "log_lines": logs, "flood": flooded}
 
 
+def _machine() -> str:
+    load = os.getloadavg()
+    return f"{platform.node()}, {os.cpu_count()} CPUs, load average " + " ".join(f"{x:.2f}" for x in load)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seed", type=int, default=2)
@@ -110,9 +115,7 @@ def main() -> int:
     ap.add_argument("--out", default="out/bench_flood")
     args = ap.parse_args()
     out = Path(args.out)
-    load = os.getloadavg()
-    print(f"# {platform.node()}, {os.cpu_count()} CPUs, load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} "
-          f"before; seed {args.seed}, {'lock-step' if args.lockstep else 'real time'}")
+    print(f"# {_machine()} before; seed {args.seed}, {'lock-step' if args.lockstep else 'real time'}")
     print("| run | outcome | parking time s | steps | step median ms | p95 ms | max ms | late steps | wall s | "
           "RSS start → peak MB (sim, belief, prediction, planner) | log lines | flood achieved |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
@@ -129,8 +132,7 @@ def main() -> int:
               f"{lat.get('p95_ms')} | {lat.get('max_ms')} | {lat.get('late_steps', '')} | {m.get('wall_time_s')} | "
               f"{rss} | {sum(r['log_lines'].values())} | {achieved} |", flush=True)
     (out / "results.json").write_text(json.dumps(results, indent=1))
-    load = os.getloadavg()
-    print(f"# load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} after; raw results in {out}/results.json")
+    print(f"# {_machine()} after; raw results in {out}/results.json")
     return 0
 
 
