@@ -27,3 +27,15 @@ def test_ego_nodes_never_touch_ground_truth():
     for f in ego_side:
         text = f.read_text()
         assert "ground_truth" not in text and "GroundTruth" not in text, f
+
+
+def test_runtime_packages_never_import_training():
+    """Training (data generation, fitting, evaluation) lives in avp_training; the runtime packages only run the
+    shipped models. Only the `avp` command line reaches it, for `avp train-intent|gen-intent-data|train-trajectory`."""
+    allowed = {SRC / "avp_bringup/avp_bringup/cli.py"}
+    runtime = ("avp_world", "avp_common", "avp_sim", "avp_perception", "avp_planner", "avp_bringup")
+    offenders = [str(f) for pkg in runtime for f in SRC.glob(f"{pkg}/{pkg}/**/*.py")
+                 if f not in allowed and re.search(r"^\s*(from|import)\s+avp_training\b", f.read_text(), re.M)]
+    assert offenders == []
+    assert not (SRC / "avp_perception/avp_perception/training").exists()
+    assert "<exec_depend>avp_training</exec_depend>" in (SRC / "avp_bringup/package.xml").read_text()

@@ -1,4 +1,4 @@
-"""Training of the intent CNN (issue #4, ``avp_perception.training``): lots, traffic, samples, loss, weights.
+"""Training of the intent CNN (issue #4, ``avp_training``): lots, traffic, samples, loss, weights.
 
 Oracles: the reference sheet's DLP map facts typed in by hand, the World's own eq. (1) replay and spot
 classification (§III-A) for where the traffic cars end, geometry computed here from the lot (distances and
@@ -18,7 +18,8 @@ import pytest
 import torch
 
 from avp_perception.core.intent_model import N_FEATURES, IntentPredictor, default_weights_path
-from avp_perception.training.dataset import (
+from avp_sim.core.observation import classify_world
+from avp_training.dataset import (
     DataSpec,
     Samples,
     generate_split,
@@ -26,10 +27,10 @@ from avp_perception.training.dataset import (
     paper_episode,
     traffic_episode,
 )
-from avp_perception.training.lanes import Path, follow
-from avp_perception.training.lots import load_dlp_lot, random_lot, spot_aisles
-from avp_perception.training.traffic import PARK, WANDER, TrafficGenerator, TrafficParams
-from avp_perception.training.train import (
+from avp_training.lanes import Path, follow
+from avp_training.lots import load_dlp_lot, random_lot, spot_aisles
+from avp_training.traffic import PARK, WANDER, TrafficGenerator, TrafficParams
+from avp_training.train import (
     TrainConfig,
     baseline_scores,
     build_model,
@@ -38,7 +39,6 @@ from avp_perception.training.train import (
     make_batch,
     topk_hits,
 )
-from avp_sim.core.observation import classify_world
 from avp_world.geometry import polygon_contains_points, rect_corners, rects_overlap
 from avp_world.kinematics import rollout_vehicle
 from avp_world.lot import load_bundled_lot
@@ -330,7 +330,7 @@ def test_shipped_weights_beat_the_nearest_spot_baseline_on_fresh_held_out_episod
 
 
 def evaluate_logits(pred: IntentPredictor, s: Samples, mode: str) -> np.ndarray:
-    from avp_perception.training.train import vehicle_bevs
+    from avp_training.train import vehicle_bevs
 
     other = IntentPredictor(None, pred.bev_config, model=pred.model, mode=mode)
     return other.logits(vehicle_bevs(s, range(len(s))), [s.features[s.feature_rows(i)] for i in range(len(s))])
@@ -350,7 +350,7 @@ def test_nearest_spot_baseline_by_hand():
 
 
 def test_training_never_sees_test_or_paper_episodes():
-    from avp_perception.training.dataset import episode_seeds
+    from avp_training.dataset import episode_seeds
 
     train, val, test, paper = (set(episode_seeds(k, 5000)) for k in ("train", "val", "test", "paper"))
     assert not (train & val) and not (train & test) and not (val & test) and not (paper & (train | val | test))
@@ -374,10 +374,10 @@ def test_shipped_card_records_data_command_and_accuracy():
 
 
 def test_error_analysis_by_distance_counts_every_spot_sample():
-    """``python -m avp_perception.training.analysis``: the distance bins partition the label-is-spot samples, the
+    """``python -m avp_training.analysis``: the distance bins partition the label-is-spot samples, the
     per-bin hits add up to the overall figures, and the hybrid rule with X = 0 would be the CNN itself."""
-    from avp_perception.training.analysis import BINS, error_table
-    from avp_perception.training.train import model_logits, topk_hits
+    from avp_training.analysis import BINS, error_table
+    from avp_training.train import model_logits, topk_hits
 
     s = episode(EPISODE_SEED)
     torch.set_num_threads(1)
@@ -402,11 +402,11 @@ def test_error_analysis_by_distance_counts_every_spot_sample():
 
 
 def test_oracle_explains_every_goal_directed_car():
-    """``python -m avp_perception.training.oracle``: regenerated from its seed, the episode gives back the plans
+    """``python -m avp_training.oracle``: regenerated from its seed, the episode gives back the plans
     behind the samples; for every goal-directed parker still driving, the observer that knows the driver model
     gives the spot the car really takes a non-zero posterior (its route, roll and stop rules agree with the
     generator), the posteriors are distributions, and the table's groups partition the samples."""
-    from avp_perception.training.oracle import GROUPS, OracleEpisode, oracle_table
+    from avp_training.oracle import GROUPS, OracleEpisode, oracle_table
 
     seen = Counter()
     for seed in (EPISODE_SEED, 12):

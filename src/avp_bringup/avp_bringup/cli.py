@@ -380,19 +380,19 @@ def cmd_params(args: argparse.Namespace) -> int:
 
 
 def cmd_train_intent(args: argparse.Namespace) -> int:
-    from avp_perception.training.run import cmd_train_intent as run
+    from avp_training.run import cmd_train_intent as run
 
     return run(args)
 
 
 def cmd_gen_intent_data(args: argparse.Namespace) -> int:
-    from avp_perception.training.run import cmd_gen_intent_data as run
+    from avp_training.run import cmd_gen_intent_data as run
 
     return run(args)
 
 
 def cmd_train_trajectory(args: argparse.Namespace) -> int:
-    from avp_perception.training.run_trajectory import cmd_train_trajectory as run
+    from avp_training.run_trajectory import cmd_train_trajectory as run
 
     return run(args)
 
@@ -469,7 +469,7 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("params", help="print parameter tables")
     p.add_argument("node", nargs="?")
     p.set_defaults(func=cmd_params)
-    from avp_perception.training.run import add_gen_arguments, add_intent_arguments
+    from avp_training.run import add_gen_arguments, add_intent_arguments
 
     p = sub.add_parser("train-intent", help="train the intent CNN from scratch (docs/intent_model.md)")
     add_intent_arguments(p)
@@ -477,7 +477,7 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("gen-intent-data", help="generate intent-model samples of one split")
     add_gen_arguments(p)
     p.set_defaults(func=cmd_gen_intent_data)
-    from avp_perception.training.run_trajectory import add_arguments as add_trajectory_arguments
+    from avp_training.run_trajectory import add_arguments as add_trajectory_arguments
 
     p = sub.add_parser("train-trajectory", help="train the learned trajectory predictor (docs/trajectory_model.md)")
     add_trajectory_arguments(p)

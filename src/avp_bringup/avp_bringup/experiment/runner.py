@@ -469,7 +469,7 @@ def run_experiment(args: argparse.Namespace) -> dict:
 
 def _code_commit() -> str:
     """The checked-out commit of the code this process runs (read when the run starts)."""
-    from avp_perception.training.run import git_commit
+    from avp_common.provenance import git_commit
 
     return git_commit(Path(__file__).resolve().parents[4])
 

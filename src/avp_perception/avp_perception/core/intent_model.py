@@ -438,7 +438,7 @@ class IntentPredictor:
                ) -> tuple[list[VehicleBEV], list[np.ndarray]]:
         """The network inputs of :meth:`predict_all`: per vehicle its BEV (I_k,0 and the marked I_k,i, §V-B)
         and its (K + 1, N_FEATURES) features (§V-A) — the columns past the network's ``n_features`` are left at
-        their no-history defaults (not computed). The training data (:mod:`avp_perception.training`) is made with
+        their no-history defaults (not computed). The training data (:mod:`avp_training`) is made with
         this same call on an all-features network."""
         r = self.renderer(lot)
         if isinstance(beliefs, BeliefMap):

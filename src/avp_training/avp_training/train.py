@@ -41,7 +41,7 @@ import torch.nn.functional as F
 
 from avp_perception.core.bev import BEVConfig, VehicleBEV
 from avp_perception.core.intent_model import IntentPredictor, SmallRegularizedCNN, receptive_field
-from avp_perception.training.dataset import LOT_NAMES, Samples
+from avp_training.dataset import LOT_NAMES, Samples
 
 
 @dataclass(frozen=True)

@@ -269,7 +269,7 @@ class LaneGraph:
 
     @classmethod
     def build(cls, lot: LotMap, spot_road: np.ndarray | None = None) -> LaneGraph:
-        from avp_perception.training.lots import spot_aisles
+        from avp_training.lots import spot_aisles
 
         roads = lot.roads
         pts: list[np.ndarray] = []

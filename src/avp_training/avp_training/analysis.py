@@ -8,7 +8,7 @@ were a group's errors all fixed: what any better predictor could gain there at m
 CNN, except that "none" becomes the nearest spot when it lies within X m) to test whether the distance feature
 holds information the CNN leaves unused.
 
-Usage: ``python -m avp_perception.training.analysis out/intent_run1/data/test.npz [--weights FILE]``
+Usage: ``python -m avp_training.analysis out/intent_run1/data/test.npz [--weights FILE]``
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ import numpy as np
 import torch
 
 from avp_perception.core.pipeline import make_intent_predictor
-from avp_perception.training.dataset import Samples
-from avp_perception.training.train import baseline_scores, model_logits, topk_hits
+from avp_training.dataset import Samples
+from avp_training.train import baseline_scores, model_logits, topk_hits
 
 BINS = ((0.0, 5.0), (5.0, 10.0), (10.0, 15.0), (15.0, 20.0), (20.0, 60.0))
 SLOW_SPEED = 1.6  # m/s: above the parkers' final roll (0.8-1.5 m/s, traffic.py), below their cruise (2-4 m/s)
@@ -76,7 +76,7 @@ def load_split_and_logits(prog: str, description: str, argv: list[str] | None
 
 
 def main(argv: list[str] | None = None) -> int:
-    samples, logits, info = load_split_and_logits("python -m avp_perception.training.analysis",
+    samples, logits, info = load_split_and_logits("python -m avp_training.analysis",
                                                   __doc__.split("\n")[0], argv)
     t = error_table(samples, logits)
     print(f"{info}; {t['n']} samples: top-1 {t['top1']:.3f} (label a spot {t['label_spot_top1']:.3f}, "

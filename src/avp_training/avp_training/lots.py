@@ -23,12 +23,12 @@ import numpy as np
 
 from avp_world.lot import LotMap, load_lot, lot_from_dict
 
-MAPS_DIR = Path(__file__).resolve().parents[1] / "maps"
+MAPS_DIR = Path(__file__).resolve().parent / "maps"
 DLP_LOT_FILE = MAPS_DIR / "dlp_west.yaml"
 
 
 def load_dlp_lot() -> LotMap:
-    """The DLP-derived training lot (``avp_perception/maps/dlp_west.yaml``)."""
+    """The DLP-derived training lot (``avp_training/maps/dlp_west.yaml``)."""
     return load_lot(DLP_LOT_FILE)
 
 

@@ -41,10 +41,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-from avp_perception.training.lanes import A_DEC, LaneGraph, Path, follow, rollout
-from avp_perception.training.lots import spot_aisles
 from avp_sim.core.maneuvers import ManeuverKey, SceneGeometry, generate_maneuver, maneuver_to_world
 from avp_sim.core.scenario import Scenario, VehicleAgent
+from avp_training.lanes import A_DEC, LaneGraph, Path, follow, rollout
+from avp_training.lots import spot_aisles
 from avp_world.geometry import polygon_contains_points, rect_corners, rect_inside_rect, rects_overlap, wrap_angle
 from avp_world.lot import LotMap
 from avp_world.vehicle import VehicleSpec

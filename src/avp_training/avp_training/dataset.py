@@ -34,11 +34,11 @@ import numpy as np
 from avp_perception.core.bev import BEVConfig
 from avp_perception.core.intent_model import N_FEATURES, IntentPredictor
 from avp_perception.core.pipeline import PerceptionCore
-from avp_perception.training.lots import load_dlp_lot, random_lot
-from avp_perception.training.traffic import LEAVE, PARK, WANDER, TrafficGenerator, TrafficParams
 from avp_sim.core.observation import SensorConfig
 from avp_sim.core.scenario import ScenarioError, generate_paper_scenario
 from avp_sim.core.world import World, WorldConfig
+from avp_training.lots import load_dlp_lot, random_lot
+from avp_training.traffic import LEAVE, PARK, WANDER, TrafficGenerator, TrafficParams
 from avp_world.geometry import rect_corners, rect_inside_rect, rects_overlap
 from avp_world.lot import LotMap, load_bundled_lot
 

@@ -60,7 +60,10 @@ from avp_perception.core.learned_prediction import (
     to_agent_frame,
 )
 from avp_perception.core.prediction import BezierPredictor, PredictionConfig, constant_velocity_vehicle
-from avp_perception.training.dataset import (
+from avp_sim.core.observation import SensorConfig
+from avp_sim.core.scenario import ScenarioError, generate_paper_scenario
+from avp_sim.core.world import WorldConfig
+from avp_training.dataset import (
     KIND_CODES,
     LOT_DLP,
     LOT_NAMES,
@@ -73,11 +76,8 @@ from avp_perception.training.dataset import (
     run_episode,
     save_arrays,
 )
-from avp_perception.training.lots import load_dlp_lot, random_lot
-from avp_perception.training.traffic import PARK, TrafficParams
-from avp_sim.core.observation import SensorConfig
-from avp_sim.core.scenario import ScenarioError, generate_paper_scenario
-from avp_sim.core.world import WorldConfig
+from avp_training.lots import load_dlp_lot, random_lot
+from avp_training.traffic import PARK, TrafficParams
 from avp_world.lot import LotMap, load_bundled_lot
 from avp_world.types import ObservedVehicle
 
@@ -289,7 +289,7 @@ def split_seeds(split: str, n: int) -> list[int]:
 def generate(split: str, n_episodes: int, spec: TrajDataSpec = TrajDataSpec(), workers: int = 1,
              progress: bool = True) -> TrajSamples:
     """All samples of ``n_episodes`` episodes of a split, in seed order whatever the number of workers."""
-    from avp_perception.training.dataset import _bar, _worker_init
+    from avp_training.dataset import _bar, _worker_init
 
     jobs = [(split, s, spec) for s in split_seeds(split, n_episodes)]
     bar = _bar(len(jobs), f"episodes {split}", progress)

@@ -40,7 +40,7 @@ def cmd_train_trajectory(args: argparse.Namespace) -> int:
     import torch
 
     from avp_perception.core.learned_prediction import default_weights_path, save_model
-    from avp_perception.training.run import (
+    from avp_training.run import (
         card_machine,
         card_provenance,
         load_splits,
@@ -49,7 +49,7 @@ def cmd_train_trajectory(args: argparse.Namespace) -> int:
         start_run,
         write_card,
     )
-    from avp_perception.training.trajectory import (
+    from avp_training.trajectory import (
         TRAJ_SEED0,
         TrajDataSpec,
         TrajSamples,
@@ -116,7 +116,7 @@ def summary_table(metrics: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m avp_perception.training.run_trajectory ...`` (the same as ``avp train-trajectory ...``)."""
+    """``python -m avp_training.run_trajectory ...`` (the same as ``avp train-trajectory ...``)."""
     parser = argparse.ArgumentParser(prog="avp train-trajectory")
     add_arguments(parser)
     return cmd_train_trajectory(parser.parse_args(argv))

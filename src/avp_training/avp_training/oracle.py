@@ -19,17 +19,17 @@ The option probabilities map to the sample's options (its candidates; "none" = e
 answers the most probable. Leaving cars, explorers and wanderers are not modelled: reported with the CNN's figure
 beside them. Route positions use lane coordinates (turn arcs are a little shorter): approximate near junctions.
 
-Usage: ``python -m avp_perception.training.oracle OUT/data/test.npz [--weights FILE]`` (the held-out split).
+Usage: ``python -m avp_training.oracle OUT/data/test.npz [--weights FILE]`` (the held-out split).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from avp_perception.training.dataset import DataSpec, Samples, episode_lot
-from avp_perception.training.lanes import A_DEC
-from avp_perception.training.traffic import PARK, AgentPlan, TrafficGenerator, TrafficParams
 from avp_sim.core.maneuvers import ManeuverKey
+from avp_training.dataset import DataSpec, Samples, episode_lot
+from avp_training.lanes import A_DEC
+from avp_training.traffic import PARK, AgentPlan, TrafficGenerator, TrafficParams
 
 GROUPS = ("cruising", "rolling", "maneuvering", "not modelled")
 
@@ -137,10 +137,10 @@ def oracle_table(samples: Samples, cnn_hits: np.ndarray, spec: DataSpec = DataSp
 
 
 def main(argv: list[str] | None = None) -> int:
-    from avp_perception.training.analysis import load_split_and_logits
-    from avp_perception.training.train import topk_hits
+    from avp_training.analysis import load_split_and_logits
+    from avp_training.train import topk_hits
 
-    samples, logits, info = load_split_and_logits("python -m avp_perception.training.oracle",
+    samples, logits, info = load_split_and_logits("python -m avp_training.oracle",
                                                   __doc__.split("\n")[0], argv)
     cnn_hits = topk_hits(logits, samples.labels, 1)
     t = oracle_table(samples, cnn_hits)

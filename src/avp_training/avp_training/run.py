@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from avp_common.provenance import git_commit
+
 SCALES = {
     # episodes per split: train, val, test, paper; max epochs
     "full": (320, 30, 60, 160, 6),
@@ -61,25 +63,6 @@ def add_gen_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="output .npz")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--quiet", action="store_true")
-
-
-def git_commit(root: Path) -> str:
-    """The checked-out commit, read from .git (no git process)."""
-    try:
-        git = root / ".git"
-        head = (git / "HEAD").read_text().strip()
-        if not head.startswith("ref:"):
-            return head
-        ref = head.split(" ", 1)[1]
-        f = git / ref
-        if f.is_file():
-            return f.read_text().strip()
-        for line in (git / "packed-refs").read_text().splitlines():
-            if line.endswith(" " + ref):
-                return line.split(" ", 1)[0]
-    except OSError:
-        pass
-    return "unknown"
 
 
 def cached_split(prog: str, name: str, n: int, spec, args, data_dir: Path, generate, load, log):
@@ -145,7 +128,7 @@ def card_provenance(prog: str, model, weights: Path, scale: str) -> dict:
         "parameters": int(sum(p.numel() for p in model.parameters())),
         "weights_bytes": weights.stat().st_size,
         "command": f"avp {prog} " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if len(sys.argv) > 1 else "",
-        "commit": git_commit(Path(__file__).resolve().parents[4]),
+        "commit": git_commit(Path(__file__).resolve().parents[3]),
         "scale": scale,
     }
 
@@ -176,8 +159,8 @@ def cmd_train_intent(args: argparse.Namespace) -> int:
     import torch
 
     from avp_perception.core.intent_model import FEATURE_NAMES, default_weights_path
-    from avp_perception.training.dataset import DataSpec, Samples, generate_split
-    from avp_perception.training.train import TrainConfig, evaluate, train
+    from avp_training.dataset import DataSpec, Samples, generate_split
+    from avp_training.train import TrainConfig, evaluate, train
 
     def log(msg: str) -> None:
         print(msg, flush=True)
@@ -233,7 +216,7 @@ def summary_table(metrics: dict) -> str:
 
 
 def cmd_gen_intent_data(args: argparse.Namespace) -> int:
-    from avp_perception.training.dataset import DataSpec, generate_split
+    from avp_training.dataset import DataSpec, generate_split
 
     t0 = time.monotonic()
     s = generate_split(args.split, args.episodes, DataSpec(), workers=args.workers, progress=not args.quiet)
@@ -245,7 +228,7 @@ def cmd_gen_intent_data(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m avp_perception.training.run train-intent|gen-intent-data ...`` (the same as ``avp ...``)."""
+    """``python -m avp_training.run train-intent|gen-intent-data ...`` (the same as ``avp ...``)."""
     parser = argparse.ArgumentParser(prog="avp")
     sub = parser.add_subparsers(dest="cmd", required=True)
     add_intent_arguments(sub.add_parser("train-intent", help="train the intent CNN from scratch"))
