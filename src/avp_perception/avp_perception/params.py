@@ -17,7 +17,7 @@ from avp_perception.core.bev import EXPLORATION_SHAPES, BEVConfig
 from avp_perception.core.intent_model import MODES as INTENT_MODES
 from avp_perception.core.nawaz import COVARIANCE_MODES, MAHALANOBIS_MODES, NawazConfig
 from avp_perception.core.pipeline import BELIEF_SOURCES
-from avp_perception.core.prediction import PREDICTOR_NAMES, START_TANGENTS, PredictionConfig
+from avp_perception.core.prediction import START_TANGENTS, PredictionConfig, available_predictors
 
 DEBUG_CHOICES = ("never", "subscribed", "always")
 
@@ -100,7 +100,7 @@ PREDICTION_NODE_PARAMS = [
               default=True),
     ParamSpec("method", str, "Trajectory predictor: the paper's intention-conditioned Bezier curves, constant "
               "velocity, Hybrid A* paths to the intended goals, or the learned transformer (learned.*, §VI-B-1).",
-              "", "§V-C", choices=PREDICTOR_NAMES, default="bezier"),
+              "", "§V-C", choices=tuple(available_predictors()), default="bezier"),
 ]
 _PRED_NOTES: dict[str, dict[str, Any]] = {
     "zeta": {"symbol": "ζ", "section": "eqs. (11)-(12), §VI-A", "min": 0.0, "max": 100.0},

@@ -40,6 +40,7 @@ file and the field.
 from __future__ import annotations
 
 import dataclasses
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -94,10 +95,27 @@ def methods_dir() -> Path:
     return Path(__file__).resolve().parents[2] / "config" / "methods"
 
 
+#: directories of user method profiles (``:``-separated, like PATH), searched after the shipped ones: a plugin's
+#: profile (docs/custom_predictor.md) is found by name there — also by the experiment's worker processes
+METHODS_PATH_ENV = "AVP_METHODS_PATH"
+
+
+def user_method_dirs() -> list[Path]:
+    return [Path(d) for d in os.environ.get(METHODS_PATH_ENV, "").split(os.pathsep) if d]
+
+
+def add_user_method_dir(directory: Path) -> None:
+    """Put ``directory`` on :data:`METHODS_PATH_ENV` (this process and the workers it starts)."""
+    dirs = user_method_dirs()
+    if Path(directory).resolve() not in [d.resolve() for d in dirs]:
+        os.environ[METHODS_PATH_ENV] = os.pathsep.join(str(d) for d in [*dirs, Path(directory).resolve()])
+
+
 def available_names() -> list[str]:
-    """Shipped profile names in Table I order (then any others alphabetically)."""
+    """Shipped profile names in Table I order (then any others alphabetically), then the user profiles'."""
     names = sorted(p.stem for p in methods_dir().glob("*.yaml"))
-    return [n for n in TABLE_ORDER if n in names] + [n for n in names if n not in TABLE_ORDER]
+    user = sorted({p.stem for d in user_method_dirs() for p in d.glob("*.yaml")} - set(names))
+    return [n for n in TABLE_ORDER if n in names] + [n for n in names if n not in TABLE_ORDER] + user
 
 
 def _flatten(d: dict, prefix: str = "") -> dict:
@@ -190,10 +208,15 @@ def read_config_yaml(name_or_path: str | Path, directory: Path, what: str, shipp
 
 
 def load_profile(name_or_path: str | Path) -> MethodProfile:
-    """A shipped profile by name (``bezier``) or a profile file by path."""
-    p, data = read_config_yaml(name_or_path, methods_dir(), "method profile", available_names(), "method")
+    """A shipped profile by name (``bezier``), a user profile by name (a directory on ``AVP_METHODS_PATH``), or
+    a profile file by path."""
+    directory = methods_dir()
+    s = str(name_or_path)
+    if not (s.endswith((".yaml", ".yml")) or Path(s).is_file()) and not (directory / f"{s}.yaml").is_file():
+        directory = next((d for d in user_method_dirs() if (d / f"{s}.yaml").is_file()), directory)
+    p, data = read_config_yaml(name_or_path, directory, "method profile", available_names(), "method")
     prof = profile_from_dict(data, str(p))
-    if p.parent == methods_dir() and prof.name != p.stem:
+    if p.parent == directory and prof.name != p.stem:
         raise ProfileError(f"{p}: field 'name': {prof.name!r} differs from the file name {p.stem!r}")
     return prof
 

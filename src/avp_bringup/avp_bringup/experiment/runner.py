@@ -34,7 +34,12 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
-from avp_bringup.experiment.profiles import MethodProfile, ProfileError, available_names, load_profile
+from avp_bringup.experiment.profiles import (
+    MethodProfile,
+    ProfileError,
+    available_names,
+    load_profile,
+)
 from avp_bringup.experiment.protocols import apply_planner, load_protocol
 
 MODES = {"reactive": (True,), "non-reactive": (False,), "both": (False, True)}
@@ -256,7 +261,7 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
 _WORKER: dict[str, Any] = {}
 
 
-def _init_worker(cfg: RunConfig, pool_worker: bool = False) -> None:
+def _init_worker(cfg: RunConfig, pool_worker: bool = False, sources: dict[str, str] | None = None) -> None:
     import signal
 
     import torch
@@ -267,19 +272,21 @@ def _init_worker(cfg: RunConfig, pool_worker: bool = False) -> None:
     torch.set_num_threads(1)
     from avp_world.lot import load_bundled_lot
 
-    _WORKER.update(cfg=cfg, lot=load_bundled_lot(), sim=sim_values(cfg), profiles={})
+    # sources: profile name -> its file, so a profile given by path (a plugin's) loads in a worker too
+    _WORKER.update(cfg=cfg, lot=load_bundled_lot(), sim=sim_values(cfg), profiles={}, sources=sources or {})
 
 
 def _worker_episode(key: Key) -> dict:
     method, seed, mode = key
     profiles = _WORKER["profiles"]
     if method not in profiles:
-        profiles[method] = run_profile(method, _WORKER["cfg"])
+        profiles[method] = run_profile(_WORKER["sources"].get(method, method), _WORKER["cfg"])
     return run_episode_inproc(_WORKER["lot"], _WORKER["sim"], profiles[method], seed, mode == "reactive",
                               _WORKER["cfg"])
 
 
-def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callable[[dict], None]) -> list[str]:
+def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callable[[dict], None],
+               sources: dict[str, str] | None = None) -> list[str]:
     """Run ``keys`` in ``workers`` processes (0: in this process), calling ``on_record`` as each finishes.
 
     An episode that raises is reported on stderr (method, seed, mode and the error, one line) and left out of
@@ -293,7 +300,7 @@ def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callabl
         print(f"[avp experiment] {line}", file=sys.stderr, flush=True)
 
     if workers <= 0:
-        _init_worker(cfg)
+        _init_worker(cfg, sources=sources)
         for k in keys:
             try:
                 r = _worker_episode(k)
@@ -304,7 +311,7 @@ def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callabl
         return errors
     ctx = get_context("spawn")
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
-                             initargs=(cfg, True)) as pool:
+                             initargs=(cfg, True, sources)) as pool:
         pending = {pool.submit(_worker_episode, k): k for k in keys}
         try:
             while pending:
@@ -446,7 +453,7 @@ def run_experiment(args: argparse.Namespace) -> dict:
 
         try:
             if args.transport == "inproc":
-                errors = run_inproc(todo, cfg, args.workers, on_record)
+                errors = run_inproc(todo, cfg, args.workers, on_record, {p.name: p.source for p in profiles})
             else:
                 from avp_bringup.experiment.ros_transport import run_ros
 
@@ -459,7 +466,8 @@ def run_experiment(args: argparse.Namespace) -> dict:
     summary = write_summary(out, [r for r in records if record_key(r) in wanted], skipped,
                             {"ade_horizon": cfg.ade_horizon, "t_final": cfg.t_final, "intent": ident["intent"],
                              "seeds_without_scenario": bad_seeds, "sim_overrides": cfg.sim_overrides,
-                             "protocol": cfg.protocol, "planner_overrides": cfg.planner_overrides})
+                             "protocol": cfg.protocol, "planner_overrides": cfg.planner_overrides},
+                            {p.name: (p.group, p.label) for p in profiles})
     print(f"[avp experiment] ran {n_run} episodes; summary: {out / 'summary.md'}, plots in {out / 'plots'}/")
     if errors:
         print(f"[avp experiment] {len(errors)} episode(s) raised and are not in the results (listed above); "

@@ -25,9 +25,15 @@ HEADER = ("| Group | Method | | n | Success (%) ↑ | Spots Stolen (%) ↓ | Int
 RULE = "|---|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|"
 
 
-def _labels(methods: Sequence[str]) -> dict[str, tuple[str, str]]:
+def _labels(methods: Sequence[str], given: Mapping[str, tuple[str, str]] | None = None
+            ) -> dict[str, tuple[str, str]]:
+    """(group, label) of each method: as the run had them (``given``: profiles from files), else its shipped
+    profile's, else the bare name."""
     out = {}
     for m in methods:
+        if given and m in given:
+            out[m] = tuple(given[m])
+            continue
         try:
             p = load_profile(m)
             out[m] = (p.group, p.label)
@@ -59,9 +65,9 @@ COLUMNS = (("success", "rate", 1), ("spot_stolen", "rate", 1), ("interrupted_ste
 
 
 def markdown_table(stats: Mapping[tuple[str, str], Mapping], methods: Sequence[str],
-                   skipped: Mapping[str, str]) -> str:
+                   skipped: Mapping[str, str], given: Mapping[str, tuple[str, str]] | None = None) -> str:
     """Table I layout: one block per mode, for each method a row of ours and a row of the paper's."""
-    labels = _labels(methods)
+    labels = _labels(methods, given)
     lines = [HEADER, RULE]
     for mode, title in MODE_ORDER:
         lines.append(f"| **{title}** | | | | | | | | | | | |")
@@ -86,12 +92,13 @@ def method_order(records: Sequence[Mapping], skipped: Mapping[str, str]) -> list
     return [m for m in TABLE_ORDER if m in names] + sorted(names - set(TABLE_ORDER))
 
 
-def write_summary(out: Path, records: Sequence[Mapping], skipped: Mapping[str, str], info: Mapping) -> dict:
+def write_summary(out: Path, records: Sequence[Mapping], skipped: Mapping[str, str], info: Mapping,
+                  labels: Mapping[str, tuple[str, str]] | None = None) -> dict:
     """summary.md, summary.json and plots/ under ``out``; returns the statistics."""
     out = Path(out)
     stats = aggregate(records)
     methods = method_order(records, skipped)
-    table = markdown_table(stats, methods, skipped)
+    table = markdown_table(stats, methods, skipped, labels)
     n_by_mode = {mode: len({r["seed"] for r in records if r["mode"] == mode}) for mode, _ in MODE_ORDER}
     text = [
         "# Table I — our runs beside the paper's",
@@ -122,11 +129,11 @@ def write_summary(out: Path, records: Sequence[Mapping], skipped: Mapping[str, s
         return stats
     plots = out / "plots"
     plots.mkdir(parents=True, exist_ok=True)
-    labels = {m: lab for m, (_, lab) in _labels(methods).items()}
-    plot_bars(plots / "success.png", "Success rate (%) - 95% Wilson interval", methods, labels, stats, "success",
+    short = {m: lab for m, (_, lab) in _labels(methods, labels).items()}
+    plot_bars(plots / "success.png", "Success rate (%) - 95% Wilson interval", methods, short, stats, "success",
               rate=True)
-    plot_bars(plots / "min_ade.png", "minADE (m) - mean +- std", methods, labels, stats, "min_ade", rate=False)
-    plot_timings(plots / "timings.png", methods, labels, records)
+    plot_bars(plots / "min_ade.png", "minADE (m) - mean +- std", methods, short, stats, "min_ade", rate=False)
+    plot_timings(plots / "timings.png", methods, short, records)
     return stats
 
 

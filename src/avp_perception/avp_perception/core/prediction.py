@@ -359,31 +359,50 @@ class StaticPredictor(ConstantVelocityPredictor):
         return out
 
 
-PREDICTORS = {BezierPredictor.name: BezierPredictor, ConstantVelocityPredictor.name: ConstantVelocityPredictor,
-              StaticPredictor.name: StaticPredictor}
-PREDICTOR_NAMES = ("bezier", "constant_velocity", "hybrid_astar", "learned", "static")
+#: The built-in predictors, as "module:attribute" (imported on demand: ``hybrid_astar`` pulls in the planner core,
+#: ``learned`` torch). More come from installed packages through the entry-point group :data:`ENTRY_POINT_GROUP`.
+BUILTIN_PREDICTORS = {
+    "bezier": "avp_perception.core.prediction:BezierPredictor",
+    "constant_velocity": "avp_perception.core.prediction:ConstantVelocityPredictor",
+    "hybrid_astar": "avp_perception.core.prediction_astar:HybridAStarPredictor",
+    "learned": "avp_perception.core.learned_prediction:LearnedPredictor",
+    "static": "avp_perception.core.prediction:StaticPredictor",
+}
+PREDICTOR_NAMES = tuple(BUILTIN_PREDICTORS)
+#: Python entry-point group of predictor plugins: ``name = "package.module:Class"``, where ``Class(lot, config)``
+#: returns an object with ``predict(obs, intentions) -> list[PredictedTrajectory]`` (docs/custom_predictor.md)
+ENTRY_POINT_GROUP = "avp.predictors"
+
+
+def available_predictors() -> dict[str, str]:
+    """Every predictor this installation can make: the built-ins, then the plugins (a plugin cannot replace a
+    built-in name)."""
+    from importlib.metadata import entry_points
+
+    out = dict(BUILTIN_PREDICTORS)
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        out.setdefault(ep.name, ep.value)
+    return out
 
 
 def make_predictor(name: str, lot: LotMap | None = None, config: PredictionConfig = PredictionConfig()
                    ) -> TrajectoryPredictor:
-    """The predictor called ``name`` (one of :data:`PREDICTOR_NAMES`); ValueError lists the names.
+    """The predictor called ``name`` (a built-in or an ``avp.predictors`` plugin); ValueError lists the names."""
+    import importlib
 
-    ``"hybrid_astar"`` is imported on demand (it pulls in the planner core, :mod:`avp_planner.core`), so is
-    ``"learned"`` (torch; :mod:`.learned_prediction`).
-    """
-    if name == "hybrid_astar":
-        from avp_perception.core.prediction_astar import HybridAStarPredictor
-
-        return HybridAStarPredictor(lot, config)
-    if name == "learned":
-        from avp_perception.core.learned_prediction import LearnedPredictor
-
-        return LearnedPredictor(lot, config)
+    known = available_predictors()
+    if name not in known:
+        raise ValueError(f"unknown predictor {name!r}; choose one of {sorted(known)} (plugins: entry-point group "
+                         f"{ENTRY_POINT_GROUP!r}, docs/custom_predictor.md)")
+    module, _, attr = known[name].partition(":")
     try:
-        cls = PREDICTORS[name]
-    except KeyError:
-        raise ValueError(f"unknown predictor {name!r}; choose one of {sorted(PREDICTOR_NAMES)}") from None
-    return cls(lot, config)
+        cls = getattr(importlib.import_module(module), attr)
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"predictor {name!r}: cannot load {known[name]!r} ({type(exc).__name__}: {exc})") from None
+    predictor = cls(lot, config)
+    if not callable(getattr(predictor, "predict", None)):
+        raise ValueError(f"predictor {name!r}: {known[name]!r} made an object without a predict(obs, intentions)")
+    return predictor
 
 
 def trajectories_of(trajectories: Sequence[PredictedTrajectory], agent_id: int) -> list[PredictedTrajectory]:

@@ -1,0 +1,103 @@
+"""Plugins the ROS way in Python (issue #17 item 4): a predictor from a package outside src/, found through the
+``avp.predictors`` entry-point group, runs an episode through ``avp experiment --methods <its profile>``.
+
+The toy package is built and installed by pip (``--target``, so the workspace's environment is left as it was);
+the experiment's worker process finds it on PYTHONPATH, like any installed package.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+TOY_MODULE = '''
+"""A toy predictor: every other vehicle keeps its pose (and each call is counted in $TOY_PREDICTOR_LOG)."""
+import os
+
+from avp_perception.core.prediction import StaticPredictor
+
+
+class ToyPredictor(StaticPredictor):
+    name = "toy"
+
+    def predict(self, obs, intentions=(), horizon=None):
+        with open(os.environ["TOY_PREDICTOR_LOG"], "a") as f:
+            f.write(f"{obs.step}\\n")
+        return super().predict(obs, intentions, horizon)
+'''
+
+TOY_SETUP = '''
+from setuptools import setup
+
+setup(name="toy-predictor", version="0.1.0", py_modules=["toy_predictor"],
+      entry_points={"avp.predictors": ["toy = toy_predictor:ToyPredictor"]})
+'''
+
+TOY_PROFILE = """
+name: toy
+label: Toy (a plugin)
+group: Plugins
+available: true
+perception:
+  beliefs: intent
+  predictor: toy
+  ego_intent: false
+planner:
+  use_beliefs: true
+  use_predictions: true
+"""
+
+
+@pytest.fixture(scope="module")
+def toy(tmp_path_factory) -> dict:
+    root = tmp_path_factory.mktemp("toy")
+    (root / "pkg").mkdir()
+    (root / "pkg" / "toy_predictor.py").write_text(TOY_MODULE)
+    (root / "pkg" / "setup.py").write_text(TOY_SETUP)
+    (root / "profiles").mkdir()
+    (root / "profiles" / "toy.yaml").write_text(TOY_PROFILE)
+    r = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation",
+                        "--no-index", "--target", str(root / "site"), str(root / "pkg")],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout + r.stderr
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(root / "site"), env.get("PYTHONPATH", "")])
+    env["TOY_PREDICTOR_LOG"] = str(root / "calls.log")
+    return {"root": root, "env": env}
+
+
+def test_the_entry_point_makes_the_predictor_and_unknown_names_list_the_plugins(toy):
+    code = ("from avp_perception.core.prediction import available_predictors, make_predictor\n"
+            "from avp_world.lot import load_bundled_lot\n"
+            "print(type(make_predictor('toy', load_bundled_lot())).__name__)\n"
+            "print(sorted(available_predictors()))\n"
+            "try:\n    make_predictor('nope')\nexcept ValueError as e:\n    print(e)\n")
+    r = subprocess.run([sys.executable, "-c", code], env=toy["env"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert lines[0] == "ToyPredictor" and "'toy'" in lines[1] and "'bezier'" in lines[1]
+    assert "unknown predictor 'nope'" in lines[2] and "'toy'" in lines[2] and "avp.predictors" in lines[2]
+    # without the package on the path the name is unknown: the plugin, not a copy in src/, made it
+    r = subprocess.run([sys.executable, "-c", "from avp_perception.core.prediction import available_predictors\n"
+                        "print('toy' in available_predictors())"], capture_output=True, text=True)
+    assert r.stdout.strip() == "False"
+
+
+def test_avp_experiment_runs_an_episode_with_the_plugin(toy, tmp_path):
+    out = tmp_path / "out"
+    profile = toy["root"] / "profiles" / "toy.yaml"
+    r = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "experiment", "--methods", f"bezier,{profile}",
+                        "--scenarios", "1", "--mode", "non-reactive", "--workers", "1", "--t-final", "20",
+                        "--no-progress", "--out", str(out)], env=toy["env"], capture_output=True, text=True,
+                       timeout=600)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    records = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
+    assert sorted(x["method"] for x in records) == ["bezier", "toy"]
+    calls = (toy["root"] / "calls.log").read_text().split()
+    toy_rec = next(x for x in records if x["method"] == "toy")
+    assert len(calls) >= toy_rec["steps"] > 0  # the plugin predicted on every step of its episode
+    assert "Toy (a plugin)" in (out / "summary.md").read_text()
