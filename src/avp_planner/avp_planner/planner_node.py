@@ -46,7 +46,7 @@ from avp_common.params import (
     declare_and_validate,
     specs_from_dataclass,
 )
-from avp_common.qos import LATCHED, STATUS, STEP, STEP_INPUT
+from avp_common.qos import LATCHED, RESEND_ANSWER_INTERVAL, STATUS, STEP, STEP_INPUT
 from avp_common.ratelog import RateLimitedLog
 from avp_msgs.msg import (
     EpisodeStatus,
@@ -119,6 +119,11 @@ class PlannerNode(LifecycleNode):
         self.stale_since: float | None = None  # start of the current stall (one log line each way)
         self.held_steps = 0
         self.zeroed: set[int] = set()  # steps answered with v = ω = 0 during the stall
+        # the last decided step and its command: an observation of that step again (a lock-step re-send, or a copy
+        # replayed by another process) gets the same command again, at most once a second, and never a second
+        # decision (which would advance the planner's state: the episode would differ from the in-process run)
+        self.answered: tuple[int, float, float] | None = None
+        self.answered_at = -float("inf")
         self.settings = dataclass_from_values(DEFAULT_SETTINGS, p).validate()
         self.planner = None
         self.lot = None
@@ -204,8 +209,9 @@ class PlannerNode(LifecycleNode):
 
     def _on_obs(self, msg: Observation) -> None:
         k = int(msg.step)
-        if k == 0 and self.last_step is not None:  # a new episode (reset): forget the old one
+        if k == 0 and self.last_step:  # a new episode (reset): forget the old one (step 0 again: a copy)
             self.obs.clear()
+            self.answered = None
             for d in (self.beliefs, self.preds, self.ego_int):
                 for old in [s for s in d if s > 0]:
                     del d[old]
@@ -217,6 +223,11 @@ class PlannerNode(LifecycleNode):
             return
         if k in self.obs:
             return  # re-sent observation still pending
+        if self.answered is not None and self.answered[0] == k:
+            if time.monotonic() - self.answered_at >= RESEND_ANSWER_INTERVAL:
+                self._publish_cmd(msg.header.stamp, self.answered[1], self.answered[2])
+                self.answered_at = time.monotonic()
+            return
         self.last_step = k
         self.obs[k] = msg
         self.obs_wall[k] = time.monotonic()
@@ -277,6 +288,7 @@ class PlannerNode(LifecycleNode):
         if decision.reason.startswith("invalid input"):
             self.get_logger().error(f"{self.sub_obs.topic_name} step {k}: {decision.reason}; holding still")
         self._publish_cmd(msg.header.stamp, float(v), float(om))
+        self.answered, self.answered_at = (k, float(v), float(om)), time.monotonic()
         self._publish_decision(msg, decision, total)
 
     def _on_status(self, msg: EpisodeStatus) -> None:
