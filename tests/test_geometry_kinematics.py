@@ -84,3 +84,34 @@ def test_rollout_circle_and_batch():
 def test_eq2_pedestrian():
     p = step_pedestrian(np.array([[0.0, 0.0]]), np.array([[1.5, math.pi / 2]]), 0.2)
     assert np.allclose(p, [[0.0, 0.3]])
+
+
+def test_brake_speed_is_the_smallest_whole_step_trapezoid():
+    """avp_world.kinematics.brake_speed (one function for the planner, the agents' maneuvers and the training
+    traffic, issue #17) against its definition walked from n = 0, and against a rollout: braking by dv each step
+    from the returned speed stops within rem."""
+    import math
+    import random
+
+    from avp_world.kinematics import brake_speed
+
+    def by_definition(rem, dt, dv):
+        if rem <= 0:
+            return 0.0
+        for n in range(100000):
+            v = rem / (dt * (n + 1)) + dv * n / 2.0
+            if v < (n + 1) * dv:
+                return max(v, n * dv)
+        return math.inf
+
+    rng = random.Random(7)
+    for _ in range(20000):
+        rem, dt, dv = rng.uniform(-1.0, 60.0), rng.choice([0.05, 0.1, 0.5]), rng.uniform(0.01, 0.5)
+        assert brake_speed(rem, dt, dv) == by_definition(rem, dt, dv)
+    v, rem, dt, dv = brake_speed(10.0, 0.1, 0.15), 10.0, 0.1, 0.15
+    travelled = 0.0
+    while v > 1e-12:
+        travelled += v * dt
+        v = max(v - dv, 0.0)
+    assert travelled <= rem + 1e-9
+    assert brake_speed(5.0, 0.1, 0.0) == math.inf and brake_speed(0.0, 0.1, 0.1) == 0.0

@@ -29,6 +29,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from avp_world.geometry import wrap_angle
+from avp_world.kinematics import brake_speed
 from avp_world.lot import LotMap
 from avp_world.vehicle import VehicleSpec
 
@@ -40,27 +42,6 @@ A_ACC = 1.2  # m/s^2
 A_DEC = 1.5  # m/s^2
 L_CORR = 1.0  # m, distance over which a lateral error is steered away
 _NODE_MERGE = 0.3  # m
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
-def brake_speed(rem: float, dt: float, dv: float) -> float:
-    """Largest speed for this step such that, after moving v dt, the rest of ``rem`` can still be covered while
-    slowing by ``dv`` per step to a stop in whole steps (the discrete trapezoid of the maneuver tracker)."""
-    if rem <= 0:
-        return 0.0
-
-    def ok(n: int) -> bool:  # v in [n dv, (n + 1) dv): distance = dt ((n + 1) v - dv n (n + 1) / 2)
-        return rem / (dt * (n + 1)) + dv * n / 2.0 < (n + 1) * dv
-
-    n = max(0, int(math.sqrt(2.0 * rem / (dv * dt))) - 2)  # the answer is near v = sqrt(2 rem dv / dt)
-    while n > 0 and ok(n - 1):
-        n -= 1
-    while not ok(n):
-        n += 1
-    return max(rem / (dt * (n + 1)) + dv * n / 2.0, n * dv)
 
 
 # --------------------------------------------------------------------------------------------- paths
@@ -130,7 +111,7 @@ class Path:
                 ang = math.atan2(py - cy, px - cx)
                 # heading at the projection: ang + pi/2 for a left arc (kappa > 0), ang - pi/2 for a right arc
                 th_p = ang + math.copysign(math.pi / 2.0, kappa)
-                t = _wrap(th_p - th) / kappa
+                t = wrap_angle(th_p - th) / kappa
                 dist = math.hypot(px - cx, py - cy)
                 lat = math.copysign(1.0, kappa) * (abs(r) - dist)
             if t > length and i + 1 < n:
@@ -206,11 +187,11 @@ def follow(path: Path, state0, dt: float, vehicle: VehicleSpec = VehicleSpec()) 
         mid = min(max(sigma2 + 0.5 * target_speed(sigma2, v) * dt, 0.0), length)
         th_ref = path.pose(mid)[2]
         target = th_ref - math.atan(e_lat / L_CORR)
-        omega = _wrap(target - th) / dt
+        omega = wrap_angle(target - th) / dt
         lim = v * kmax
         omega = min(max(omega, -lim), lim)
         controls.append((v, omega))
-        x, y, th = nx, ny, _wrap(th + omega * dt)
+        x, y, th = nx, ny, wrap_angle(th + omega * dt)
     else:  # pragma: no cover
         raise RuntimeError("path tracking did not finish")
     controls.append((0.0, 0.0))
@@ -347,7 +328,7 @@ class LaneGraph:
             t = float((p - ln.a) @ ln.d)
             lat = float((p - ln.a) @ np.array([-ln.d[1], ln.d[0]]))
             if abs(lat) < tol and -ln.width / 2 - tol <= t <= ln.length + ln.width / 2 + tol \
-                    and abs(_wrap(float(pose[2]) - ln.heading)) < 0.1:
+                    and abs(wrap_angle(float(pose[2]) - ln.heading)) < 0.1:
                 return ln.id, t
         return None
 
@@ -422,7 +403,7 @@ def _segment_intersection(r1, r2) -> np.ndarray | None:
 
 
 def _turn(l1: Lane, l2: Lane) -> Turn | None:
-    phi = _wrap(l2.heading - l1.heading)
+    phi = wrap_angle(l2.heading - l1.heading)
     if abs(phi) < 1e-3:
         lat = float((l2.a - l1.a) @ np.array([-l1.d[1], l1.d[0]]))
         if abs(lat) > 0.05:

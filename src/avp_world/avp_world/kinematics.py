@@ -2,9 +2,35 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from avp_world.geometry import wrap_angle
+
+
+def brake_speed(rem: float, dt: float, dv: float) -> float:
+    """Largest speed v for this step such that after moving v dt the rest, ``rem`` - v dt, can still be covered
+    while slowing by ``dv`` per step to a stop in whole steps of eq. (1) (the discrete trapezoid every speed
+    profile of the stack uses: the planner's tracker, the agents' maneuvers, the training traffic).
+
+    With v in [n dv, (n + 1) dv) the distance is dt ((n + 1) v - dv n (n + 1) / 2), so v is that of the smallest
+    n for which rem / (dt (n + 1)) + dv n / 2 < (n + 1) dv; the left side falls and the right side grows with n,
+    so the search starts near the continuous answer v = sqrt(2 rem dv / dt) and walks to that n."""
+    if rem <= 0:
+        return 0.0
+    if dv <= 0:
+        return math.inf
+
+    def ok(n: int) -> bool:
+        return rem / (dt * (n + 1)) + dv * n / 2.0 < (n + 1) * dv
+
+    n = max(0, int(math.sqrt(2.0 * rem / (dv * dt))) - 2)
+    while n > 0 and ok(n - 1):
+        n -= 1
+    while not ok(n):
+        n += 1
+    return max(rem / (dt * (n + 1)) + dv * n / 2.0, n * dv)
 
 
 def step_vehicle(state: np.ndarray, control: np.ndarray, dt: float) -> np.ndarray:

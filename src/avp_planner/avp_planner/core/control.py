@@ -29,22 +29,9 @@ import numpy as np
 
 from avp_planner.core.paths import Path, arc_end
 from avp_planner.core.settings import ControlSettings
-from avp_world.kinematics import rollout_vehicle
+from avp_world.kinematics import brake_speed, rollout_vehicle
 
 _STOP_EPS = 0.003  # m: a piece is finished when less than this is left
-
-
-def brake_speed(rem: float, dt: float, dv: float) -> float:
-    """Largest speed for this step such that the remaining ``rem`` - v dt can still be covered while slowing
-    by ``dv`` per step to a stop (discrete trapezoid of eq. (1) steps)."""
-    if rem <= 0:
-        return 0.0
-    for n in range(0, 100000):
-        # v in [n dv, (n + 1) dv): distance covered = dt ((n + 1) v - dv n (n + 1) / 2)
-        v = rem / (dt * (n + 1)) + dv * n / 2.0
-        if v < (n + 1) * dv:
-            return max(v, n * dv)
-    return math.inf  # pragma: no cover
 
 
 def piece_speeds(length: float, v0: float, settings: ControlSettings) -> np.ndarray:

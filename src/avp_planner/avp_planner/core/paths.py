@@ -14,13 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-_TWO_PI = 2.0 * math.pi
+from avp_world.geometry import wrap_angle as wrap  # noqa: F401 - re-exported for the planner modules
+
 _EPS_K = 1e-12
-
-
-def wrap(a: np.ndarray | float) -> np.ndarray | float:
-    """Wrap to [-pi, pi)."""
-    return (np.asarray(a) + math.pi) % _TWO_PI - math.pi
 
 
 def arc_poses(x: float, y: float, th: float, kappa: float, s: np.ndarray) -> np.ndarray:

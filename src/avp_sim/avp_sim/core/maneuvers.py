@@ -54,7 +54,7 @@ from typing import NamedTuple
 import numpy as np
 
 from avp_world.geometry import rect_corners, rects_overlap, wrap_angle
-from avp_world.kinematics import rollout_vehicle, step_vehicle
+from avp_world.kinematics import brake_speed, rollout_vehicle, step_vehicle
 from avp_world.reeds_shepp import RSBatch, RSPath, reeds_shepp_batch, sample_path, segment_end
 from avp_world.vehicle import VehicleSpec
 
@@ -431,19 +431,6 @@ def _pieces(start: np.ndarray, segments: tuple[tuple[str, float], ...], radius: 
     return pieces
 
 
-def _brake_speed(rem: float, dt: float, dv: float) -> float:
-    """Largest speed v for this step such that after moving v dt the rest, ``rem`` - v dt, can still be
-    covered while slowing by ``dv`` per step to a stop (discrete trapezoid of eq. (1) steps)."""
-    if rem <= 0:
-        return 0.0
-    for n in range(0, 1000):
-        # v in [n dv, (n + 1) dv): distance = dt ((n + 1) v - dv n (n + 1) / 2)
-        v = rem / (dt * (n + 1)) + dv * n / 2.0
-        if v < (n + 1) * dv:
-            return max(v, n * dv)
-    return math.inf
-
-
 def _project(pc: _Piece, p: np.ndarray, hint: int) -> tuple[int, float, float]:
     """Nearest reference sample to point ``p`` (searched around index ``hint``): (index, progress along the
     piece in metres, lateral offset to the left of the reference heading)."""
@@ -461,7 +448,8 @@ def _track(start: np.ndarray, pieces: list[_Piece], vehicle: VehicleSpec, dt: fl
     """Controls (T, 2) that drive eq. (1) along the pieces, stopping (v = 0) at the end of each.
 
     Speed: the largest of the discrete accelerate / cruise / brake-to-stop profile (see
-    :func:`_brake_speed`, at most ``max_speed``), never changing by more than ``max_accel`` dt per step.
+    :func:`avp_world.kinematics.brake_speed`, at most ``max_speed``), never changing by more than ``max_accel``
+    dt per step.
     Steering: an Euler step moves the car along its *current* heading, so the heading is set one step
     ahead: omega_k makes theta_{k+1} equal to the reference heading at the middle of step k + 1 (the chord
     direction of the reference arc there, which removes the Euler drift off curves) minus d atan(e_lat / L)
@@ -474,7 +462,7 @@ def _track(start: np.ndarray, pieces: list[_Piece], vehicle: VehicleSpec, dt: fl
     controls: list[tuple[float, float]] = []
 
     def next_speed(speed: float, rem: float) -> float:
-        return max(min(max_speed, speed + dv, _brake_speed(rem, dt, dv)), speed - dv, 0.0)
+        return max(min(max_speed, speed + dv, brake_speed(rem, dt, dv)), speed - dv, 0.0)
 
     for pc in pieces:
         d = pc.direction
