@@ -39,3 +39,61 @@ def test_runtime_packages_never_import_training():
     assert offenders == []
     assert not (SRC / "avp_perception/avp_perception/training").exists()
     assert "<exec_depend>avp_training</exec_depend>" in (SRC / "avp_bringup/package.xml").read_text()
+
+
+#: which avp packages each package may import: the data flow sim -> perception -> planner, on top of the ROS-free
+#: library (avp_world), the messages and the shared node helpers (avp_common); training and the command line last
+ALLOWED = {
+    "avp_msgs": set(),
+    "avp_world": set(),
+    "avp_common": {"avp_msgs", "avp_world"},
+    "avp_sim": {"avp_msgs", "avp_world", "avp_common"},
+    "avp_perception": {"avp_msgs", "avp_world", "avp_common"},
+    "avp_planner": {"avp_msgs", "avp_world", "avp_common"},
+    "avp_training": {"avp_world", "avp_common", "avp_sim", "avp_perception"},
+    "avp_bringup": {"avp_msgs", "avp_world", "avp_common", "avp_sim", "avp_perception", "avp_planner",
+                    "avp_training"},
+}
+#: wrong-way edges that exist today, each with where it goes (issue #17 item 2). A new one fails the test; so does
+#: removing one without taking it off this list.
+KNOWN_WRONG_WAY = {
+    ("avp_perception", "avp_planner"): "the Hybrid A* predictor and the implicit baseline use the planner's search "
+                                       "core; it moves into a shared ROS-free search package",
+}
+
+
+def _imports(root: Path = SRC) -> dict[tuple[str, str], list[str]]:
+    """(importing package, imported avp package) -> files, for every package source tree under ``root``."""
+    edges: dict[tuple[str, str], list[str]] = {}
+    for pkg in ALLOWED:
+        for f in root.glob(f"{pkg}/{pkg}/**/*.py"):
+            for m in re.finditer(r"^\s*(?:from|import)\s+(avp_\w+)", f.read_text(), re.M):
+                if m.group(1) != pkg:
+                    edges.setdefault((pkg, m.group(1)), []).append(str(f.relative_to(root)))
+    return edges
+
+
+def _wrong_way(edges) -> set[tuple[str, str]]:
+    return {e for e in edges if e[1] not in ALLOWED[e[0]]}
+
+
+def test_packages_import_along_the_data_flow_and_declare_it():
+    """Every import of another avp package is allowed by the layering above and declared in package.xml."""
+    assert sorted(p.name for p in SRC.iterdir() if (p / "package.xml").is_file()) == sorted(ALLOWED)
+    edges = _imports()
+    wrong = _wrong_way(edges)
+    assert wrong == set(KNOWN_WRONG_WAY), {e: edges[e][:3] for e in wrong ^ set(KNOWN_WRONG_WAY) if e in edges}
+    for pkg in ALLOWED:
+        xml = (SRC / pkg / "package.xml").read_text()
+        declared = set(re.findall(r"<(?:exec_|build_|test_)?depend>(avp_\w+)</", xml))
+        used = {d for (p, d) in edges if p == pkg}
+        assert used <= declared, f"{pkg}/package.xml does not declare {sorted(used - declared)}"
+
+
+def test_a_wrong_way_import_fails_the_layering_check(tmp_path):
+    """The check above catches an import against the data flow: here the simulator importing the planner."""
+    core = tmp_path / "avp_sim/avp_sim/core"
+    core.mkdir(parents=True)
+    (core / "leak.py").write_text("from avp_planner.core.decision import EgoPlanner\n")
+    (core / "fine.py").write_text("from avp_world.lot import LotMap\n")
+    assert _wrong_way(_imports(tmp_path)) == {("avp_sim", "avp_planner")}
