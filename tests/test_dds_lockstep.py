@@ -6,7 +6,7 @@ debug/ground_truth with an in-process run of the same cores for the same seed:
 
 * ``scripted``: sim + scripted driver;
 * ``planner``: the full graph — sim, belief node, prediction node (Bezier), planner waiting for beliefs and
-  predictions — against :class:`avp_bringup.inproc.PerceptionPlanner` (PerceptionCore -> predictor -> EgoPlanner);
+  predictions — against the in-process ego chain (:func:`avp_bringup.inproc.perception_planner`: a MethodEgo);
 * ``planner-hybrid_astar``: the same with the prediction node's Hybrid A* predictor.
 """
 
@@ -67,8 +67,8 @@ def _inprocess_trajectory(lot, ego, method):
 
     def controller(obs):
         cmd = ego_pipeline(obs)
-        modes.append(ego_pipeline.last[3].mode)
-        n_pred.append(sum(p.goal is not None for p in ego_pipeline.last[2]))
+        modes.append(ego_pipeline.last.decision.mode)
+        n_pred.append(sum(p.goal is not None for p in ego_pipeline.last.predictions))
         return cmd
 
     run_episode(world, controller)

@@ -3,9 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
-
-import numpy as np
 
 from avp_sim.core.world import World
 from avp_world.types import Observation
@@ -24,44 +21,14 @@ def run_episode(world: World, controller: Controller, max_steps: int | None = No
     return world
 
 
-class PerceptionPlanner:
-    """The ego side of the full graph in one process: belief node -> prediction node -> planner.
-
-    Per observation: :meth:`PerceptionCore.perceive` (eq. 7, BEVs, intent CNN, eq. 8), the predictor on the
-    intentions, :meth:`EgoPlanner.decide` on the beliefs and predictions. Between them the values are rounded
-    as the messages round them (SpotBeliefs.beliefs, intention and trajectory probabilities are float32;
-    everything else is float64), so an episode equals the graph's over DDS bit for bit
-    (tests/test_dds_lockstep.py). ``last`` keeps the latest (beliefs, intentions, predictions, decision).
-
-    Args:
-        perception: the belief side (its own predictor is not used).
-        predictor: the prediction node's predictor (``make_predictor(method, lot, config)``).
-        planner: the ego planner (``EgoPlanner``).
-    """
-
-    def __init__(self, perception, predictor, planner):
-        self.perception = perception
-        self.predictor = predictor
-        self.planner = planner
-        self.last: tuple | None = None
-
-    def __call__(self, obs: Observation) -> tuple[float, float]:
-        from avp_perception.core.pipeline import float32_beliefs, float32_intention
-
-        out = self.perception.perceive(obs)
-        beliefs = float32_beliefs(out.beliefs)
-        intentions = [float32_intention(it) for it in out.intentions]
-        predictions = [replace(p, probability=float(np.float32(p.probability)))
-                       for p in self.predictor.predict(obs, intentions)]
-        decision = self.planner.decide(obs, beliefs, predictions)
-        self.last = (beliefs, intentions, predictions, decision)
-        return decision.command
-
-
-def perception_planner(lot, belief_values: dict, prediction_values: dict, planner_settings) -> PerceptionPlanner:
-    """A :class:`PerceptionPlanner` built from validated node parameter values (as the nodes build theirs)."""
+def perception_planner(lot, belief_values: dict, prediction_values: dict, planner_settings):
+    """The default live graph's ego side in one process (belief node -> prediction node -> planner), built from
+    validated node parameter values as the nodes build theirs: a
+    :class:`avp_bringup.experiment.ego.MethodEgo` (the one in-process ego chain) and a controller for
+    :func:`run_episode`; ``.last`` is its latest :class:`~avp_bringup.experiment.ego.EgoStep`."""
     import torch
 
+    from avp_bringup.experiment.ego import MethodEgo
     from avp_perception.core.pipeline import PerceptionCore, make_intent_predictor
     from avp_perception.core.prediction import make_predictor
     from avp_perception.params import bev_config, prediction_config
@@ -74,4 +41,4 @@ def perception_planner(lot, belief_values: dict, prediction_values: dict, planne
     core = PerceptionCore(lot, cfg, intent=intent, t_hist=belief_values["t_hist"],
                           belief_init=belief_values["belief_init"])
     predictor = make_predictor(prediction_values["method"], lot, prediction_config(prediction_values))
-    return PerceptionPlanner(core, predictor, EgoPlanner(lot, planner_settings))
+    return MethodEgo.from_parts(lot, core, predictor, EgoPlanner(lot, planner_settings))

@@ -17,8 +17,9 @@ Per step, following the method profile (:mod:`.profiles`):
 
 ``message_precision`` (default on) rounds what travels in float32 message fields between the nodes (intention
 probabilities into the predictor and the planner's spot order, trajectory probabilities and b_t into the
-planner) exactly as the messages do (as :class:`avp_bringup.inproc.PerceptionPlanner`), so that in-process
-episodes equal the node graph's bit for bit (tests/test_experiment.py).
+planner) exactly as the messages do, so that in-process episodes equal the node graph's bit for bit
+(tests/test_experiment.py, tests/test_dds_lockstep.py). It is the one in-process ego chain: the experiment builds it
+from a method profile, the DDS tests from the nodes' parameter files (:meth:`MethodEgo.from_parts`).
 
 Spot-selection time (Table I) = steps 1-2 + the planner's candidate selection and pricing; path-planning
 time = the planner's Hybrid A* searches and tracking (§VI-B).
@@ -73,15 +74,36 @@ class MethodEgo:
             raise ValueError(f"method {profile.name!r} is not available: {profile.unavailable_reason}")
         from avp_perception.core.pipeline import make_intent_predictor
 
-        self.lot = lot
-        self.profile = profile
-        self.message_precision = bool(message_precision)
-        settings, self.use_beliefs, self.use_predictions = planner_settings(profile, deterministic)
-        self.planner = EgoPlanner(lot, settings)
+        settings, use_beliefs, use_predictions = planner_settings(profile, deterministic)
         intent, self.intent_info = make_intent_predictor(lot, bev_config, intent_weights, intent_seed)
-        self.core = PerceptionCore(lot, bev_config, predictor=profile.predictor,
-                                   prediction_config=prediction_config(deterministic), intent=intent, t_hist=t_hist)
-        self.nawaz = NawazOccupancy(lot, nawaz_config) if profile.beliefs == "nawaz" else None
+        core = PerceptionCore(lot, bev_config, predictor=profile.predictor,
+                              prediction_config=prediction_config(deterministic), intent=intent, t_hist=t_hist)
+        self._assemble(lot, profile, core, core.predictor, EgoPlanner(lot, settings), use_beliefs, use_predictions,
+                       NawazOccupancy(lot, nawaz_config) if profile.beliefs == "nawaz" else None, message_precision)
+
+    def _assemble(self, lot, profile, core, predictor, planner, use_beliefs, use_predictions, nawaz,
+                  message_precision) -> None:
+        self.lot, self.profile, self.core, self.predictor, self.planner = lot, profile, core, predictor, planner
+        self.use_beliefs, self.use_predictions, self.nawaz = bool(use_beliefs), bool(use_predictions), nawaz
+        self.message_precision = bool(message_precision)
+        self.last: EgoStep | None = None
+
+    @classmethod
+    def from_parts(cls, lot: LotMap, core: PerceptionCore, predictor, planner: EgoPlanner, *,
+                   name: str = "graph", message_precision: bool = True) -> MethodEgo:
+        """The ego of the default live graph from cores built elsewhere (as the nodes build theirs from their
+        parameter files: :func:`avp_bringup.inproc.perception_planner`): intent beliefs, ``predictor`` (the
+        prediction node's, not the core's), the planner using both."""
+        ego = cls.__new__(cls)
+        profile = MethodProfile(name=name, label=name, group="", available=True, beliefs="intent",
+                                predictor=getattr(predictor, "name", "custom"), ego_intent=False, planner={})
+        ego._assemble(lot, profile, core, predictor, planner, True, True, None, message_precision)
+        ego.intent_info = ""
+        return ego
+
+    def __call__(self, obs: Observation) -> tuple[float, float]:
+        """A controller for :func:`avp_bringup.inproc.run_episode`: the command of :meth:`step`."""
+        return self.step(obs).command
 
     def reset(self) -> None:
         self.core.reset()
@@ -90,7 +112,7 @@ class MethodEgo:
     def predict(self, obs: Observation, b: np.ndarray, intentions: list) -> tuple[np.ndarray, list]:
         """The prediction node's step (§V-C): (b_t, predicted trajectories). A reference bound may replace it
         (``avp_bringup.experiment.oracle.OracleEgo``)."""
-        return b, self.core.predictor.predict(obs, intentions)
+        return b, self.predictor.predict(obs, intentions)
 
     def step(self, obs: Observation) -> EgoStep:
         prof = self.profile
@@ -113,5 +135,6 @@ class MethodEgo:
         timings = {"perception_time": t_perception,
                    "spot_selection_time": t_perception + float(tm.get("spot_selection_time", 0.0)),
                    "path_planning_time": float(tm.get("path_planning_time", 0.0))}
-        return EgoStep(int(obs.step), (float(dec.command[0]), float(dec.command[1])), dec, beliefs, predictions,
-                       priority, timings)
+        self.last = EgoStep(int(obs.step), (float(dec.command[0]), float(dec.command[1])), dec, beliefs,
+                            predictions, priority, timings)
+        return self.last
