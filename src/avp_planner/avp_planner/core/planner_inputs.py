@@ -1,0 +1,197 @@
+"""The planner's inputs (§V-D): checks, beliefs from observation, the static world (spots with b >= β,
+static vehicles) and the dynamic obstacles (predictions, constant-velocity fallbacks).
+
+A part of :class:`avp_planner.core.decision.EgoPlanner` (split by job, issue #17).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from avp_planner.core.collision import DynamicObstacles, StaticWorld
+from avp_planner.core.paths import wrap
+from avp_planner.core.planner_types import (
+    CONTAINED_MARGIN,
+    STILL_SPEED,
+    WORLD_CACHE_SIZE,
+)
+from avp_world.geometry import rect_corners, rect_inside_rect
+from avp_world.kinematics import step_vehicle
+from avp_world.types import Observation, PredictedTrajectory
+
+
+class InputsMixin:
+    """Methods of :class:`~avp_planner.core.decision.EgoPlanner`; see the module docstring."""
+
+    def _check_inputs(self, obs: Observation, beliefs, predictions) -> str:
+        pose = np.asarray(obs.ego_pose, dtype=float)
+        if pose.shape != (3,) or not np.isfinite(pose).all():
+            return "invalid input: NaN in ego pose"
+        if not (math.isfinite(obs.ego_speed) and math.isfinite(obs.ego_length) and math.isfinite(obs.ego_width)):
+            return "invalid input: NaN in ego speed or size"
+        if obs.ego_length <= 0 or obs.ego_width <= 0:
+            return "invalid input: ego size must be > 0"
+        for v in obs.vehicles:
+            if not (np.isfinite(v.history).all() and math.isfinite(v.length) and math.isfinite(v.width)):
+                return f"invalid input: NaN in observed vehicle {v.id}"
+        for p in obs.pedestrians:
+            if not (np.isfinite(p.position).all() and np.isfinite(p.previous_position).all()
+                    and math.isfinite(p.radius)):
+                return f"invalid input: NaN in observed pedestrian {p.id}"
+        for sid in (*np.asarray(obs.vacant_spot_ids).tolist(), *np.asarray(obs.occupied_spot_ids).tolist()):
+            if not self.lot.has_spot(sid):
+                return f"invalid input: unknown spot id {sid}"
+        if beliefs is not None:
+            b = np.asarray(beliefs, dtype=float)
+            if b.shape != (self.lot.n_spots,):
+                return f"invalid input: beliefs must have shape ({self.lot.n_spots},), got {b.shape}"
+            if not np.isfinite(b).all():
+                return "invalid input: NaN in beliefs"
+            if b.min() < 0 or b.max() > 1:
+                return "invalid input: beliefs must lie in [0, 1]"
+        for p in predictions:
+            if not np.isfinite(np.asarray(p.poses, dtype=float)).all() or not math.isfinite(p.dt) or p.dt <= 0:
+                return f"invalid input: NaN in prediction of agent {p.agent_id}"
+        return ""
+
+    def update_beliefs(self, obs: Observation) -> np.ndarray:
+        """§V-B first update without intentions: observed vacant -> 0, observed occupied -> 1, else kept."""
+        for sid in np.asarray(obs.vacant_spot_ids).tolist():
+            self.beliefs[self.lot.spot_index(sid)] = 0.0
+        for sid in np.asarray(obs.occupied_spot_ids).tolist():
+            self.beliefs[self.lot.spot_index(sid)] = 1.0
+        return self.beliefs
+
+    def _static_world(self, obs: Observation, beliefs: np.ndarray, extra: np.ndarray | None = None) -> StaticWorld:
+        """The static obstacles: believed-occupied spots (b >= beta), observed static vehicles, and ``extra``.
+
+        Built worlds are cached by what they are built from (the last ``WORLD_CACHE_SIZE``: parked cars at the
+        sensor's edge flicker in and out of view). A static vehicle lying inside a believed-occupied spot with
+        ``CONTAINED_MARGIN`` to spare adds nothing to the union of obstacles, nor to its raster, so it is left
+        out of what the world is built from. ``world.key`` still names every input (the parking retry logic
+        compares it), so decisions are those of a world built from everything.
+        """
+        d = self.settings.decision
+        occ = np.nonzero(beliefs >= d.belief_threshold)[0]
+        poses = [self.lot.spot_poses[occ]]
+        dims = [self.lot.spot_dims[occ]]
+        stat = [v for v in obs.vehicles if v.is_static]
+        kept = []
+        if stat:
+            sp = np.array([v.pose for v in stat], dtype=float)
+            sd = np.array([[v.length, v.width] for v in stat], dtype=float)
+            poses.append(sp)
+            dims.append(sd)
+            kept = self._not_inside_occupied(sp, sd, occ)
+        if extra is not None and len(extra):
+            poses.append(extra[:, :3])
+            dims.append(extra[:, 3:5])
+        poses_a, dims_a = np.concatenate(poses), np.concatenate(dims)
+        rp, rd = np.round(poses_a, 6), np.round(dims_a, 6)
+        key = (float(obs.ego_length), float(obs.ego_width), rp.tobytes(), rd.tobytes())
+        build = key
+        if stat:  # build from the spots, the vehicles not inside them, and extra
+            keep = np.r_[np.ones(len(occ), bool), kept, np.ones(len(poses_a) - len(occ) - len(stat), bool)]
+            poses_a, dims_a = poses_a[keep], dims_a[keep]
+            build = (key[0], key[1], rp[keep].tobytes(), rd[keep].tobytes())
+        world = self._world_cache.get(build) if extra is None else None
+        if world is None:
+            world = StaticWorld(self.lot, poses_a, dims_a, obs.ego_length, obs.ego_width, self.settings.collision)
+            if extra is None:
+                self._world_cache[build] = world
+                while len(self._world_cache) > WORLD_CACHE_SIZE:
+                    self._world_cache.pop(next(iter(self._world_cache)))
+        else:
+            self._world_cache[build] = self._world_cache.pop(build)  # most recently used last
+        world.key = key
+        return world
+
+    def _not_inside_occupied(self, poses: np.ndarray, dims: np.ndarray, occ: np.ndarray) -> np.ndarray:
+        """(N,) bool: the vehicle rectangles not inside the nearest believed-occupied spot with
+        ``CONTAINED_MARGIN`` to spare on every side."""
+        if not len(occ):
+            return np.ones(len(poses), bool)
+        centres = self.lot.spot_poses[occ, :2]
+        near = occ[np.argmin(((poses[:, None, :2] - centres[None]) ** 2).sum(-1), axis=1)]
+        grown = rect_corners(poses, dims[:, 0] + 2 * CONTAINED_MARGIN, dims[:, 1] + 2 * CONTAINED_MARGIN)
+        return ~rect_inside_rect(grown, self.lot.spot_corners[near])
+
+    def _dynamic(self, obs: Observation, predictions: Sequence[PredictedTrajectory]) -> DynamicObstacles:
+        dt = self.settings.control.dt
+        d = self.settings.decision
+        preds = [self._resample(p, dt) for p in predictions]
+        covered = {(bool(p.is_pedestrian), int(p.agent_id)) for p in preds}
+        if d.fallback_prediction != "none":
+            n = max(1, int(round(d.fallback_horizon / dt)))
+            for v in obs.vehicles:
+                if v.is_static or (False, int(v.id)) in covered:
+                    continue
+                preds.append(self._fallback_vehicle(v, obs.dt, dt, n, d.fallback_prediction))
+            for p in obs.pedestrians:
+                if (True, int(p.id)) in covered:
+                    continue
+                vel = (np.asarray(p.position) - np.asarray(p.previous_position)) / obs.dt
+                if d.fallback_prediction == "static":
+                    vel = vel * 0.0
+                k = np.arange(1, n + 1)[:, None] * dt
+                pos = np.asarray(p.position, dtype=float)[None, :] + k * vel[None, :]
+                preds.append(PredictedTrajectory(agent_id=int(p.id), poses=np.column_stack([pos, np.zeros(n)]),
+                                                 dt=dt, is_pedestrian=True, radius=float(p.radius)))
+        c = self.settings.collision
+        return DynamicObstacles(preds, obs.ego_length, obs.ego_width, c.vehicle_margin, c.pedestrian_margin,
+                                keep_current_gap=c.keep_current_gap, hold_last=c.beyond_horizon == "hold")
+
+    @staticmethod
+    def _resample(p: PredictedTrajectory, dt: float) -> PredictedTrajectory:
+        if abs(p.dt - dt) < 1e-9 or len(p.poses) == 0:
+            return p
+        poses = np.asarray(p.poses, dtype=float).reshape(-1, 3)
+        t_src = p.dt * np.arange(1, len(poses) + 1)
+        n = max(1, int(math.floor(t_src[-1] / dt + 1e-9)))
+        t = dt * np.arange(1, n + 1)
+        th = np.unwrap(poses[:, 2])
+        out = np.column_stack([np.interp(t, t_src, poses[:, 0]), np.interp(t, t_src, poses[:, 1]),
+                               wrap(np.interp(t, t_src, th))])
+        return PredictedTrajectory(agent_id=p.agent_id, poses=out, dt=dt, probability=p.probability,
+                                   is_pedestrian=p.is_pedestrian, length=p.length, width=p.width, radius=p.radius,
+                                   spot_id=p.spot_id)
+
+    @staticmethod
+    def _fallback_vehicle(v, obs_dt: float, dt: float, n: int, kind: str) -> PredictedTrajectory:
+        """Constant (signed) speed and yaw rate from the last two history states, rolled out with eq. (1)."""
+        hist = np.asarray(v.history, dtype=float).reshape(-1, 3)
+        cur = hist[-1]
+        speed, omega = 0.0, 0.0
+        if kind == "constant_velocity" and len(hist) >= 2:
+            prev = hist[-2]
+            dxy = cur[:2] - prev[:2]
+            speed = float(np.dot(dxy, [math.cos(prev[2]), math.sin(prev[2])])) / obs_dt
+            omega = float(wrap(cur[2] - prev[2])) / obs_dt
+        poses = np.empty((n, 3))
+        s = cur.copy()
+        u = np.array([speed, omega])
+        for k in range(n):
+            s = step_vehicle(s, u, dt)
+            poses[k] = s
+        return PredictedTrajectory(agent_id=int(v.id), poses=poses, dt=dt, length=float(v.length),
+                                   width=float(v.width))
+
+    def _agents_as_rects(self, obs: Observation) -> np.ndarray:
+        """Current footprints of the observed dynamic agents that stand (nearly) still, as (x, y, θ, length,
+        width) rows, grown so that a path keeping ``footprint_margin`` to them also keeps the dynamic margins.
+        Moving agents are left out: for them waiting is the answer, not a detour."""
+        c = self.settings.collision
+        gv = 2.0 * max(c.vehicle_margin - c.footprint_margin, 0.0) + 0.04
+        gp = 2.0 * max(c.pedestrian_margin - c.footprint_margin, 0.0) + 0.04
+        rows = []
+        for v in obs.vehicles:
+            h = np.asarray(v.history, dtype=float).reshape(-1, 3)
+            if not v.is_static and (len(h) < 2 or np.hypot(*(h[-1, :2] - h[-2, :2])) / obs.dt < STILL_SPEED):
+                rows.append([*v.pose, v.length + gv, v.width + gv])
+        for p in obs.pedestrians:
+            if np.hypot(*(np.asarray(p.position) - np.asarray(p.previous_position))) / obs.dt < STILL_SPEED:
+                rows.append([*p.position, 0.0, 2 * p.radius + gp, 2 * p.radius + gp])
+        return np.array(rows, dtype=float).reshape(-1, 5)

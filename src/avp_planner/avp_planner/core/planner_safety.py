@@ -1,0 +1,58 @@
+"""The safety extras beyond the paper's idle rule (§V-D-3 says u = 0), each a planner switch the protocols
+turn off (docs/experiment.md, "Protocols"): ``evasive`` — when standing still is itself predicted to be hit,
+drive the candidate that is hit latest or never.
+
+A part of :class:`avp_planner.core.decision.EgoPlanner` (split by job, issue #17).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from avp_planner.core.control import reference_trajectory
+from avp_planner.core.paths import Path
+from avp_planner.core.planner_types import (
+    EXPLORE,
+    _Candidate,
+    _Plan,
+)
+
+
+class SafetyMixin:
+    """Methods of :class:`~avp_planner.core.decision.EgoPlanner`; see the module docstring."""
+
+    def _evade(self, ego, world, dyn, obs, blocked_plans, timing) -> _Plan | None:
+        """If standing still is predicted to be hit, drive whatever is hit latest (or never): the blocked
+        plans of this step and short escape arcs (every curvature of the steering set, forward and reverse,
+        2 to 8 m). Returns None when standing still is safe or nothing does better."""
+        if dyn.empty:
+            return None
+        standing = dyn.first_collision(np.repeat(ego[None], dyn.horizon + 2, axis=0))
+        if standing < 0:
+            return None
+        t0 = time.perf_counter()
+        kap = 1.0 / self.settings.plan_radius
+        cands = list(blocked_plans)
+        start = (float(ego[0]), float(ego[1]), float(ego[2]))
+        for direction in (-1.0, 1.0):
+            for f in self.settings.search.steering_fractions:
+                for length in (2.0, 4.0, 6.0, 8.0):
+                    path = Path(start, ((f * kap, direction * length),))
+                    poses, _ = reference_trajectory(path, self.settings.control, obs.ego_speed)
+                    if not world.free(poses[1:], self.settings.collision.verify_margin).all():
+                        continue
+                    cands.append(_Candidate(EXPLORE, -1, path.end(), path, math.inf, 0, False,
+                                            dyn.first_collision(poses)))
+        timing["spot_selection_time"] += time.perf_counter() - t0
+
+        def later(c: _Candidate) -> tuple:
+            return (-(c.first_hit if c.first_hit >= 0 else 10**9), c.path.length)
+
+        order = sorted((c for c in cands if c.first_hit < 0 or c.first_hit > standing), key=later)
+        plan = self._adopt(order[:3], world, dyn, obs, timing, require_dynamic=False)
+        if plan is not None:
+            plan.note = f"evasive: standing still is hit at step {standing}"
+        return plan

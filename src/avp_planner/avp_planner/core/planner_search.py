@@ -1,0 +1,152 @@
+"""The searches of one decision (§V-D): Hybrid A* over a candidate set with branch and bound, adopting the
+best feasible plan, exploring.
+
+A part of :class:`avp_planner.core.decision.EgoPlanner` (split by job, issue #17).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from avp_planner.core.collision import DynamicObstacles, StaticWorld
+from avp_planner.core.control import Trajectory, track
+from avp_planner.core.hybrid_astar import EgoHeuristic, HybridAStar, PlanResult
+from avp_planner.core.paths import wrap
+from avp_planner.core.planner_types import (
+    EXPLORE,
+    FAILED_SEARCH_CACHE,
+    PARK,
+    _Candidate,
+    _Plan,
+)
+from avp_world.geometry import rect_corners, rect_inside_rect
+from avp_world.types import Observation
+
+
+class SearchMixin:
+    """Methods of :class:`~avp_planner.core.decision.EgoPlanner`; see the module docstring."""
+
+    def _search_set(self, mode: str, items, ego, world, dyn, heur, astar, v0, t_end, stats, timing, blocked_out,
+                    max_iterations: int | None = None, first_feasible: bool = False):
+        """Plan to each item (spot row index or exploration point) with branch and bound on c.
+
+        Returns the feasible candidates sorted by cost, and whether some static path existed but every
+        one was blocked by predicted agents (those are appended to ``blocked_out``). ``first_feasible``: the
+        items are tried in the given order (no lower bounds, no branch and bound) and the first feasible
+        plan ends the search (the implicit method's spot priority, ``decide(spot_priority=...)``).
+        """
+        entries = []
+        for it in items:
+            goals = self.spot_goals(it) if mode == PARK else it[0][None]
+            entries.append((0.0 if first_feasible else self._lower_bound(ego, goals, heur), it, goals))
+        if not first_feasible:
+            entries.sort(key=lambda e: e[0])
+        found: list[_Candidate] = []
+        blocked_by_agents = False
+        best = math.inf
+        for lb, it, goals in entries[: self.settings.decision.max_candidates_planned]:
+            if found and first_feasible:
+                break
+            if (lb >= best and self.settings.decision.branch_and_bound) or time.perf_counter() > t_end:
+                break
+            t0 = time.perf_counter()
+            max_length = self.settings.decision.explore_max_length if mode == EXPLORE else None
+            memo = (astar.world.key, astar.ego.tobytes(), np.asarray(goals, float).tobytes(), max_iterations,
+                    max_length)
+            res: PlanResult | None = self._failed_searches.get(memo)
+            if res is None:
+                res = astar.plan(goals, max_iterations=max_iterations,
+                                 time_cap=min(self.settings.search.time_cap, max(t_end - t0, 1e-3)),
+                                 max_length=max_length)
+                if not res.success and not res.reason.startswith("time cap"):  # a repeatable failure
+                    self._failed_searches[memo] = res
+                    while len(self._failed_searches) > FAILED_SEARCH_CACHE:
+                        self._failed_searches.pop(next(iter(self._failed_searches)))
+            dt_q = time.perf_counter() - t0
+            timing["path_planning_time"] += dt_q
+            stats.setdefault("queries", []).append({"mode": mode, "target": int(it) if mode == PARK else -1,
+                                                    "success": res.success, "reason": res.reason,
+                                                    "time_s": dt_q, "iterations": res.stats.get("iterations", 0)})
+            if not res.success:
+                continue
+            t1 = time.perf_counter()
+            cost, wait, hit = self._price(res.path, world, dyn, v0)
+            timing["spot_selection_time"] += time.perf_counter() - t1
+            if wait < 0:
+                blocked_by_agents = True
+                blocked_out.append(_Candidate(mode, int(self.lot.spot_ids[it]) if mode == PARK else -1, res.goal,
+                                              res.path, math.inf, 0, True, hit))
+                continue
+            found.append(_Candidate(mode, int(self.lot.spot_ids[it]) if mode == PARK else -1, res.goal, res.path,
+                                    cost, wait, True if mode == PARK else bool(it[1])))
+            best = min(best, cost)
+        found.sort(key=lambda c: c.cost)
+        return found, blocked_by_agents
+
+    def _adopt(self, cands: list[_Candidate], world: StaticWorld, dyn: DynamicObstacles, obs: Observation,
+               timing: dict, require_dynamic: bool = True) -> _Plan | None:
+        """Track the cheapest candidate into controls and verify; fall back to the next one."""
+        c = self.settings.collision
+        for cand in cands:
+            t0 = time.perf_counter()
+            traj = track(cand.path, self.settings.control, self.settings.vehicle.max_curvature, obs.ego_speed)
+            timing["path_planning_time"] += time.perf_counter() - t0
+            if cand.wait_steps:
+                z = np.zeros((cand.wait_steps, 2))
+                st = np.repeat(traj.states[:1], cand.wait_steps, axis=0)
+                traj = Trajectory(np.concatenate([z, traj.controls]), np.concatenate([st, traj.states]), traj.dt)
+            relax = np.cumsum(np.r_[0.0, np.hypot(*np.diff(traj.states[:, :2], axis=0).T)]) < c.start_relax_distance
+            margins = np.where(relax, 0.0, c.verify_margin)
+            st = traj.states
+            ok = world.free_xyc(st[:, 0], st[:, 1], np.cos(st[:, 2]), np.sin(st[:, 2]), margins).all()
+            if ok and cand.mode == PARK:
+                ok = self._parked_in(traj.states[-1], cand.goal, cand.spot_id, obs)
+            if ok and (not require_dynamic or dyn.first_collision(traj.states) < 0):
+                return _Plan(cand.mode, cand.spot_id, cand.goal, traj, cand.cost, margins, 0, cand.path.length)
+        return None
+
+    def _parked_in(self, final: np.ndarray, goal: np.ndarray, spot_id: int, obs: Observation) -> bool:
+        """The tracked end state is within the goal tolerance and its footprint inside the spot (V_0 ⊆ S_i)."""
+        s = self.settings.search
+        if math.hypot(final[0] - goal[0], final[1] - goal[1]) > s.goal_tolerance_xy:
+            return False
+        if abs(float(wrap(final[2] - goal[2]))) > s.goal_tolerance_heading:
+            return False
+        k = self.lot.spot_index(spot_id)
+        fp = rect_corners(final, obs.ego_length, obs.ego_width)
+        return bool(rect_inside_rect(fp[None], self.lot.spot_corners[k][None])[0])
+
+    def _searcher(self, world: StaticWorld, ego: np.ndarray, timing: dict):
+        t0 = time.perf_counter()
+        heur = EgoHeuristic(world, ego, self.settings)
+        timing["path_planning_time"] += time.perf_counter() - t0
+        return heur, HybridAStar(world, ego, self.settings, heur)
+
+    def _explore(self, ego, world, dyn, heur, astar, obs, t_end, stats, timing, blocked_out,
+                 max_iterations: int | None = None, back_allowed: bool = True):
+        """Front exploration points, then (if allowed) those behind. Returns (plan or None, some path blocked by
+        predicted agents, the front had paths but all were blocked by predicted agents)."""
+        pts = []
+        for pose, front, rid in self.exploration_points(ego):
+            g = self._explore_goal(pose, world)
+            if g is not None and math.hypot(g[0] - ego[0], g[1] - ego[1]) > 1.0:
+                pts.append((g, front, rid))
+        blocked_any = front_waits = False
+        for group in (True, False):  # front points first; behind only if the front stays blocked
+            items = [p for p in pts if p[1] == group]
+            if group is False and front_waits and not back_allowed:
+                break  # the road ahead is blocked by agents only: wait before turning back
+            if not items:
+                continue
+            found, blocked = self._search_set(EXPLORE, items, ego, world, dyn, heur, astar, obs.ego_speed, t_end,
+                                              stats, timing, blocked_out, max_iterations)
+            blocked_any |= blocked
+            plan = self._adopt(found, world, dyn, obs, timing)
+            if plan is not None:
+                return plan, blocked_any, False
+            if group:
+                front_waits = blocked
+        return None, blocked_any, front_waits

@@ -1,0 +1,87 @@
+"""Types and constants of the ego planner (§V-D): the decision it returns, its plans and candidates."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from avp_planner.core.control import Trajectory
+from avp_planner.core.paths import Path
+
+PARK, EXPLORE, IDLE = "park", "explore", "idle"
+STILL_SPEED = 0.3  # m/s: an agent slower than this counts as standing still (detour instead of waiting)
+EXPLORE_BACK_AFTER = 3.0  # s the road ahead must stay blocked by agents only before turning back (§V-D-2)
+WORLD_CACHE_SIZE = 8  # static worlds kept (see EgoPlanner._static_world)
+#: failed searches remembered by (static world, ego pose, goals, limits): the same search fails the same way, so a
+#: stand-still ego in an unchanged scene does not search again for seconds per step (iteration-limited failures
+#: only; one ended by the wall-clock cap is not repeatable)
+FAILED_SEARCH_CACHE = 512
+CONTAINED_MARGIN = 0.3  # m: a static vehicle this far inside an occupied spot is left out of the raster
+
+
+@dataclass
+
+@dataclass
+class Decision:
+    """What the planner decided at one step.
+
+    mode: 'park' | 'explore' | 'idle'; spot_id: the target spot (-1 unless parking); goal: (3,) goal pose
+    (None when idle); poses: (K, 3) the planned states from now on (poses[0] = current pose); controls:
+    (K - 1, 2) the remaining controls; command: (v, ω) for this step; timings: seconds
+    (``spot_selection_time``: candidate selection, ordering, pricing and prediction checks;
+    ``path_planning_time``: Hybrid A* searches and tracking; ``total``); n_candidates: |I_can,0|;
+    reason: why this mode (or why a plan was dropped); cost: c of the plan; stats: details.
+    """
+
+    mode: str
+    spot_id: int = -1
+    goal: np.ndarray | None = None
+    poses: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    controls: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    command: tuple[float, float] = (0.0, 0.0)
+    timings: dict = field(default_factory=dict)
+    n_candidates: int = 0
+    reason: str = ""
+    cost: float = math.nan
+    replanned: bool = False
+    stats: dict = field(default_factory=dict)
+
+
+def priority_from_probabilities(spot_ids: Sequence[int], probabilities: Sequence[float]) -> np.ndarray:
+    """Spot ids in decreasing probability, ties smaller id first: the ``spot_priority`` of the "Implicit" method
+    (§VI-B-3) from the ego's own intention eta_0,i (avp_perception.core.implicit, the ``ego_intention`` topic)."""
+    ids = np.asarray(spot_ids, dtype=np.int64).reshape(-1)
+    p = np.asarray(probabilities, dtype=float).reshape(-1)
+    if len(ids) != len(p):
+        raise ValueError(f"{len(ids)} spot ids but {len(p)} probabilities")
+    return ids[np.lexsort((ids, -p))]
+
+
+@dataclass
+class _Plan:
+    mode: str
+    spot_id: int
+    goal: np.ndarray
+    traj: Trajectory
+    cost: float
+    margins: np.ndarray  # static clearance each state keeps (0 near the start, verify_margin after)
+    index: int = 0  # next control to send
+    path_length: float = 0.0
+    note: str = ""
+
+
+@dataclass
+class _Candidate:
+    """One evaluated plan (before tracking)."""
+
+    mode: str
+    spot_id: int
+    goal: np.ndarray
+    path: Path
+    cost: float
+    wait_steps: int
+    front: bool = True
+    first_hit: int = -1  # blocked plans: first time index at which a predicted agent meets it (no wait)
