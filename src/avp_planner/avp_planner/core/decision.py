@@ -209,21 +209,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
             self._front_blocked_step = None
         blocked |= blocked_e
         if plan is None and blocked and d.dynamic_as_static_fallback:
-            extra = self._agents_as_rects(obs)
-            if len(extra):
-                t_fb = min(t_end, time.perf_counter() + d.fallback_time_cap)
-                it_fb = d.fallback_max_iterations
-                world2 = self._static_world(obs, b, extra)
-                heur2, astar2 = self._searcher(world2, ego, timing)
-                if len(cands):
-                    found, _ = self._search_set(PARK, cands.tolist(), ego, world, dyn, heur2, astar2,
-                                                obs.ego_speed, t_fb, stats, timing, blocked_plans, it_fb, ordered)
-                    plan = self._adopt(found, world, dyn, obs, timing)
-                if plan is None:
-                    plan, _, _ = self._explore(ego, world, dyn, heur2, astar2, obs, t_fb, stats, timing,
-                                               blocked_plans, it_fb, back_ok)
-                if plan is not None:
-                    stats["around_agents"] = True
+            plan = self._detour(obs, b, ego, world, dyn, cands, ordered, t_end, stats, timing, blocked_plans, back_ok)
         if plan is not None:
             self._plan = plan
             what = "new parking plan around agents" if plan.mode == PARK else "new exploration plan"

@@ -1,6 +1,8 @@
 """The safety extras beyond the paper's idle rule (§V-D-3 says u = 0), each a planner switch the protocols
 turn off (docs/experiment.md, "Protocols"): ``evasive`` — when standing still is itself predicted to be hit,
-drive the candidate that is hit latest or never.
+drive the candidate that is hit latest or never; ``dynamic_as_static_fallback`` — when every plan was blocked by
+predicted agents only, search once more with the agents that stand still as static obstacles (a detour round a
+stopped car).
 
 A part of :class:`avp_planner.core.decision.EgoPlanner` (split by job, issue #17).
 """
@@ -16,6 +18,7 @@ from avp_planner.core.control import reference_trajectory
 from avp_planner.core.paths import Path
 from avp_planner.core.planner_types import (
     EXPLORE,
+    PARK,
     _Candidate,
     _Plan,
 )
@@ -55,4 +58,26 @@ class SafetyMixin:
         plan = self._adopt(order[:3], world, dyn, obs, timing, require_dynamic=False)
         if plan is not None:
             plan.note = f"evasive: standing still is hit at step {standing}"
+        return plan
+
+    def _detour(self, obs, b, ego, world, dyn, cands, ordered, t_end, stats, timing, blocked_plans, back_ok):
+        """``dynamic_as_static_fallback``: park, else explore, with the standing agents' current footprints as
+        static obstacles (small budget: ``fallback_time_cap``, ``fallback_max_iterations``); None if no plan."""
+        d = self.settings.decision
+        plan = None
+        extra = self._agents_as_rects(obs)
+        if len(extra):
+            t_fb = min(t_end, time.perf_counter() + d.fallback_time_cap)
+            it_fb = d.fallback_max_iterations
+            world2 = self._static_world(obs, b, extra)
+            heur2, astar2 = self._searcher(world2, ego, timing)
+            if len(cands):
+                found, _ = self._search_set(PARK, cands.tolist(), ego, world, dyn, heur2, astar2,
+                                            obs.ego_speed, t_fb, stats, timing, blocked_plans, it_fb, ordered)
+                plan = self._adopt(found, world, dyn, obs, timing)
+            if plan is None:
+                plan, _, _ = self._explore(ego, world, dyn, heur2, astar2, obs, t_fb, stats, timing,
+                                           blocked_plans, it_fb, back_ok)
+            if plan is not None:
+                stats["around_agents"] = True
         return plan
