@@ -23,8 +23,6 @@ CONTAINED_MARGIN = 0.3  # m: a static vehicle this far inside an occupied spot i
 
 
 @dataclass
-
-@dataclass
 class Decision:
     """What the planner decided at one step.
 
