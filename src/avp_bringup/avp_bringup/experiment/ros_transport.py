@@ -26,7 +26,7 @@ import numpy as np
 
 from avp_bringup.experiment.metrics import episode_record, prediction_errors
 from avp_bringup.experiment.protocols import load_protocol
-from avp_bringup.experiment.runner import Key, RunConfig, run_profile, sim_values
+from avp_bringup.experiment.run_config import Key, RunConfig, run_profile, sim_values
 
 NAMESPACE = "/avp"
 DRAIN_S = 10.0  # wall seconds to wait for the last messages after the episode ended

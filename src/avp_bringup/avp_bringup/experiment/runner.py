@@ -29,7 +29,7 @@ import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
@@ -40,34 +40,24 @@ from avp_bringup.experiment.profiles import (
     available_names,
     load_profile,
 )
-from avp_bringup.experiment.protocols import apply_planner, load_protocol
+from avp_bringup.experiment.run_config import (  # noqa: F401 - re-exported: the runner's API
+    DEFAULT_HORIZON,
+    Key,
+    RunConfig,
+    run_profile,
+    sim_values,
+)
 
 MODES = {"reactive": (True,), "non-reactive": (False,), "both": (False, True)}
 RESULTS_FILE = "episodes.jsonl"
 RUN_FILE = "run.json"
 RUNS_LOG = "runs.jsonl"
 SEEDS_FILE = "seeds.json"
-DEFAULT_HORIZON = 4.0  # s: t_pred of the predictors (ParkPredict+'s horizon; the paper does not state one)
-
-
-@dataclass(frozen=True)
-class RunConfig:
-    """What the episodes' results depend on besides (method, seed, mode)."""
-
-    t_final: float = 100.0  # t_f [s] (§VI-A)
-    ade_horizon: float = DEFAULT_HORIZON  # H of minADE / minFDE [s]
-    intent_weights: str = ""  # "" = shipped weights if present, else random (intent_seed)
-    intent_seed: int = 0
-    message_precision: bool = True
-    sim_overrides: dict = field(default_factory=dict)  # further avp_sim parameters
-    protocol: str = "default"  # config/protocols/<name>.yaml (.protocols): shared sim + planner set-up
-    planner_overrides: dict = field(default_factory=dict)  # --planner-param: avp_planner values for every method
 
 
 ORACLE_HORIZON = 10.0  # s of true future given to the oracle bound (.oracle)
 
 
-Key = tuple[str, int, str]  # (method, seed, "reactive" | "non_reactive")
 
 
 def mode_name(reactive: bool) -> str:
@@ -81,21 +71,6 @@ def record_key(r: dict) -> Key:
 # ------------------------------------------------------------------------------------------ set-up
 
 
-def sim_values(cfg: RunConfig) -> dict[str, Any]:
-    """avp_sim parameters of the episodes: the shipped sim.param.yaml with t_f and the overrides."""
-    from ament_index_python.packages import get_package_share_directory
-
-    from avp_common.params import load_yaml_params, validate_values
-    from avp_sim.params import SIM_PARAMS
-
-    p = load_yaml_params(Path(get_package_share_directory("avp_sim")) / "config" / "sim.param.yaml", "avp_sim",
-                         SIM_PARAMS)
-    p.update(load_protocol(cfg.protocol).sim)
-    p.update(cfg.sim_overrides)
-    p["t_final"] = float(cfg.t_final)
-    return validate_values(p, SIM_PARAMS, "avp experiment")
-
-
 def intent_identity(cfg: RunConfig) -> str:
     """Which intent weights the episodes use: 'sha256:<hex> (shipped)', 'sha256:<hex> (<path as given>)' or
     'random seed N' (no machine-specific path: summaries made on two machines compare)."""
@@ -107,12 +82,6 @@ def intent_identity(cfg: RunConfig) -> str:
     if not path.is_file():
         raise ValueError(f"--intent-weights {path}: no such file")
     return f"sha256:{hashlib.sha256(path.read_bytes()).hexdigest()} ({cfg.intent_weights or 'shipped'})"
-
-
-def run_profile(name: str, cfg: RunConfig) -> MethodProfile:
-    """The method profile as the run uses it: the protocol's planner parameters, then ``--planner-param``, under
-    the profile's own block (:func:`.protocols.apply_planner`)."""
-    return apply_planner(load_profile(name), load_protocol(cfg.protocol).planner, cfg.planner_overrides)
 
 
 def check_method(profile: MethodProfile) -> str:
