@@ -430,7 +430,8 @@ def test_sigstopped_nodes_in_realtime_hold_the_ego_then_resume(ros, tmp_path):
             k_cont = probe.last()
             graph.kill_node(name, signal.SIGCONT)
             stalls.append((name, k_stop, k_cont))
-            assert graph.procs["avp_sim"].poll() is None and k_cont >= k_stop + 30, (name, k_stop, k_cont)
+            # 5 s at 10 Hz is 50 steps; a loaded CI machine steps slower (25 seen): the stall must still be long
+            assert graph.procs["avp_sim"].poll() is None and k_cont >= k_stop + 15, (name, k_stop, k_cont)
         probe.run_to_end(graph, t0)  # ... and every node still running then
     finally:
         probe.close(graph)

@@ -311,6 +311,10 @@ def test_foreign_inputs_are_dropped_by_the_planner(paper_lot, ros_env, tmp_path,
             assert feeder.spin(30, lambda: all(feeder.node.count_subscribers(f"{ns}/{t}") > 0
                                                for t in ("observation", "beliefs", "predictions"))
                                and feeder.node.count_publishers(f"{ns}/cmd") > 0), "planner not up"
+            # the planner must know the intruder (its writers matched, its node name discovered) before it can
+            # name it: on a loaded machine the name can lag the match
+            assert feeder.spin(30, lambda: all(bad[t].get_subscription_count() > 0 for t in bad)), "no match"
+            feeder.spin(1.0)
             o, b, p = feeder.messages(replace(base, step=1))
             for topic, msg in (("beliefs", b), ("predictions", p), ("observation", o)):
                 bad[topic].publish(msg)  # the intruder's step 1: untagged
