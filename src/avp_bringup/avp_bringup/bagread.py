@@ -58,7 +58,6 @@ class BagReader:
         self.warnings: list[str] = []
         self.typestore = make_typestore()
         self.storage, self.files, self.meta_topics = self._layout()
-        self.salvaged: dict[str, int] = {}  # cut-short file -> messages read from it
         self._reported: set[tuple[str, str]] = set()
         self.topics: dict[str, BagTopic] = {}
         if self.storage == "sqlite3":
@@ -218,7 +217,6 @@ class BagReader:
                             yield out
             except (EndOfFile, InvalidMagic, struct.error) as exc:
                 if not quiet:
-                    self.salvaged[str(f)] = n_read
                     self._note(f"{f}: cut short ({f.stat().st_size} bytes, no footer: {type(exc).__name__}): read "
                                f"{n_read} messages from its complete chunks; the rest of this split is lost")
             except CRCValidationError as exc:
