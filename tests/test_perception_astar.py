@@ -17,7 +17,7 @@ from shapely.geometry import Polygon
 from avp_perception.core.intention import Intention
 from avp_perception.core.prediction import PredictionConfig, make_predictor
 from avp_perception.core.prediction_astar import HybridAStarPredictor, follow_path
-from avp_planner.core.paths import Path
+from avp_search.paths import Path
 from avp_world.geometry import rect_corners
 from avp_world.lot import load_bundled_lot
 from avp_world.types import Observation, ObservedPedestrian, ObservedVehicle

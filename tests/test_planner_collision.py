@@ -10,8 +10,8 @@ from shapely import affinity
 from shapely.geometry import Point, Polygon, box
 from shapely.ops import unary_union
 
-from avp_planner.core.collision import DynamicObstacles, StaticWorld, merge_rects
-from avp_planner.core.settings import CollisionSettings
+from avp_search.collision import DynamicObstacles, StaticWorld, merge_rects
+from avp_search.settings import CollisionSettings
 from avp_world.types import PredictedTrajectory
 
 L, W = 4.6, 1.85

@@ -10,12 +10,12 @@ from shapely import affinity
 from shapely.geometry import Polygon, box
 from shapely.ops import unary_union
 
-from avp_planner.core.collision import StaticWorld
 from avp_planner.core.control import reference_trajectory, track
-from avp_planner.core.hybrid_astar import EgoHeuristic, HybridAStar
-from avp_planner.core.paths import Path
-from avp_planner.core.rs_scalar import rs_candidates, rs_shortest
 from avp_planner.core.settings import PlannerSettings
+from avp_search.collision import StaticWorld
+from avp_search.hybrid_astar import EgoHeuristic, HybridAStar
+from avp_search.paths import Path
+from avp_search.rs_scalar import rs_candidates, rs_shortest
 from avp_world.kinematics import rollout_vehicle
 from avp_world.reeds_shepp import reeds_shepp_batch
 

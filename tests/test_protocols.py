@@ -18,7 +18,7 @@ from avp_bringup.experiment.oracle import apply_targets, ground_truth
 from avp_bringup.experiment.profiles import ProfileError, load_profile, method_node_params
 from avp_bringup.experiment.protocols import SAFETY_EXTRAS, ablation_variants, apply_planner, load_protocol
 from avp_perception.core.prediction import make_predictor
-from avp_planner.core.collision import DynamicObstacles
+from avp_search.collision import DynamicObstacles
 from avp_sim.core.observation import SensorConfig
 from avp_sim.core.scenario import (
     Scenario,

@@ -87,7 +87,7 @@ def ego_priority_from_msg(msg: IntentionArray, lot) -> np.ndarray:
     """The spot order of the "Implicit" method from an ego_intention message (one Intention: spot ids and
     float32 eta_0,i): decreasing probability, ties smaller id first. MessageError for anything but exactly one
     intention, sizes that differ, NaN/inf or probabilities outside [0, 1], unknown spot ids."""
-    from avp_planner.core.decision import priority_from_probabilities
+    from avp_world.types import priority_from_probabilities
 
     if len(msg.intentions) != 1:
         raise MessageError(f"expected exactly one intention (the ego's), got {len(msg.intentions)}")

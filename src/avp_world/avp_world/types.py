@@ -6,6 +6,7 @@ is built on it alone; ground truth never appears here.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -83,3 +84,14 @@ class PredictedTrajectory:
     radius: float = 0.0  # pedestrians
     spot_id: int = -1  # the intended spot, -1 for exploration / unconditioned
     goal: np.ndarray | None = None  # (3,) the conditioning goal (spot or exploration point); None: unconditioned
+
+
+def priority_from_probabilities(spot_ids: Sequence[int], probabilities: Sequence[float]) -> np.ndarray:
+    """Spot ids in decreasing probability, ties smaller id first: the ``spot_priority`` of the "Implicit" method
+    (§VI-B-3) from the ego's own intention eta_0,i. Perception (avp_perception.core.implicit) orders its
+    intention with it, the planner node the ``ego_intention`` message."""
+    ids = np.asarray(spot_ids, dtype=np.int64).reshape(-1)
+    p = np.asarray(probabilities, dtype=float).reshape(-1)
+    if len(ids) != len(p):
+        raise ValueError(f"{len(ids)} spot ids but {len(p)} probabilities")
+    return ids[np.lexsort((ids, -p))]

@@ -23,8 +23,7 @@ from avp_perception.core.belief import BeliefMap
 from avp_perception.core.bev import EGO_GROUP
 from avp_perception.core.intent_model import IntentPredictor
 from avp_perception.core.intention import Intention
-from avp_planner.core.decision import priority_from_probabilities
-from avp_world.types import Observation, ObservedVehicle
+from avp_world.types import Observation, ObservedVehicle, priority_from_probabilities
 
 EGO_ID = EGO_GROUP  # the ego's id in the BEV scene (its trail group)
 

@@ -5,7 +5,7 @@ horizon) -> list[PredictedTrajectory]`` with ``poses[j]`` at t + (j + 1) dt.
 
 For every observed dynamic vehicle V_k and every intention with probability >= mu (spots with eta_k,i >= mu,
 exploration points with eta_hat_k,q >= mu — the goals of the Bezier predictor), a path from V_k's pose to
-the goal is planned with the ego planner's Hybrid A* (:mod:`avp_planner.core.hybrid_astar`, §V-D: arcs at
+the goal is planned with the ego planner's Hybrid A* (:mod:`avp_search.hybrid_astar`, §V-D: arcs at
 1.1 R_min forward and reverse, Reeds-Shepp shots, searched from the goal back to the vehicle). A spot goal is
 the spot centre with the spot heading or its opposite (both seeds of one search: the car may park forwards
 or backwards); an exploration goal is the point with its road heading. The path is followed at the constant
@@ -27,9 +27,9 @@ this keeps the same world from step to step — except the goal spots (>= mu) of
 any spot that an observed dynamic vehicle's current footprint meets (a car already half-way into or out
 of a spot must be able to start); plus the observed static vehicles and the lot boundary L. The ego and the
 other moving vehicles are not obstacles (they move; the ego planner handles the interaction). The
-:class:`~avp_planner.core.collision.StaticWorld` (occupancy grid + distance transform) is cached under that
+:class:`~avp_search.collision.StaticWorld` (occupancy grid + distance transform) is cached under that
 obstacle set and the footprint size, so it is rebuilt only when the set changes; the obstacle-aware 2-D
-heuristic (:class:`~avp_planner.core.hybrid_astar.EgoHeuristic`, rooted at the vehicle) is built once per
+heuristic (:class:`~avp_search.hybrid_astar.EgoHeuristic`, rooted at the vehicle) is built once per
 vehicle and step and shared by its goals, and its 2-D distance map is reused while the vehicle stays in the
 same start cell of the same world (:class:`CachedHeuristic`); the Reeds-Shepp length table once per process.
 
@@ -53,10 +53,10 @@ from avp_perception.core.prediction import (
     constant_velocity_vehicle,
     vehicle_motion,
 )
-from avp_planner.core.collision import StaticWorld
-from avp_planner.core.hybrid_astar import EgoHeuristic, HybridAStar, rs_length_table
-from avp_planner.core.paths import Path
-from avp_planner.core.settings import PlannerSettings
+from avp_search.collision import StaticWorld
+from avp_search.hybrid_astar import EgoHeuristic, HybridAStar, rs_length_table
+from avp_search.paths import Path
+from avp_search.settings import SearchConfig
 from avp_world.geometry import rect_corners, rects_overlap, wrap_angle
 from avp_world.lot import LotMap
 from avp_world.types import Observation, ObservedVehicle, PredictedTrajectory
@@ -71,7 +71,7 @@ class CachedHeuristic(EgoHeuristic):
     :meth:`EgoHeuristic._dijkstra` starts from the cell), so a vehicle moving ~0.2 m per step recomputes it
     only when it enters a new ``heuristic_resolution`` cell. The Reeds-Shepp part uses the exact pose."""
 
-    def __init__(self, world: StaticWorld, ego: np.ndarray, settings: PlannerSettings, cache: dict):
+    def __init__(self, world: StaticWorld, ego: np.ndarray, settings: SearchConfig, cache: dict):
         self._cache = cache
         super().__init__(world, ego, settings)
 
@@ -140,10 +140,10 @@ class HybridAStarPredictor(BezierPredictor):
     name = "hybrid_astar"
 
     def __init__(self, lot: LotMap, config: PredictionConfig = PredictionConfig(),
-                 planner_settings: PlannerSettings | None = None):
+                 planner_settings: SearchConfig | None = None):
         super().__init__(lot, config)
         a = self.config.hybrid_astar
-        base = planner_settings if planner_settings is not None else PlannerSettings()
+        base = planner_settings if planner_settings is not None else SearchConfig()
         collision = replace(base.collision, footprint_margin=a.footprint_margin,
                             verify_margin=min(base.collision.verify_margin, a.footprint_margin))
         search = replace(base.search, max_iterations=int(a.max_iterations), time_cap=float(a.time_cap))

@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from avp_planner.core.paths import Path, arc_end
 from avp_planner.core.settings import ControlSettings
+from avp_search.paths import Path, arc_end
 from avp_world.kinematics import brake_speed, rollout_vehicle
 
 _STOP_EPS = 0.003  # m: a piece is finished when less than this is left

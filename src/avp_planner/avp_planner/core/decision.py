@@ -7,7 +7,7 @@ At each step t, :meth:`EgoPlanner.decide` receives the observation (§III-A), th
 §V-B without the intention model): b = 0.5 initially; observed vacant -> 0, observed occupied -> 1,
 otherwise kept.
 
-**Static world** (:mod:`~avp_planner.core.collision`): lot boundary, spots with b >= β as full spot
+**Static world** (:mod:`~avp_search.collision`): lot boundary, spots with b >= β as full spot
 rectangles, observed static vehicles. **Dynamic obstacles**: the given predictions; an observed dynamic
 vehicle or pedestrian without any prediction gets a constant-velocity one (``fallback_prediction``; §V-C uses
 constant velocity for pedestrians), so that the planner stays safe when run without a prediction module.
@@ -50,7 +50,7 @@ repeated once (small budget) with the current footprints of the agents that stan
 obstacles (``dynamic_as_static_fallback``), which lets the ego drive around a stopped car. Two safety
 additions to the paper's rule: an agent that is already closer than the margin to the ego (a reactive car
 that stopped next to it) only has to keep its
-current gap (:class:`~avp_planner.core.collision.DynamicObstacles`), so the ego is not frozen next to it;
+current gap (:class:`~avp_search.collision.DynamicObstacles`), so the ego is not frozen next to it;
 and if standing still is itself predicted to be hit (``evasive``), the ego drives the candidate that is hit
 latest or never: a blocked plan of this step or a short escape arc (forward/reverse, 2-8 m).
 """
@@ -63,9 +63,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from avp_planner.core.collision import DynamicObstacles, StaticWorld
-from avp_planner.core.hybrid_astar import PlanResult
-from avp_planner.core.paths import wrap
 from avp_planner.core.planner_candidates import CandidatesMixin
 from avp_planner.core.planner_inputs import InputsMixin
 from avp_planner.core.planner_safety import SafetyMixin
@@ -82,11 +79,13 @@ from avp_planner.core.planner_types import (
     Decision,
     _Candidate,
     _Plan,
-    priority_from_probabilities,
 )
 from avp_planner.core.settings import PlannerSettings
+from avp_search.collision import DynamicObstacles, StaticWorld
+from avp_search.hybrid_astar import PlanResult
+from avp_search.paths import wrap
 from avp_world.lot import LotMap
-from avp_world.types import Observation, PredictedTrajectory
+from avp_world.types import Observation, PredictedTrajectory, priority_from_probabilities
 
 __all__ = ["EgoPlanner", "Decision", "priority_from_probabilities", "PARK", "EXPLORE", "IDLE", "STILL_SPEED",
            "EXPLORE_BACK_AFTER", "WORLD_CACHE_SIZE", "FAILED_SEARCH_CACHE", "CONTAINED_MARGIN"]
@@ -103,7 +102,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
     def __init__(self, lot: LotMap, settings: PlannerSettings = PlannerSettings()):
         self.lot = lot
         self.settings = settings.validate()
-        from avp_planner.core.hybrid_astar import rs_length_table
+        from avp_search.hybrid_astar import rs_length_table
 
         s = settings.search
         rs_length_table(round(settings.plan_radius, 9), s.rs_table_resolution, s.rs_table_extent, s.heading_bins)

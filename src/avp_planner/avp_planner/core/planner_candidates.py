@@ -11,11 +11,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from avp_planner.core.collision import DynamicObstacles, StaticWorld
 from avp_planner.core.control import reference_trajectory
-from avp_planner.core.hybrid_astar import EgoHeuristic
-from avp_planner.core.paths import Path, wrap
-from avp_planner.core.rs_scalar import rs_shortest
+from avp_search.collision import DynamicObstacles, StaticWorld
+from avp_search.hybrid_astar import EgoHeuristic
+from avp_search.paths import Path, wrap
+from avp_search.rs_scalar import rs_shortest
 from avp_world.types import Observation
 
 

@@ -11,13 +11,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from avp_planner.core.collision import DynamicObstacles, StaticWorld
-from avp_planner.core.paths import wrap
 from avp_planner.core.planner_types import (
     CONTAINED_MARGIN,
     STILL_SPEED,
     WORLD_CACHE_SIZE,
 )
+from avp_search.collision import DynamicObstacles, StaticWorld
+from avp_search.paths import wrap
 from avp_world.geometry import rect_corners, rect_inside_rect
 from avp_world.kinematics import step_vehicle
 from avp_world.types import Observation, PredictedTrajectory

@@ -15,13 +15,13 @@ import time
 import numpy as np
 
 from avp_planner.core.control import reference_trajectory
-from avp_planner.core.paths import Path
 from avp_planner.core.planner_types import (
     EXPLORE,
     PARK,
     _Candidate,
     _Plan,
 )
+from avp_search.paths import Path
 
 
 class SafetyMixin:

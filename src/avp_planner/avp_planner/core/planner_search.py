@@ -11,10 +11,7 @@ import time
 
 import numpy as np
 
-from avp_planner.core.collision import DynamicObstacles, StaticWorld
 from avp_planner.core.control import Trajectory, track
-from avp_planner.core.hybrid_astar import EgoHeuristic, HybridAStar, PlanResult
-from avp_planner.core.paths import wrap
 from avp_planner.core.planner_types import (
     EXPLORE,
     FAILED_SEARCH_CACHE,
@@ -22,6 +19,9 @@ from avp_planner.core.planner_types import (
     _Candidate,
     _Plan,
 )
+from avp_search.collision import DynamicObstacles, StaticWorld
+from avp_search.hybrid_astar import EgoHeuristic, HybridAStar, PlanResult
+from avp_search.paths import wrap
 from avp_world.geometry import rect_corners, rect_inside_rect
 from avp_world.types import Observation
 

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from avp_planner.core.control import Trajectory
-from avp_planner.core.paths import Path
+from avp_search.paths import Path
 
 PARK, EXPLORE, IDLE = "park", "explore", "idle"
 STILL_SPEED = 0.3  # m/s: an agent slower than this counts as standing still (detour instead of waiting)
@@ -46,16 +45,6 @@ class Decision:
     cost: float = math.nan
     replanned: bool = False
     stats: dict = field(default_factory=dict)
-
-
-def priority_from_probabilities(spot_ids: Sequence[int], probabilities: Sequence[float]) -> np.ndarray:
-    """Spot ids in decreasing probability, ties smaller id first: the ``spot_priority`` of the "Implicit" method
-    (§VI-B-3) from the ego's own intention eta_0,i (avp_perception.core.implicit, the ``ego_intention`` topic)."""
-    ids = np.asarray(spot_ids, dtype=np.int64).reshape(-1)
-    p = np.asarray(probabilities, dtype=float).reshape(-1)
-    if len(ids) != len(p):
-        raise ValueError(f"{len(ids)} spot ids but {len(p)} probabilities")
-    return ids[np.lexsort((ids, -p))]
 
 
 @dataclass

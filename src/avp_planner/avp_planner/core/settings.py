@@ -1,64 +1,21 @@
 """Every knob of the ego planner of §V-D (ROS-free), as frozen dataclasses.
 
-Where a knob is a symbol of the paper it is named in the comment (β, δ, Δt, R_min, the sensing radius of
-Q_0 ...); the rest are the usual Hybrid A* settings (see docs and
-``shared/reference/nawaz-occupancy-and-hybrid-astar-facts.md`` for the values used by Nawaz et al., Nav2 and
-Autoware). Defaults are the values the tests and ``bench/bench_planner.py`` use.
+The collision and search settings are the shared search core's (:mod:`avp_search.settings`, re-exported here);
+tracking, cost and decision settings are the planner's own. Where a knob is a symbol of the paper it is named in
+the comment (β, δ, Δt, R_min, the sensing radius of Q_0 ...). Defaults are the values the tests and
+``bench/bench_planner.py`` use.
 
 Units: metres, seconds, radians.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
-from avp_world.vehicle import VehicleSpec
+from avp_search.settings import CollisionSettings, SearchConfig, SearchSettings
 
-
-@dataclass(frozen=True)
-class CollisionSettings:
-    """Static world (occupancy grid + EDT) and footprint checks (§V-D: V_0,τ ⊆ L, V_0,τ ∩ S_i = ∅ for b ≥ β)."""
-
-    grid_resolution: float = 0.1  # occupancy grid / Euclidean distance transform cell size
-    n_discs: int = 4  # covering discs of the footprint used by the conservative EDT pre-check
-    footprint_margin: float = 0.15  # clearance every searched sample keeps to static obstacles
-    verify_margin: float = 0.05  # clearance the executed eq. (1) states keep to static obstacles
-    start_relax_distance: float = 0.6  # arc length near the ego's current pose checked with verify_margin only
-    vehicle_margin: float = 0.3  # clearance to predicted vehicle footprints (§V-D, time-indexed)
-    pedestrian_margin: float = 0.4  # clearance to predicted pedestrian discs
-    keep_current_gap: bool = True  # extra: an agent already nearer than the margin need only keep its gap (§V-D: no)
-    beyond_horizon: str = "hold"  # a prediction after its last pose: "hold" it there | "release" (no obstacle)
-
-
-@dataclass(frozen=True)
-class SearchSettings:
-    """Hybrid A* (§V-D, "the Hybrid A* implementation from [Nawaz]"), searched from the goal to the ego."""
-
-    xy_resolution: float = 0.5  # closed-set cell size in x and y
-    heading_bins: int = 72  # closed-set heading bins (5 deg)
-    primitive_length: float = 1.6  # arc length of one motion primitive
-    sample_step: float = 0.2  # spacing of collision-checked samples along primitives and Reeds-Shepp shots
-    steering_fractions: tuple[float, ...] = (-1.0, -0.5, 0.0, 0.5, 1.0)  # curvature / kappa_plan
-    curvature_reserve: float = 1.1  # plan with R_plan = 1.1 R_min: 10 % curvature left for the tracker
-    reverse_penalty: float = 1.0  # extra cost per metre driven in reverse
-    steer_penalty: float = 0.2  # extra cost per metre times |kappa| / kappa_plan
-    steer_change_penalty: float = 0.3  # cost per change of curvature, times |d kappa| / kappa_plan
-    switch_penalty: float = 4.0  # cost per change of driving direction (cusp)
-    heuristic_weight: float = 2.5  # weighted A*: f = g + w h (w > 1 trades optimality for speed)
-    heuristic_resolution: float = 1.0  # cell of the obstacle-aware 2-D Dijkstra heuristic
-    rs_table_resolution: float = 0.5  # xy cell of the Reeds-Shepp length look-up table
-    rs_table_extent: float = 15.0  # |x|, |y| covered by the table (Euclidean distance beyond)
-    analytic_every: int = 3  # try a Reeds-Shepp shot every N pops (and on every pop when near)
-    analytic_near: float = 8.0  # "near": heuristic below this distance
-    analytic_detour: float = 1.3  # no shot when the 2-D distance exceeds this times the straight line
-    analytic_candidates: int = 1  # Reeds-Shepp words tried per shot, shortest (cusps charged) first
-    analytic_slack: float = 8.0  # ... only words at most this much longer than the shortest
-    batch_size: int = 4  # open nodes expanded together in one vectorised call
-    max_iterations: int = 1500  # node pops per query
-    time_cap: float = 0.25  # seconds per query (wall clock; the iteration cap normally ends first)
-    goal_tolerance_xy: float = 0.1  # goals are searched exactly; the tracked end state may miss them by this
-    goal_tolerance_heading: float = math.radians(3.0)  # ... and by this heading error (parking plans)
+__all__ = ["CollisionSettings", "SearchSettings", "SearchConfig", "ControlSettings", "CostSettings",
+           "DecisionSettings", "PlannerSettings", "DEFAULT_SETTINGS"]
 
 
 @dataclass(frozen=True)
@@ -111,39 +68,19 @@ class DecisionSettings:
 
 
 @dataclass(frozen=True)
-class PlannerSettings:
-    """All settings of :class:`~avp_planner.core.decision.EgoPlanner`."""
+class PlannerSettings(SearchConfig):
+    """All settings of :class:`~avp_planner.core.decision.EgoPlanner`: the search core's (vehicle, collision,
+    search; :class:`~avp_search.settings.SearchConfig`) and the planner's own (control, cost, decision)."""
 
-    vehicle: VehicleSpec = field(default_factory=VehicleSpec)  # 4.6 x 1.85 m, R_min = 3.22 m (§II-B)
-    collision: CollisionSettings = field(default_factory=CollisionSettings)
-    search: SearchSettings = field(default_factory=SearchSettings)
     control: ControlSettings = field(default_factory=ControlSettings)
     cost: CostSettings = field(default_factory=CostSettings)
     decision: DecisionSettings = field(default_factory=DecisionSettings)
 
-    @property
-    def plan_radius(self) -> float:
-        """R_plan = curvature_reserve * R_min: the turning radius of primitives and Reeds-Shepp shots."""
-        return self.search.curvature_reserve * self.vehicle.min_turning_radius
-
     def validate(self) -> PlannerSettings:
         """Raise ValueError naming the first bad field; returns ``self``."""
-        s, c, k, d = self.search, self.collision, self.control, self.decision
+        k, d = self.control, self.decision
         checks = [
-            ("collision.grid_resolution", c.grid_resolution > 0),
-            ("collision.n_discs", c.n_discs >= 1),
-            ("collision.footprint_margin", c.footprint_margin >= 0),
-            ("collision.verify_margin", 0 <= c.verify_margin <= c.footprint_margin),
-            ("collision.beyond_horizon", c.beyond_horizon in ("hold", "release")),
-            ("search.xy_resolution", s.xy_resolution > 0),
-            ("search.heading_bins", s.heading_bins >= 8),
-            ("search.primitive_length", s.primitive_length > s.sample_step > 0),
-            ("search.steering_fractions", len(s.steering_fractions) >= 1
-             and all(abs(f) <= 1.0 for f in s.steering_fractions)),
-            ("search.curvature_reserve", s.curvature_reserve >= 1.0),
-            ("search.heuristic_weight", s.heuristic_weight >= 1.0),
-            ("search.max_iterations", s.max_iterations >= 1),
-            ("search.time_cap", s.time_cap > 0),
+            *self.search_checks(),
             ("control.dt", k.dt > 0),
             ("control.v_max", 0 < k.v_max <= self.vehicle.max_speed),
             ("control.a_max", k.a_max > 0),

@@ -42,10 +42,10 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from avp_planner.core.collision import StaticWorld
-from avp_planner.core.paths import Path, arc_poses, merge_segments, sample_xycs, wrap
-from avp_planner.core.rs_scalar import CURVATURE_SIGN, rs_candidates
-from avp_planner.core.settings import PlannerSettings
+from avp_search.collision import StaticWorld
+from avp_search.paths import Path, arc_poses, merge_segments, sample_xycs, wrap
+from avp_search.rs_scalar import CURVATURE_SIGN, rs_candidates
+from avp_search.settings import SearchConfig
 from avp_world.reeds_shepp import reeds_shepp_batch
 
 _BIG = 1e9
@@ -74,7 +74,7 @@ def rs_length_table(radius: float, res: float, extent: float, bins: int) -> np.n
 class EgoHeuristic:
     """h(pose) = max(RS length pose -> ego, 2-D obstacle-aware distance pose -> ego); built once per step."""
 
-    def __init__(self, world: StaticWorld, ego: np.ndarray, settings: PlannerSettings):
+    def __init__(self, world: StaticWorld, ego: np.ndarray, settings: SearchConfig):
         s = settings.search
         self.ego = np.asarray(ego, dtype=float)
         self.radius = settings.plan_radius
@@ -206,7 +206,7 @@ class HybridAStar:
         heuristic: a shared :class:`EgoHeuristic` for ``ego`` (built if None).
     """
 
-    def __init__(self, world: StaticWorld, ego: np.ndarray, settings: PlannerSettings,
+    def __init__(self, world: StaticWorld, ego: np.ndarray, settings: SearchConfig,
                  heuristic: EgoHeuristic | None = None):
         self.world = world
         self.settings = settings

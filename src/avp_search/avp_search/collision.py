@@ -32,7 +32,7 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-from avp_planner.core.settings import CollisionSettings
+from avp_search.settings import CollisionSettings
 from avp_world.geometry import points_in_rects, polygon_contains_points, rect_corners, segments_intersect
 from avp_world.lot import LotMap
 from avp_world.types import PredictedTrajectory
