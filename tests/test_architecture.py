@@ -6,7 +6,8 @@ import re
 from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[1] / "src"
-CORE_FILES = [*SRC.glob("avp_world/avp_world/**/*.py"), *SRC.glob("avp_search/avp_search/*.py"), *SRC.glob("avp_sim/avp_sim/core/*.py"),
+CORE_FILES = [*SRC.glob("avp_world/avp_world/**/*.py"), *SRC.glob("avp_search/avp_search/*.py"),
+              *SRC.glob("avp_sim/avp_sim/core/*.py"),
               *SRC.glob("avp_planner/avp_planner/core/*.py"), *SRC.glob("avp_perception/avp_perception/core/*.py"),
               SRC / "avp_planner/avp_planner/scripted_driver.py",
               *[f for f in SRC.glob("avp_bringup/avp_bringup/experiment/*.py") if f.name != "ros_transport.py"]]

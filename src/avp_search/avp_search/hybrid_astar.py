@@ -33,129 +33,22 @@ Failures return a :class:`PlanResult` with ``success = False`` and a reason: "in
 
 from __future__ import annotations
 
-import functools
 import heapq
 import math
 import time
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
 from avp_search.collision import StaticWorld
+from avp_search.heuristic import BIG, EgoHeuristic, rs_length_table
 from avp_search.paths import Path, arc_poses, merge_segments, sample_xycs, wrap
 from avp_search.rs_scalar import CURVATURE_SIGN, rs_candidates
 from avp_search.settings import SearchConfig
-from avp_world.reeds_shepp import reeds_shepp_batch
 
-_BIG = 1e9
+__all__ = ["HybridAStar", "PlanResult", "EgoHeuristic", "rs_length_table", "BATCH_F_SLACK"]
+
 BATCH_F_SLACK = 1.0  # only open nodes whose f is within this of the best one share an expansion batch
-
-
-# -------------------------------------------------------------------------------------------- heuristics
-
-
-@functools.lru_cache(maxsize=8)
-def rs_length_table(radius: float, res: float, extent: float, bins: int) -> np.ndarray:
-    """Reeds-Shepp lengths from the origin (heading 0) to (x, y, φ) for x, y in [0, extent] step ``res`` and φ
-    at the centres of ``bins`` heading bins; (nx, ny, bins) float32. Other quadrants follow by symmetry."""
-    xs = np.arange(0.0, extent + 1e-9, res)
-    th = -math.pi + 2.0 * math.pi * (np.arange(bins) + 0.5) / bins
-    gx, gy, gt = np.meshgrid(xs, xs, th, indexing="ij")
-    goals = np.stack([gx.ravel(), gy.ravel(), gt.ravel()], axis=1)
-    out = np.empty(len(goals))
-    for i in range(0, len(goals), 8192):
-        out[i:i + 8192] = reeds_shepp_batch(np.zeros(3), goals[i:i + 8192], radius).length
-    table = out.reshape(gx.shape).astype(np.float32)
-    table.flags.writeable = False
-    return table
-
-
-class EgoHeuristic:
-    """h(pose) = max(RS length pose -> ego, 2-D obstacle-aware distance pose -> ego); built once per step."""
-
-    def __init__(self, world: StaticWorld, ego: np.ndarray, settings: SearchConfig):
-        s = settings.search
-        self.ego = np.asarray(ego, dtype=float)
-        self.radius = settings.plan_radius
-        self.table = rs_length_table(round(self.radius, 9), s.rs_table_resolution, s.rs_table_extent, s.heading_bins)
-        self.t_res = s.rs_table_resolution
-        self.t_n = self.table.shape[0]
-        self.bins = s.heading_bins
-        self._dijkstra(world, s.heuristic_resolution)
-
-    def _dijkstra(self, world: StaticWorld, res: float) -> None:
-        """Distances (m) from the ego's cell over cells that may hold the car centre (8-connected)."""
-        k = max(1, int(round(res / world.res)))
-        self.h_res = k * world.res
-        edt = world.edt
-        h, w = edt.shape
-        hh, ww = -(-h // k), -(-w // k)
-        pad = np.zeros((hh * k, ww * k), dtype=np.float32)
-        pad[:h, :w] = edt
-        # a coarse cell is free if some point of it may hold the car centre (clearance >= half width, less the
-        # grid's conservative slack and the rasterisation growth)
-        best = pad.reshape(hh, k, ww, k).max(axis=(1, 3))
-        free = best >= max(world.half_w - 2.0 * world.slack, 0.05)
-        self.h_origin = world.origin
-        si = int((self.ego[1] - world.origin[1]) // self.h_res)
-        sj = int((self.ego[0] - world.origin[0]) // self.h_res)
-        dist = np.full((hh, ww), _BIG, dtype=np.float32)
-        if 0 <= si < hh and 0 <= sj < ww:
-            free[si, sj] = True
-            dist[si, sj] = 0.0
-        blocked = ~free
-        cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
-        box = np.ones((3, 3), np.uint8)
-        step, diag = np.float32(self.h_res), np.float32(self.h_res * math.sqrt(2.0))
-        for it in range(4 * (hh + ww)):
-            new = np.minimum(np.minimum(dist, cv2.erode(dist, cross) + step), cv2.erode(dist, box) + diag)
-            new[blocked] = _BIG
-            if it % 4 == 3 and np.array_equal(new, dist):
-                break
-            dist = new
-        self.reachable = dist < _BIG / 2
-        # blocked cells next to free ones get their neighbour's value + one step (poses near walls)
-        filled = dist.copy()
-        for _ in range(2):
-            filled = np.where(blocked, np.minimum(filled, cv2.erode(filled, box) + diag), filled)
-        self.dist = filled
-
-    def dist2d(self, xy: np.ndarray) -> np.ndarray:
-        xy = np.asarray(xy, dtype=float)
-        i = np.floor((xy[..., 1] - self.h_origin[1]) / self.h_res).astype(np.int64)
-        j = np.floor((xy[..., 0] - self.h_origin[0]) / self.h_res).astype(np.int64)
-        ok = (i >= 0) & (i < self.dist.shape[0]) & (j >= 0) & (j < self.dist.shape[1])
-        out = np.full(xy.shape[:-1], _BIG)
-        out[ok] = self.dist[i[ok], j[ok]]
-        return out
-
-    def reachable_at(self, xy: np.ndarray) -> bool:
-        return bool(self.dist2d(np.asarray(xy, dtype=float)[None, :2])[0] < _BIG / 2)
-
-    def rs(self, poses: np.ndarray) -> np.ndarray:
-        """Reeds-Shepp length (table, nearest cell; Euclidean beyond the table) from each pose to the ego."""
-        p = np.asarray(poses, dtype=float).reshape(-1, 3)
-        dx, dy = self.ego[0] - p[:, 0], self.ego[1] - p[:, 1]
-        c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
-        x, y = c * dx + s * dy, -s * dx + c * dy
-        phi = wrap(self.ego[2] - p[:, 2]) * np.where(x < 0, -1.0, 1.0) * np.where(y < 0, -1.0, 1.0)
-        ix = np.rint(np.abs(x) / self.t_res).astype(np.int64)
-        iy = np.rint(np.abs(y) / self.t_res).astype(np.int64)
-        ib = np.floor((phi + math.pi) / (2.0 * math.pi) * self.bins).astype(np.int64) % self.bins
-        inside = (ix < self.t_n) & (iy < self.t_n)
-        out = np.hypot(x, y)
-        out[inside] = self.table[ix[inside], iy[inside], ib[inside]]
-        return out
-
-    def __call__(self, poses: np.ndarray) -> np.ndarray:
-        return self.both(poses)[0]
-
-    def both(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(h, 2-D distance) of each pose."""
-        p = np.asarray(poses, dtype=float).reshape(-1, 3)
-        d = self.dist2d(p[:, :2])
-        return np.maximum(self.rs(p), d), d
 
 
 # ------------------------------------------------------------------------------------------------ search
@@ -262,174 +155,195 @@ class HybridAStar:
              max_length: float | None = None) -> PlanResult:
         """Search a path from the ego to any of ``goals`` (G, 3), optionally no longer than ``max_length`` m
         (branches that cannot stay within it by the 2-D lower bound are pruned)."""
-        t0 = time.perf_counter()
-        s, c = self.settings.search, self.settings.collision
-        max_it = s.max_iterations if max_iterations is None else int(max_iterations)
-        cap = s.time_cap if time_cap is None else float(time_cap)
-        goals = np.asarray(goals, dtype=float).reshape(-1, 3)
-        stats = {"iterations": 0, "expansions": 0, "analytic": 0, "nodes": 0, "time_s": 0.0}
+        s = self.settings.search
+        q = _Query(goals=np.asarray(goals, dtype=float).reshape(-1, 3), t0=time.perf_counter(),
+                   max_it=s.max_iterations if max_iterations is None else int(max_iterations),
+                   cap=s.time_cap if time_cap is None else float(time_cap),
+                   lmax=math.inf if max_length is None else float(max_length))
+        reason = self._seed(q)
+        if reason:
+            return q.fail(reason)
+        while q.heap:
+            batch, result = self._pop_batch(q)
+            if result is not None:
+                return result
+            if not batch:
+                break
+            self._expand(q, batch)
+        return q.fail("no path within the length limit" if q.pruned else "search space exhausted")
 
-        def fail(reason: str) -> PlanResult:
-            stats["time_s"] = time.perf_counter() - t0
-            return PlanResult(False, reason, stats=stats)
-
+    def _seed(self, q: _Query) -> str:
+        """Check the query, build the heuristic if missing and push every collision-free goal as a seed; returns
+        the failure reason ("" to go on)."""
+        c, goals, world = self.settings.collision, q.goals, self.world
         if not self._ego_ok or not np.isfinite(goals).all() or not len(goals):
-            return fail("invalid input: NaN" if len(goals) else "invalid input: no goal")
-        world = self.world
+            return "invalid input: NaN" if len(goals) else "invalid input: no goal"
         if not world.exact_free(self.ego[None], 0.0)[0]:
-            return fail("start in collision")
+            return "start in collision"
         gfree = world.free(goals, c.footprint_margin)
         if not gfree.any():
-            return fail("goal in collision")
+            return "goal in collision"
         if self.heuristic is None:  # built once per ego pose and world, not counted against the time cap
             t_h = time.perf_counter()
             self.heuristic = EgoHeuristic(world, self.ego, self.settings)
-            t0 += time.perf_counter() - t_h
+            q.t0 += time.perf_counter() - t_h
         heur = self.heuristic
         if not any(heur.reachable_at(g) for g in goals[gfree]):
-            return fail("goal unreachable (2-D)")
-        lmax = math.inf if max_length is None else float(max_length)
-        slack2d = math.sqrt(2.0) * heur.h_res
-        if lmax < math.inf and float(np.min(heur.dist2d(goals[gfree, :2]))) / 1.0824 - slack2d > lmax:
-            return fail("goal beyond the length limit")
-        pruned = False
-
-        ego_t = (float(self.ego[0]), float(self.ego[1]), float(self.ego[2]))
-        w = s.heuristic_weight
-        # node arrays
-        nx: list[float] = []
-        ny: list[float] = []
-        nth: list[float] = []
-        ng: list[float] = []
-        nh: list[float] = []
-        nd: list[float] = []  # 2-D obstacle-aware distance to the ego
-        nl: list[float] = []  # path length from the goal
-        npar: list[int] = []
-        nprim: list[int] = []
-        ndir: list[float] = []  # actual driving direction of the edge into the node (0: seed)
-        heap: list[tuple[float, int]] = []
-        best_g: dict[tuple[int, int, int], float] = {}
-        closed: set[tuple[int, int, int]] = set()
+            return "goal unreachable (2-D)"
+        q.slack2d = math.sqrt(2.0) * heur.h_res
+        if q.lmax < math.inf and float(np.min(heur.dist2d(goals[gfree, :2]))) / 1.0824 - q.slack2d > q.lmax:
+            return "goal beyond the length limit"
+        w = self.settings.search.heuristic_weight
         hg, dg = heur.both(goals)
         for gi in np.nonzero(gfree)[0]:
             gx, gy, gt = (float(v) for v in goals[gi])
-            nx.append(gx)
-            ny.append(gy)
-            nth.append(gt)
-            ng.append(0.0)
-            nh.append(float(hg[gi]))
-            nd.append(float(dg[gi]))
-            nl.append(0.0)
-            npar.append(-int(gi) - 1)  # seeds store -(goal index) - 1
-            nprim.append(-1)
-            ndir.append(0.0)
-            best_g[self._key(gx, gy, gt)] = 0.0
-            heapq.heappush(heap, (w * float(hg[gi]), len(nx) - 1))
+            q.best_g[self._key(gx, gy, gt)] = 0.0
+            q.add(gx, gy, gt, 0.0, float(hg[gi]), float(dg[gi]), 0.0, -int(gi) - 1, -1, 0.0,
+                  w * float(hg[gi]))  # seeds store -(goal index) - 1 as parent
+        return ""
 
-        n_prim, n_samp = self.prim_local.shape[0], self.prim_local.shape[1]
-        lx, ly, lc, ls = self.loc_x, self.loc_y, self.loc_c, self.loc_s
-        el = self.end_local
-        batch_size = max(1, s.batch_size)
-        while heap:
-            # pop up to batch_size open nodes; each may end the search with a Reeds-Shepp shot
-            batch: list[int] = []
-            f_first = math.inf
-            while heap and len(batch) < batch_size:
-                if stats["iterations"] >= max_it:
-                    return fail(f"no path within {max_it} iterations")
-                if time.perf_counter() - t0 > cap:
-                    return fail(f"time cap ({cap:.3f} s)")
-                if batch and heap[0][0] > f_first + BATCH_F_SLACK:
-                    break  # only nodes (nearly) as good as the best one share a batch
-                f_top, nid = heapq.heappop(heap)
-                x, y, th = nx[nid], ny[nid], nth[nid]
-                key = self._key(x, y, th)
-                if key in closed or ng[nid] > best_g.get(key, math.inf) + 1e-9:
-                    continue
-                closed.add(key)
-                stats["iterations"] += 1
-                f_first = min(f_first, f_top)
-                if self._want_shot(nh[nid], nd[nid], x, y, stats["iterations"]):
-                    stats["analytic"] += 1
-                    for _, rs in rs_candidates((x, y, th), ego_t, self.radius, s.switch_penalty, s.analytic_candidates,
-                                               s.analytic_slack):
-                        segs = tuple((CURVATURE_SIGN[k] / self.radius, ln) for k, ln in rs)
-                        if nl[nid] + sum(abs(ln) for _, ln in segs) > lmax:
-                            pruned = True
-                            continue
-                        if self._shot_free(segs, (x, y, th)):
-                            return self._finish(nid, segs, nx, ny, nth, ng, npar, nprim, ndir, goals, stats, t0)
-                batch.append(nid)
-            if not batch:
-                break
-            # expansion of the whole batch: all primitives of all nodes in one call
-            stats["expansions"] += len(batch)
-            bx = np.array([nx[i] for i in batch])
-            by = np.array([ny[i] for i in batch])
-            bt = np.array([nth[i] for i in batch])
-            cs, sn = np.cos(bt)[:, None], np.sin(bt)[:, None]
-            ok = world.free_xyc(
-                (bx[:, None] + cs * lx - sn * ly).ravel(), (by[:, None] + sn * lx + cs * ly).ravel(),
-                (cs * lc - sn * ls).ravel(), (sn * lc + cs * ls).ravel(), c.footprint_margin,
-            ).reshape(len(batch), n_prim, n_samp).all(axis=2)
-            bi, pi = np.nonzero(ok)
-            if not len(bi):
+    def _pop_batch(self, q: _Query) -> tuple[list[int], PlanResult | None]:
+        """Pop up to ``batch_size`` open nodes (nearly) as good as the best one; each may end the search with a
+        collision-free Reeds-Shepp shot to the ego. Returns (batch, the result if the search ended)."""
+        s, stats = self.settings.search, q.stats
+        ego_t = (float(self.ego[0]), float(self.ego[1]), float(self.ego[2]))
+        batch: list[int] = []
+        f_first = math.inf
+        while q.heap and len(batch) < max(1, s.batch_size):
+            if stats["iterations"] >= q.max_it:
+                return batch, q.fail(f"no path within {q.max_it} iterations")
+            if time.perf_counter() - q.t0 > q.cap:
+                return batch, q.fail(f"time cap ({q.cap:.3f} s)")
+            if batch and q.heap[0][0] > f_first + BATCH_F_SLACK:
+                break  # only nodes (nearly) as good as the best one share a batch
+            f_top, nid = heapq.heappop(q.heap)
+            x, y, th = q.x[nid], q.y[nid], q.th[nid]
+            key = self._key(x, y, th)
+            if key in q.closed or q.g[nid] > q.best_g.get(key, math.inf) + 1e-9:
                 continue
-            cb, sb = cs[bi, 0], sn[bi, 0]
-            ends = np.stack([bx[bi] + cb * el[pi, 0] - sb * el[pi, 1], by[bi] + sb * el[pi, 0] + cb * el[pi, 1],
-                             wrap(bt[bi] + el[pi, 2])], axis=1)
-            hs, ds = heur.both(ends)
-            for m in range(len(bi)):
-                if hs[m] >= _BIG / 2:
-                    continue
-                ex, ey, et = float(ends[m, 0]), float(ends[m, 1]), float(ends[m, 2])
-                k2 = self._key(ex, ey, et)
-                if k2 in closed:
-                    continue
-                nid = batch[bi[m]]
-                p = int(pi[m])
-                length = nl[nid] + s.primitive_length
-                if length + float(ds[m]) / 1.0824 - slack2d > lmax:
-                    pruned = True
-                    continue
-                adir = -self.prim_dir[p]
-                cost = ng[nid] + self.prim_cost[p]
-                pprim, pdir = nprim[nid], ndir[nid]
-                if pprim >= 0:
-                    cost += s.steer_change_penalty * abs(self.prim_frac[p] - self.prim_frac[pprim])
-                if pdir != 0.0 and pdir != adir:
-                    cost += s.switch_penalty
-                if cost >= best_g.get(k2, math.inf) - 1e-9:
-                    continue
-                best_g[k2] = cost
-                nx.append(ex)
-                ny.append(ey)
-                nth.append(et)
-                ng.append(cost)
-                nh.append(float(hs[m]))
-                nd.append(float(ds[m]))
-                nl.append(length)
-                npar.append(nid)
-                nprim.append(p)
-                ndir.append(float(adir))
-                heapq.heappush(heap, (cost + w * float(hs[m]), len(nx) - 1))
-            stats["nodes"] = len(nx)
-        return fail("no path within the length limit" if pruned else "search space exhausted")
+            q.closed.add(key)
+            stats["iterations"] += 1
+            f_first = min(f_first, f_top)
+            if self._want_shot(q.h[nid], q.d[nid], x, y, stats["iterations"]):
+                stats["analytic"] += 1
+                for _, rs in rs_candidates((x, y, th), ego_t, self.radius, s.switch_penalty, s.analytic_candidates,
+                                           s.analytic_slack):
+                    segs = tuple((CURVATURE_SIGN[k] / self.radius, ln) for k, ln in rs)
+                    if q.length[nid] + sum(abs(ln) for _, ln in segs) > q.lmax:
+                        q.pruned = True
+                        continue
+                    if self._shot_free(segs, (x, y, th)):
+                        return batch, self._finish(q, nid, segs)
+            batch.append(nid)
+        return batch, None
 
-    def _finish(self, nid, shot, nx, ny, nth, ng, npar, nprim, ndir, goals, stats, t0) -> PlanResult:
+    def _expand(self, q: _Query, batch: list[int]) -> None:
+        """Expand every node of ``batch`` by all primitives in one vectorised collision check; push the children
+        that improve on their cell's best cost."""
+        s, c = self.settings.search, self.settings.collision
+        q.stats["expansions"] += len(batch)
+        n_prim, n_samp = self.prim_local.shape[0], self.prim_local.shape[1]
+        lx, ly, lc, ls, el = self.loc_x, self.loc_y, self.loc_c, self.loc_s, self.end_local
+        bx = np.array([q.x[i] for i in batch])
+        by = np.array([q.y[i] for i in batch])
+        bt = np.array([q.th[i] for i in batch])
+        cs, sn = np.cos(bt)[:, None], np.sin(bt)[:, None]
+        ok = self.world.free_xyc(
+            (bx[:, None] + cs * lx - sn * ly).ravel(), (by[:, None] + sn * lx + cs * ly).ravel(),
+            (cs * lc - sn * ls).ravel(), (sn * lc + cs * ls).ravel(), c.footprint_margin,
+        ).reshape(len(batch), n_prim, n_samp).all(axis=2)
+        bi, pi = np.nonzero(ok)
+        if not len(bi):
+            return
+        cb, sb = cs[bi, 0], sn[bi, 0]
+        ends = np.stack([bx[bi] + cb * el[pi, 0] - sb * el[pi, 1], by[bi] + sb * el[pi, 0] + cb * el[pi, 1],
+                         wrap(bt[bi] + el[pi, 2])], axis=1)
+        hs, ds = self.heuristic.both(ends)
+        w, closed, best_g = s.heuristic_weight, q.closed, q.best_g
+        for m in range(len(bi)):
+            if hs[m] >= BIG / 2:
+                continue
+            ex, ey, et = float(ends[m, 0]), float(ends[m, 1]), float(ends[m, 2])
+            k2 = self._key(ex, ey, et)
+            if k2 in closed:
+                continue
+            nid = batch[bi[m]]
+            p = int(pi[m])
+            length = q.length[nid] + s.primitive_length
+            if length + float(ds[m]) / 1.0824 - q.slack2d > q.lmax:
+                q.pruned = True
+                continue
+            adir = -self.prim_dir[p]
+            cost = q.g[nid] + self.prim_cost[p]
+            pprim, pdir = q.prim[nid], q.dir[nid]
+            if pprim >= 0:
+                cost += s.steer_change_penalty * abs(self.prim_frac[p] - self.prim_frac[pprim])
+            if pdir != 0.0 and pdir != adir:
+                cost += s.switch_penalty
+            if cost >= best_g.get(k2, math.inf) - 1e-9:
+                continue
+            best_g[k2] = cost
+            q.add(ex, ey, et, cost, float(hs[m]), float(ds[m]), length, nid, p, float(adir), cost + w * float(hs[m]))
+        q.stats["nodes"] = len(q.x)
+
+    def _finish(self, q: _Query, nid: int, shot: tuple[tuple[float, float], ...]) -> PlanResult:
+        """The path of a search ended by a Reeds-Shepp shot from node ``nid`` to the ego."""
         s = self.settings.search
         # driving order: ego -> (reversed shot) -> node -> ... -> seed goal
         segs: list[tuple[float, float]] = [(k, -ln) for k, ln in reversed(shot)]
         m = nid
-        while npar[m] >= 0:
-            p = nprim[m]
+        while q.par[m] >= 0:
+            p = q.prim[m]
             segs.append((float(self.prim_kappa[p]), float(-self.prim_dir[p] * s.primitive_length)))
-            m = npar[m]
-        gi = -npar[m] - 1
+            m = q.par[m]
+        gi = -q.par[m] - 1
         path = Path((float(self.ego[0]), float(self.ego[1]), float(self.ego[2])), merge_segments(segs))
         shot_len = sum(abs(ln) for _, ln in shot)
         shot_rev = sum(abs(ln) for _, ln in shot if ln > 0)  # reversed in driving order
-        cost = ng[nid] + shot_len + s.reverse_penalty * shot_rev + s.switch_penalty * Path((0, 0, 0), shot).n_switches
-        stats["time_s"] = time.perf_counter() - t0
-        stats["nodes"] = len(nx)
-        return PlanResult(True, "", path=path, goal=goals[gi].copy(), goal_index=int(gi), cost=float(cost), stats=stats)
+        cost = q.g[nid] + shot_len + s.reverse_penalty * shot_rev + s.switch_penalty * Path((0, 0, 0), shot).n_switches
+        q.stats["time_s"] = time.perf_counter() - q.t0
+        q.stats["nodes"] = len(q.x)
+        return PlanResult(True, "", path=path, goal=q.goals[gi].copy(), goal_index=int(gi), cost=float(cost),
+                          stats=q.stats)
+
+
+@dataclass
+class _Query:
+    """State of one :meth:`HybridAStar.plan` call: node i's fields at index i of each list (pose, cost g,
+    heuristic h, 2-D distance d to the ego, path length from the goal, parent, primitive, driving direction of
+    the edge into it: 0 for a seed), the open heap of (f, node), the best g and the closed set by cell."""
+
+    goals: np.ndarray
+    t0: float
+    max_it: int
+    cap: float
+    lmax: float
+    slack2d: float = 0.0
+    pruned: bool = False
+    stats: dict = field(default_factory=lambda: {"iterations": 0, "expansions": 0, "analytic": 0, "nodes": 0,
+                                                 "time_s": 0.0})
+    x: list[float] = field(default_factory=list)
+    y: list[float] = field(default_factory=list)
+    th: list[float] = field(default_factory=list)
+    g: list[float] = field(default_factory=list)
+    h: list[float] = field(default_factory=list)
+    d: list[float] = field(default_factory=list)
+    length: list[float] = field(default_factory=list)
+    par: list[int] = field(default_factory=list)
+    prim: list[int] = field(default_factory=list)
+    dir: list[float] = field(default_factory=list)
+    heap: list[tuple[float, int]] = field(default_factory=list)
+    best_g: dict[tuple[int, int, int], float] = field(default_factory=dict)
+    closed: set[tuple[int, int, int]] = field(default_factory=set)
+
+    def add(self, x: float, y: float, th: float, g: float, h: float, d: float, length: float, par: int, prim: int,
+            direction: float, f: float) -> None:
+        """Append a node and push it on the open heap with priority ``f``."""
+        for column, value in ((self.x, x), (self.y, y), (self.th, th), (self.g, g), (self.h, h), (self.d, d),
+                              (self.length, length), (self.par, par), (self.prim, prim), (self.dir, direction)):
+            column.append(value)
+        heapq.heappush(self.heap, (f, len(self.x) - 1))
+
+    def fail(self, reason: str) -> PlanResult:
+        self.stats["time_s"] = time.perf_counter() - self.t0
+        return PlanResult(False, reason, stats=self.stats)

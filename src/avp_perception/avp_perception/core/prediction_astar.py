@@ -29,9 +29,9 @@ of a spot must be able to start); plus the observed static vehicles and the lot 
 other moving vehicles are not obstacles (they move; the ego planner handles the interaction). The
 :class:`~avp_search.collision.StaticWorld` (occupancy grid + distance transform) is cached under that
 obstacle set and the footprint size, so it is rebuilt only when the set changes; the obstacle-aware 2-D
-heuristic (:class:`~avp_search.hybrid_astar.EgoHeuristic`, rooted at the vehicle) is built once per
-vehicle and step and shared by its goals, and its 2-D distance map is reused while the vehicle stays in the
-same start cell of the same world (:class:`CachedHeuristic`); the Reeds-Shepp length table once per process.
+heuristic (:class:`~avp_search.heuristic.EgoHeuristic`, rooted at the vehicle) is built once per vehicle
+and step and shared by its goals, and its 2-D distance map is reused while the vehicle stays in the same
+start cell of the same world (the heuristic's ``cache``); the Reeds-Shepp length table once per process.
 
 Only iteration caps decide the searches (``time_cap`` is a wall-clock safety net set far above the
 iteration cap's cost), so the predictions are deterministic.
@@ -54,7 +54,8 @@ from avp_perception.core.prediction import (
     vehicle_motion,
 )
 from avp_search.collision import StaticWorld
-from avp_search.hybrid_astar import EgoHeuristic, HybridAStar, rs_length_table
+from avp_search.heuristic import EgoHeuristic, rs_length_table
+from avp_search.hybrid_astar import HybridAStar
 from avp_search.paths import Path
 from avp_search.settings import SearchConfig
 from avp_world.geometry import rect_corners, rects_overlap, wrap_angle
@@ -62,31 +63,6 @@ from avp_world.lot import LotMap
 from avp_world.types import Observation, ObservedVehicle, PredictedTrajectory
 
 WORLD_CACHE_SIZE = 8  # static worlds kept (one per obstacle set and footprint size)
-HEURISTIC_CACHE_SIZE = 64  # 2-D distance maps kept (one per static world and start cell)
-
-
-class CachedHeuristic(EgoHeuristic):
-    """The planner's heuristic rooted at a vehicle, with the obstacle-aware 2-D distance map shared between
-    poses in the same start cell of the same static world (the map depends on nothing else: the Dijkstra of
-    :meth:`EgoHeuristic._dijkstra` starts from the cell), so a vehicle moving ~0.2 m per step recomputes it
-    only when it enters a new ``heuristic_resolution`` cell. The Reeds-Shepp part uses the exact pose."""
-
-    def __init__(self, world: StaticWorld, ego: np.ndarray, settings: SearchConfig, cache: dict):
-        self._cache = cache
-        super().__init__(world, ego, settings)
-
-    def _dijkstra(self, world: StaticWorld, res: float) -> None:
-        k = max(1, int(round(res / world.res)))  # the start cell, as EgoHeuristic._dijkstra computes it
-        h_res = k * world.res
-        cell = (int((self.ego[1] - world.origin[1]) // h_res), int((self.ego[0] - world.origin[0]) // h_res))
-        key = (world.key, res, cell)
-        hit = self._cache.get(key)
-        if hit is None:
-            super()._dijkstra(world, res)
-            if len(self._cache) >= HEURISTIC_CACHE_SIZE:
-                self._cache.clear()
-            hit = self._cache[key] = (self.h_res, self.h_origin, self.reachable, self.dist)
-        self.h_res, self.h_origin, self.reachable, self.dist = hit
 
 
 def spot_goal_poses(lot: LotMap, row: int) -> np.ndarray:
@@ -212,7 +188,7 @@ class HybridAStarPredictor(BezierPredictor):
                 if astar is None:  # one search object and heuristic per vehicle and step, shared by its goals
                     world = self.static_world(obs, free_rows, vehicle.length, vehicle.width)
                     astar = HybridAStar(world, pose, self.settings,
-                                        CachedHeuristic(world, pose, self.settings, self._heuristics))
+                                        EgoHeuristic(world, pose, self.settings, cache=self._heuristics))
                 targets = spot_goal_poses(self.lot, self.lot.spot_index(sid)) if sid >= 0 else goal[None]
                 res = astar.plan(targets, max_length=cfg.hybrid_astar.max_length)
                 st["queries"] = st.get("queries", 0) + 1

@@ -77,8 +77,8 @@ from avp_planner.core.planner_types import (
     STILL_SPEED,
     WORLD_CACHE_SIZE,
     Decision,
-    _Candidate,
     _Plan,
+    _Step,
 )
 from avp_planner.core.settings import PlannerSettings
 from avp_search.collision import DynamicObstacles, StaticWorld
@@ -130,13 +130,11 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         """
         t_start = time.perf_counter()
         timing = {"spot_selection_time": 0.0, "path_planning_time": 0.0, "total": 0.0}
-        stats: dict = {}
         predictions = list(predictions or ())
         bad = self._check_inputs(obs, beliefs, predictions)
         if bad:
             self._plan = None
             return self._finish(Decision(IDLE, reason=bad), timing, t_start)
-        d = self.settings.decision
         if self._plan is None and obs.step < self._idle_until:  # stay put until the next idle re-plan (§V-D-3)
             if beliefs is None:
                 self.update_beliefs(obs)
@@ -144,6 +142,17 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
                                                       "(idle_replan_steps)", poses=np.asarray(obs.ego_pose,
                                                                                              float)[None].copy()),
                                 timing, t_start)
+        st = self._step_context(obs, beliefs, predictions, spot_priority, timing, t_start)
+        done, keep_explore = self._follow_current(st)
+        if done is None:
+            done = self._try_parking(st, keep_explore)
+        if done is None:
+            done = self._try_exploring(st, keep_explore)
+        return done if done is not None else self._go_idle(st)
+
+    def _step_context(self, obs: Observation, beliefs: np.ndarray | None, predictions: list[PredictedTrajectory],
+                      spot_priority: Sequence[int] | None, timing: dict, t_start: float) -> _Step:
+        """Beliefs, static world, predicted obstacles and candidate spots of this step (spot-selection time)."""
         b = self.update_beliefs(obs).copy() if beliefs is None else np.asarray(beliefs, dtype=float)
         ego = np.asarray(obs.ego_pose, dtype=float)
         t0 = time.perf_counter()
@@ -154,78 +163,92 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         if ordered:
             cands = self._prioritised(cands, spot_priority, ego)
         timing["spot_selection_time"] += time.perf_counter() - t0
-        why = ""
+        return _Step(obs=obs, b=b, ego=ego, world=world, dyn=dyn, cands=cands, ordered=ordered, timing=timing,
+                     t_start=t_start, t_end=t_start + self.settings.decision.decision_time_cap)
 
-        # ---- 1. the plan being executed
-        keep_explore: _Plan | None = None
-        p = self._plan
+    def _follow_current(self, st: _Step) -> tuple[Decision | None, _Plan | None]:
+        """1. The plan being executed: parked at its end, still valid (go on), or dropped. Returns (the decision
+        if this step ends here, an exploration plan to keep unless parking succeeds)."""
+        p, ego = self._plan, st.ego
         if p is not None and p.mode == PARK and p.index >= len(p.traj.controls):
-            if math.hypot(*(p.traj.states[-1][:2] - ego[:2])) <= d.replan_pose_tolerance:
+            if math.hypot(*(p.traj.states[-1][:2] - ego[:2])) <= self.settings.decision.replan_pose_tolerance:
                 return self._finish(Decision(IDLE, spot_id=p.spot_id, goal=p.goal.copy(), poses=ego[None].copy(),
-                                             n_candidates=len(cands), reason="parked"), timing, t_start)
-        if self._plan is not None:
-            ok, why = self._still_valid(self._plan, ego, world, dyn)
-            if ok and self._plan.mode == PARK:
-                return self._finish(self._execute(self._plan, len(cands), "executing"), timing, t_start)
-            if ok:
-                keep_explore = self._plan
-            else:
-                self._plan = None
+                                             n_candidates=len(st.cands), reason="parked"), st.timing,
+                                    st.t_start), None
+        if self._plan is None:
+            return None, None
+        ok, st.why = self._still_valid(self._plan, ego, st.world, st.dyn)
+        if ok and self._plan.mode == PARK:
+            return self._finish(self._execute(self._plan, len(st.cands), "executing"), st.timing, st.t_start), None
+        if ok:
+            return None, self._plan
+        self._plan = None
+        return None, None
 
-        # ---- 2. parking
-        t_end = t_start + d.decision_time_cap
-        heur = None
-        attempt_key = (world.key, tuple(cands.tolist()), tuple(np.floor(ego[:2]).astype(int).tolist()))
+    def _try_parking(self, st: _Step, keep_explore: _Plan | None) -> Decision | None:
+        """2. Parking (§V-D-1): search the candidate spots unless nothing changed since the last try while an
+        exploration plan runs (retried at least every ``park_retry_steps``)."""
+        d, obs, ego = self.settings.decision, st.obs, st.ego
+        attempt_key = (st.world.key, tuple(st.cands.tolist()), tuple(np.floor(ego[:2]).astype(int).tolist()))
         retry = (keep_explore is None or attempt_key != self._last_park_attempt
                  or obs.step - self._park_attempt_step >= d.park_retry_steps)
-        blocked = False
-        blocked_plans: list[_Candidate] = []
-        if len(cands) and retry:
-            self._last_park_attempt, self._park_attempt_step = attempt_key, obs.step
-            heur, astar = self._searcher(world, ego, timing)
-            found, blocked = self._search_set(PARK, cands.tolist(), ego, world, dyn, heur, astar, obs.ego_speed,
-                                              t_end, stats, timing, blocked_plans, first_feasible=ordered)
-            plan = self._adopt(found, world, dyn, obs, timing)
-            if plan is not None:
-                self._plan = plan
-                return self._finish(self._execute(plan, len(cands), "new parking plan", True), timing, t_start,
-                                    stats)
+        if not (len(st.cands) and retry):
+            return None
+        self._last_park_attempt, self._park_attempt_step = attempt_key, obs.step
+        st.heur, st.astar = self._searcher(st.world, ego, st.timing)
+        found, st.blocked = self._search_set(PARK, st.cands.tolist(), ego, st.world, st.dyn, st.heur, st.astar,
+                                             obs.ego_speed, st.t_end, st.stats, st.timing, st.blocked_plans,
+                                             first_feasible=st.ordered)
+        plan = self._adopt(found, st.world, st.dyn, obs, st.timing)
+        if plan is None:
+            return None
+        self._plan = plan
+        return self._finish(self._execute(plan, len(st.cands), "new parking plan", True), st.timing, st.t_start,
+                            st.stats)
 
-        # ---- 3. exploration
+    def _try_exploring(self, st: _Step, keep_explore: _Plan | None) -> Decision | None:
+        """3. Exploration (§V-D-2): keep the running exploration plan, else search the exploration points (points
+        behind only after the front has been blocked EXPLORE_BACK_AFTER s), else the detour extra."""
         if keep_explore is not None:
-            return self._finish(self._execute(keep_explore, len(cands), "exploring"), timing, t_start, stats)
-        if heur is None:
-            heur, astar = self._searcher(world, ego, timing)
-        dt = self.settings.control.dt
+            return self._finish(self._execute(keep_explore, len(st.cands), "exploring"), st.timing, st.t_start,
+                                st.stats)
+        obs, ego = st.obs, st.ego
+        if st.heur is None:
+            st.heur, st.astar = self._searcher(st.world, ego, st.timing)
         back_ok = (self._front_blocked_step is not None
-                   and (obs.step - self._front_blocked_step) * dt >= EXPLORE_BACK_AFTER - 1e-9)
-        plan, blocked_e, front_waits = self._explore(ego, world, dyn, heur, astar, obs, t_end, stats, timing,
-                                                     blocked_plans, None, back_ok)
+                   and (obs.step - self._front_blocked_step) * self.settings.control.dt >= EXPLORE_BACK_AFTER - 1e-9)
+        plan, blocked_e, front_waits = self._explore(ego, st.world, st.dyn, st.heur, st.astar, obs, st.t_end,
+                                                     st.stats, st.timing, st.blocked_plans, None, back_ok)
         if front_waits:
             if self._front_blocked_step is None:
                 self._front_blocked_step = obs.step
         else:
             self._front_blocked_step = None
-        blocked |= blocked_e
-        if plan is None and blocked and d.dynamic_as_static_fallback:
-            plan = self._detour(obs, b, ego, world, dyn, cands, ordered, t_end, stats, timing, blocked_plans, back_ok)
-        if plan is not None:
-            self._plan = plan
-            what = "new parking plan around agents" if plan.mode == PARK else "new exploration plan"
-            return self._finish(self._execute(plan, len(cands), what, True), timing, t_start, stats)
+        st.blocked |= blocked_e
+        if plan is None and st.blocked and self.settings.decision.dynamic_as_static_fallback:
+            plan = self._detour(obs, st.b, ego, st.world, st.dyn, st.cands, st.ordered, st.t_end, st.stats,
+                                st.timing, st.blocked_plans, back_ok)
+        if plan is None:
+            return None
+        self._plan = plan
+        what = "new parking plan around agents" if plan.mode == PARK else "new exploration plan"
+        return self._finish(self._execute(plan, len(st.cands), what, True), st.timing, st.t_start, st.stats)
 
-        # ---- 4. idle, unless standing still is itself predicted to be hit: then the blocked plan that meets
-        # the predicted agents latest (later than standing still) is driven, re-checked every step
+    def _go_idle(self, st: _Step) -> Decision:
+        """4. Idle (§V-D-3), unless standing still is itself predicted to be hit: then the blocked plan that meets
+        the predicted agents latest (later than standing still) is driven, re-checked every step (extra)."""
+        d, ego = self.settings.decision, st.ego
         if d.evasive:
-            plan = self._evade(ego, world, dyn, obs, blocked_plans, timing)
+            plan = self._evade(ego, st.world, st.dyn, st.obs, st.blocked_plans, st.timing)
             if plan is not None:
                 self._plan = plan
-                stats["evasive"] = True
-                return self._finish(self._execute(plan, len(cands), plan.note, True), timing, t_start, stats)
-        reason = "no safe parking or exploration plan" + (f" ({why})" if why else "")
-        self._idle_until = obs.step + d.idle_replan_steps
-        return self._finish(Decision(IDLE, n_candidates=len(cands), reason=reason, poses=ego[None].copy()),
-                            timing, t_start, stats)
+                st.stats["evasive"] = True
+                return self._finish(self._execute(plan, len(st.cands), plan.note, True), st.timing, st.t_start,
+                                    st.stats)
+        reason = "no safe parking or exploration plan" + (f" ({st.why})" if st.why else "")
+        self._idle_until = st.obs.step + d.idle_replan_steps
+        return self._finish(Decision(IDLE, n_candidates=len(st.cands), reason=reason, poses=ego[None].copy()),
+                            st.timing, st.t_start, st.stats)
 
     def _still_valid(self, plan: _Plan, ego: np.ndarray, world: StaticWorld, dyn: DynamicObstacles) -> tuple[bool, str]:
         d = self.settings.decision

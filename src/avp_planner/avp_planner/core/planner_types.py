@@ -8,7 +8,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from avp_planner.core.control import Trajectory
+from avp_search.collision import DynamicObstacles, StaticWorld
 from avp_search.paths import Path
+from avp_world.types import Observation
 
 PARK, EXPLORE, IDLE = "park", "explore", "idle"
 STILL_SPEED = 0.3  # m/s: an agent slower than this counts as standing still (detour instead of waiting)
@@ -72,3 +74,29 @@ class _Candidate:
     wait_steps: int
     front: bool = True
     first_hit: int = -1  # blocked plans: first time index at which a predicted agent meets it (no wait)
+
+
+@dataclass
+class _Step:
+    """What one decision step of :meth:`~avp_planner.core.decision.EgoPlanner.decide` works on: the
+    observation, beliefs b, ego pose, static world, predicted obstacles, candidate spots (in ``spot_priority``
+    order if ``ordered``), the timings and statistics it reports, its search deadline ``t_end``, and what the
+    phases hand on (the shared heuristic and searcher, plans blocked by predicted agents, why the last plan
+    was dropped)."""
+
+    obs: Observation
+    b: np.ndarray
+    ego: np.ndarray
+    world: StaticWorld
+    dyn: DynamicObstacles
+    cands: np.ndarray
+    ordered: bool
+    timing: dict
+    t_start: float
+    t_end: float
+    stats: dict = field(default_factory=dict)
+    heur: object = None
+    astar: object = None
+    blocked: bool = False
+    blocked_plans: list[_Candidate] = field(default_factory=list)
+    why: str = ""

@@ -32,14 +32,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from avp_sim.core.ray_geometry import curve_polygon, point_segment_dist, ray_polyline_t, slab_interval, slabs
 from avp_world.geometry import rect_inside_rect, wrap_angle
 from avp_world.lot import LotMap
 
 SHAPES = ("disc", "rectangle", "ellipse", "polygon")
 _ON_BOUNDARY_TOL = 1e-9  # m: an ego position this close to dL is "on" the boundary
-_SEG_PARAM_TOL = 1e-12  # slack on the segment parameter so rays through polygon vertices never slip through
-_CURVE_VERTICES = 256  # vertices of the drawing polygon of a disc / ellipse
-_TINY = 1e-300  # replaces exact zeros in n.d so that parallel rays give +-inf slab bounds, never NaN
 
 
 def _is_number(v: object) -> bool:
@@ -165,96 +163,6 @@ class RayScan:
     seen_pedestrians: np.ndarray
 
 
-# ----------------------------------------------------------------------------------------- helpers
-
-
-def _ray_polyline_t(
-    directions: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray, t_min: float = 0.0
-) -> np.ndarray:
-    """First hit of rays from the origin with segments (origin-relative coordinates).
-
-    Args:
-        directions: (n, 2) unit ray directions.
-        seg_a, seg_b: (M, 2) segment end points relative to the ray origin.
-    Returns:
-        (n,) smallest t >= t_min with ``t * d`` on some segment (inf where none).
-    """
-    if seg_a.shape[0] == 0:
-        return np.full(directions.shape[0], np.inf)
-    e = seg_b - seg_a  # (M, 2)
-    dx, dy = directions[:, 0:1], directions[:, 1:2]  # (n, 1)
-    denom = dx * e[:, 1] - dy * e[:, 0]  # d x e, (n, M)
-    num_t = seg_a[:, 0] * e[:, 1] - seg_a[:, 1] * e[:, 0]  # w x e, (M,)
-    num_s = seg_a[:, 0] * dy - seg_a[:, 1] * dx  # w x d, (n, M)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = num_t / denom
-        s = num_s / denom
-    ok = (denom != 0.0) & (t >= t_min) & (s >= -_SEG_PARAM_TOL) & (s <= 1.0 + _SEG_PARAM_TOL)
-    return np.where(ok, t, np.inf).min(axis=1)
-
-
-def _point_segment_dist(seg_a: np.ndarray, seg_b: np.ndarray) -> np.ndarray:
-    """(M,) distance from the origin to segments given relative to it."""
-    e = seg_b - seg_a
-    ee = np.maximum((e * e).sum(-1), 1e-300)
-    s = np.clip(-(seg_a * e).sum(-1) / ee, 0.0, 1.0)
-    q = seg_a + s[:, None] * e
-    return np.sqrt((q * q).sum(-1))
-
-
-def _slabs(rel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Slab form of parallelograms given by corners relative to the ray origin.
-
-    Args:
-        rel: (K, 4, 2) corners (c0..c3 in order around the boundary).
-    Returns:
-        normals (2K, 2) (rows 2k, 2k+1 belong to parallelogram k; not normalised) and the signed
-        offsets p1, p2 (slab 1: n1.x in [p1, p2] up to order) and q1, q2 (slab 2), each (K,).
-    """
-    u = rel[:, 0] - rel[:, 1]
-    v = rel[:, 1] - rel[:, 2]
-    n1 = np.stack([-u[:, 1], u[:, 0]], axis=-1)
-    n2 = np.stack([-v[:, 1], v[:, 0]], axis=-1)
-    c1, c2, c0 = rel[:, 1], rel[:, 2], rel[:, 0]
-    p1 = (n1 * c1).sum(-1)
-    p2 = (n1 * c2).sum(-1)
-    q1 = (n2 * c1).sum(-1)
-    q2 = (n2 * c0).sum(-1)
-    normals = np.stack([n1, n2], axis=1).reshape(-1, 2)
-    return normals, p1, p2, q1, q2
-
-
-def _slab_interval(
-    normals: np.ndarray,
-    p1: np.ndarray,
-    p2: np.ndarray,
-    q1: np.ndarray,
-    q2: np.ndarray,
-    directions: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Parameter interval [near, far] of each ray (from the origin) inside each parallelogram.
-
-    Returns (K, n) arrays; the ray line meets parallelogram k iff near <= far.
-    """
-    k = p1.shape[0]
-    nd = normals @ directions.T  # (2K, n)
-    nd[nd == 0.0] = _TINY
-    inv = (1.0 / nd).reshape(k, 2, -1)
-    inv1, inv2 = inv[:, 0], inv[:, 1]
-    ta = p1[:, None] * inv1
-    tb = p2[:, None] * inv1
-    tc = q1[:, None] * inv2
-    td = q2[:, None] * inv2
-    near = np.maximum(np.minimum(ta, tb), np.minimum(tc, td))
-    far = np.minimum(np.maximum(ta, tb), np.maximum(tc, td))
-    return near, far
-
-
-def _curve_polygon(a: float, b: float, cx: float, cy: float) -> np.ndarray:
-    phi = np.linspace(0.0, 2.0 * np.pi, _CURVE_VERTICES, endpoint=False)
-    return np.stack([cx + a * np.cos(phi), cy + b * np.sin(phi)], axis=-1)
-
-
 # ------------------------------------------------------------------------------------------ caster
 
 
@@ -284,7 +192,7 @@ class RayCaster:
             else:
                 b = d[:, 0] * ox + d[:, 1] * oy
                 rng = b + np.sqrt(b * b - (ox * ox + oy * oy) + r * r)
-            self.region_polygon = _curve_polygon(r, r, ox, oy)
+            self.region_polygon = curve_polygon(r, r, ox, oy)
         elif cfg.shape == "ellipse":
             a, b = float(cfg.semi_major), float(cfg.semi_minor)
             qa = (d[:, 0] / a) ** 2 + (d[:, 1] / b) ** 2
@@ -293,14 +201,14 @@ class RayCaster:
             sq = np.sqrt(qb * qb - 4.0 * qa * qc)
             with np.errstate(divide="ignore", invalid="ignore"):
                 rng = np.where(qb <= 0.0, (-qb + sq) / (2.0 * qa), 2.0 * qc / (-qb - sq))
-            self.region_polygon = _curve_polygon(a, b, ox, oy)
+            self.region_polygon = curve_polygon(a, b, ox, oy)
         else:
             if cfg.shape == "rectangle":
                 hl, hw = 0.5 * float(cfg.length), 0.5 * float(cfg.width)
                 poly = np.array([[hl, hw], [-hl, hw], [-hl, -hw], [hl, -hw]]) + [ox, oy]
             else:
                 poly = np.array(cfg.vertices, dtype=float) + [ox, oy]
-            rng = _ray_polyline_t(d, poly, np.roll(poly, -1, axis=0))
+            rng = ray_polyline_t(d, poly, np.roll(poly, -1, axis=0))
             self.region_polygon = poly
         self.region_range = np.asarray(rng, dtype=float)  # (n,) exact distance to dQ0 along each ray
         if not np.all(np.isfinite(self.region_range) & (self.region_range > 0)):
@@ -316,7 +224,7 @@ class RayCaster:
         self._spot_brad = 0.5 * np.maximum(
             np.linalg.norm(sc[:, 0] - sc[:, 2], axis=-1), np.linalg.norm(sc[:, 1] - sc[:, 3], axis=-1)
         )
-        normals, p1, p2, q1, q2 = _slabs(sc)  # world-frame slab offsets (origin at the world origin)
+        normals, p1, p2, q1, q2 = slabs(sc)  # world-frame slab offsets (origin at the world origin)
         self._spot_normals = normals.reshape(-1, 2, 2)
         self._spot_pq = np.stack([p1, p2, q1, q2], axis=-1)  # (S, 4)
 
@@ -353,72 +261,91 @@ class RayCaster:
         dirs = np.empty_like(de)
         dirs[:, 0] = c * de[:, 0] - s * de[:, 1]
         dirs[:, 1] = s * de[:, 0] + c * de[:, 1]
-        n = self.n_ray
-        r_max = self.max_range
+        ranges = self._region_and_boundary(origin, dirs)
+        ranges, hit_vehicle, seen_vehicles = self._vehicles(origin, dirs, ranges, vehicle_corners)
+        reach = float(ranges.max()) if self.n_ray else 0.0
+        return RayScan(
+            origin=origin,
+            angles=np.asarray(wrap_angle(th + self.ray_offsets)),
+            ranges=ranges,
+            endpoints=origin + ranges[:, None] * dirs,
+            hit_vehicle=hit_vehicle,
+            seen_vehicles=seen_vehicles,
+            seen_spots=self._spots_met(origin, dirs, ranges, reach),
+            seen_pedestrians=self._pedestrians_met(origin, dirs, ranges, reach, ped_centers, ped_radii),
+        )
 
-        # --- the sensing region and the lot boundary
+    def _region_and_boundary(self, origin: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+        """(n_ray,) ranges to dQ_t or, where nearer, the lot boundary dL (all 0 on dL)."""
         ranges = self.region_range.copy()
         ba = self._boundary_a - origin
         bb = self._boundary_b - origin
-        bdist = _point_segment_dist(ba, bb)
+        bdist = point_segment_dist(ba, bb)
         if bdist.min() <= _ON_BOUNDARY_TOL:
             ranges[:] = 0.0
         else:
-            near_b = bdist <= r_max
+            near_b = bdist <= self.max_range
             if near_b.any():
-                np.minimum(ranges, _ray_polyline_t(dirs, ba[near_b], bb[near_b]), out=ranges)
+                np.minimum(ranges, ray_polyline_t(dirs, ba[near_b], bb[near_b]), out=ranges)
+        return ranges
 
-        # --- other vehicles (slab test per ray x vehicle, after a bounding-radius prune)
+    def _vehicles(self, origin: np.ndarray, dirs: np.ndarray, ranges: np.ndarray, vehicle_corners: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Rays cut at the first vehicle they meet (slab test per ray x vehicle, after a bounding-radius prune):
+        (ranges, hit vehicle index per ray or -1, seen flag per vehicle)."""
+        n = self.n_ray
         vc = np.asarray(vehicle_corners, dtype=float).reshape(-1, 4, 2)
         n_veh = vc.shape[0]
         hit_vehicle = np.full(n, -1, dtype=np.int64)
         seen_vehicles = np.zeros(n_veh, dtype=bool)
-        if n_veh:
-            rel = vc - origin
-            cen = 0.5 * (rel[:, 0] + rel[:, 2])
-            half_diag = 0.5 * np.sqrt(
-                np.maximum(((rel[:, 0] - rel[:, 2]) ** 2).sum(-1), ((rel[:, 1] - rel[:, 3]) ** 2).sum(-1))
-            )
-            keep = np.flatnonzero(np.sqrt((cen * cen).sum(-1)) - half_diag <= r_max)
-            if keep.size:
-                normals, p1, p2, q1, q2 = _slabs(rel[keep])
-                near, far = _slab_interval(normals, p1, p2, q1, q2, dirs)
-                t_veh = np.where((near <= far) & (far >= 0.0), np.maximum(near, 0.0), np.inf)  # (K, n)
-                k_first = t_veh.argmin(axis=0)
-                t_first = t_veh[k_first, np.arange(n)]
-                is_hit = t_first <= ranges
-                ranges = np.where(is_hit, t_first, ranges)
-                hit_vehicle[is_hit] = keep[k_first[is_hit]]
-                seen_vehicles[hit_vehicle[is_hit]] = True
+        if not n_veh:
+            return ranges, hit_vehicle, seen_vehicles
+        rel = vc - origin
+        cen = 0.5 * (rel[:, 0] + rel[:, 2])
+        half_diag = 0.5 * np.sqrt(
+            np.maximum(((rel[:, 0] - rel[:, 2]) ** 2).sum(-1), ((rel[:, 1] - rel[:, 3]) ** 2).sum(-1))
+        )
+        keep = np.flatnonzero(np.sqrt((cen * cen).sum(-1)) - half_diag <= self.max_range)
+        if keep.size:
+            normals, p1, p2, q1, q2 = slabs(rel[keep])
+            near, far = slab_interval(normals, p1, p2, q1, q2, dirs)
+            t_veh = np.where((near <= far) & (far >= 0.0), np.maximum(near, 0.0), np.inf)  # (K, n)
+            k_first = t_veh.argmin(axis=0)
+            t_first = t_veh[k_first, np.arange(n)]
+            is_hit = t_first <= ranges
+            ranges = np.where(is_hit, t_first, ranges)
+            hit_vehicle[is_hit] = keep[k_first[is_hit]]
+            seen_vehicles[hit_vehicle[is_hit]] = True
+        return ranges, hit_vehicle, seen_vehicles
 
-        endpoints = origin + ranges[:, None] * dirs
-        reach = float(ranges.max()) if n else 0.0
-
-        # --- spots: a closed rectangle is seen iff it meets some ray segment [0, range]
+    def _spots_met(self, origin: np.ndarray, dirs: np.ndarray, ranges: np.ndarray, reach: float) -> np.ndarray:
+        """(n_spots,) seen flags: a closed spot rectangle is seen iff it meets some ray segment [0, range]."""
         seen_spots = np.zeros(self.n_spots, dtype=bool)
-        if self.n_spots:
-            sc_rel = self._spot_center - origin
-            cand = np.flatnonzero(np.sqrt((sc_rel * sc_rel).sum(-1)) - self._spot_brad <= reach)
-            if cand.size:
-                nrm = self._spot_normals[cand]  # (K, 2, 2)
-                no = nrm @ origin  # (K, 2)
-                pq = self._spot_pq[cand]
-                near, far = _slab_interval(
-                    nrm.reshape(-1, 2),
-                    pq[:, 0] - no[:, 0],
-                    pq[:, 1] - no[:, 0],
-                    pq[:, 2] - no[:, 1],
-                    pq[:, 3] - no[:, 1],
-                    dirs,
-                )
-                meets = (near <= far) & (far >= 0.0) & (near <= ranges)
-                seen_spots[cand] = meets.any(axis=1)
+        if not self.n_spots:
+            return seen_spots
+        sc_rel = self._spot_center - origin
+        cand = np.flatnonzero(np.sqrt((sc_rel * sc_rel).sum(-1)) - self._spot_brad <= reach)
+        if cand.size:
+            nrm = self._spot_normals[cand]  # (K, 2, 2)
+            no = nrm @ origin  # (K, 2)
+            pq = self._spot_pq[cand]
+            near, far = slab_interval(
+                nrm.reshape(-1, 2),
+                pq[:, 0] - no[:, 0],
+                pq[:, 1] - no[:, 0],
+                pq[:, 2] - no[:, 1],
+                pq[:, 3] - no[:, 1],
+                dirs,
+            )
+            meets = (near <= far) & (far >= 0.0) & (near <= ranges)
+            seen_spots[cand] = meets.any(axis=1)
+        return seen_spots
 
-        # --- pedestrians: distance from each disc centre to each ray segment
-        if ped_centers is None:
-            pc = np.zeros((0, 2))
-        else:
-            pc = np.asarray(ped_centers, dtype=float).reshape(-1, 2)
+    @staticmethod
+    def _pedestrians_met(origin: np.ndarray, dirs: np.ndarray, ranges: np.ndarray, reach: float,
+                         ped_centers: np.ndarray | None, ped_radii: np.ndarray | None) -> np.ndarray:
+        """(P,) seen flags: a pedestrian disc is seen iff some ray segment comes within its radius."""
+        pc = np.zeros((0, 2)) if ped_centers is None else np.asarray(ped_centers, dtype=float).reshape(-1, 2)
         pr = np.zeros(0) if ped_radii is None else np.asarray(ped_radii, dtype=float).reshape(-1)
         if pr.shape[0] != pc.shape[0]:
             raise ValueError(f"cast: ped_radii has {pr.shape[0]} entries for {pc.shape[0]} pedestrians")
@@ -432,17 +359,7 @@ class RayCaster:
                 t = np.clip(proj, 0.0, ranges)
                 dist2 = pd2[cand, None] - 2.0 * t * proj + t * t
                 seen_peds[cand] = (dist2 <= (pr[cand] ** 2)[:, None]).any(axis=1)
-
-        return RayScan(
-            origin=origin,
-            angles=np.asarray(wrap_angle(th + self.ray_offsets)),
-            ranges=ranges,
-            endpoints=endpoints,
-            hit_vehicle=hit_vehicle,
-            seen_vehicles=seen_vehicles,
-            seen_spots=seen_spots,
-            seen_pedestrians=seen_peds,
-        )
+        return seen_peds
 
 
 # ------------------------------------------------------------------------------------- classifier

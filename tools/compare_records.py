@@ -1,0 +1,41 @@
+"""Compare two experiment folders' episode records, timing fields aside (the equal-records check of issue #17).
+
+    python tools/compare_records.py OUT_BEFORE OUT_AFTER
+
+Prints how many (method, seed, mode) episodes both hold, how many are equal, and the first differences; exits 1
+if any record differs or the after folder lacks an episode the before folder has.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+IGNORED = {"timings", "wall_time", "wall_s", "transport"}  # machine-dependent fields
+
+
+def _records(folder: str) -> dict[tuple, dict]:
+    out = {}
+    for line in (Path(folder) / "episodes.jsonl").read_text().splitlines():
+        if line.strip():
+            r = json.loads(line)
+            out[(r["method"], r["seed"], r["mode"])] = {k: v for k, v in r.items() if k not in IGNORED}
+    return out
+
+
+def main(argv: list[str]) -> int:
+    before, after = _records(argv[0]), _records(argv[1])
+    common = sorted(set(before) & set(after))
+    diffs = [k for k in common if before[k] != after[k]]
+    missing = sorted(set(before) - set(after))
+    print(f"{len(common)} episodes in both, {len(common) - len(diffs)} equal, {len(diffs)} differ, "
+          f"{len(missing)} missing from {argv[1]}")
+    for k in diffs[:10]:
+        fields = sorted(f for f in before[k].keys() | after[k].keys() if before[k].get(f) != after[k].get(f))
+        print("  ", k, {f: (before[k].get(f), after[k].get(f)) for f in fields})
+    return 1 if diffs or missing else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
