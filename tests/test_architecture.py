@@ -10,7 +10,8 @@ CORE_FILES = [*SRC.glob("avp_world/avp_world/**/*.py"), *SRC.glob("avp_search/av
               *SRC.glob("avp_sim/avp_sim/core/*.py"),
               *SRC.glob("avp_planner/avp_planner/core/*.py"), *SRC.glob("avp_perception/avp_perception/core/*.py"),
               SRC / "avp_planner/avp_planner/scripted_driver.py",
-              *[f for f in SRC.glob("avp_bringup/avp_bringup/experiment/*.py") if f.name != "ros_transport.py"]]
+              *[f for f in SRC.glob("avp_bringup/avp_bringup/experiment/*.py")
+                if f.name not in ("ros_transport.py", "ros_collector.py")]]
 ROS_IMPORT = re.compile(r"^\s*(import|from)\s+(rclpy|avp_msgs|geometry_msgs|std_msgs|nav_msgs|sensor_msgs|"
                         r"visualization_msgs|rosgraph_msgs|builtin_interfaces)\b", re.M)
 

@@ -30,32 +30,10 @@
 from __future__ import annotations
 
 import argparse
-import os
 import signal
 import sys
 import time
 from pathlib import Path
-
-
-def _root() -> Path:
-    return Path(os.environ.get("AVP_ROOT", Path.cwd()))
-
-
-def _log_dir(arg: str | None) -> Path:
-    return Path(arg) if arg else _root() / "out" / "logs" / time.strftime("%Y%m%d-%H%M%S")
-
-
-def _ego_graph(args: argparse.Namespace, deterministic: bool = False):
-    """The 4-node graph of ``--method NAME`` (the Table I method's parameters on the belief node, the prediction
-    node and the planner: ``avp_bringup.graph.method_graph``), or the simulator + scripted driver (``--ego
-    scripted``), or the default graph."""
-    from avp_bringup.graph import default_graph, method_graph
-
-    if args.ego == "scripted":
-        if args.method:
-            raise ValueError("--method and --ego scripted exclude each other")
-        return default_graph("scripted")
-    return method_graph(args.method, deterministic=deterministic) if args.method else default_graph(args.ego)
 
 
 def cmd_experiment(args: argparse.Namespace) -> int:
@@ -65,11 +43,11 @@ def cmd_experiment(args: argparse.Namespace) -> int:
 
 
 def cmd_launch(args: argparse.Namespace) -> int:
-    from avp_bringup.graph import Graph
+    from avp_bringup.graph import Graph, default_log_dir, ego_graph
 
-    log_dir = _log_dir(args.log_dir)
+    log_dir = default_log_dir(args.log_dir)
     try:
-        nodes = _ego_graph(args)
+        nodes = ego_graph(args.method, args.ego)
     except ValueError as exc:
         print(f"[avp launch] {exc}", file=sys.stderr)
         return 2
@@ -97,143 +75,6 @@ def cmd_launch(args: argparse.Namespace) -> int:
         graph.stop()
         print(f"[avp] graph stopped{'; shut down ' + ', '.join(others) if others else ''}")
     return 0
-
-
-def cmd_demo(args: argparse.Namespace) -> int:
-    """One seeded episode through the live graph; see docs/experiment.md ("The demo")."""
-    import rclpy
-
-    from avp_bringup.graph import Graph, with_params
-    from avp_bringup.monitor import EpisodeMonitor
-    from avp_world.lot import load_bundled_lot, load_lot
-
-    out = Path(args.out)
-    log_dir = out / "logs"
-    mode = "realtime" if args.realtime else "lockstep"
-    if args.ego == "planner" and not args.method:
-        args.method = "bezier"  # the paper's method
-    try:
-        # lock-step: the wall-clock caps lifted, so the episode is the same whatever the machine's load
-        nodes = _ego_graph(args, deterministic=not args.realtime)
-    except ValueError as exc:
-        print(f"[avp demo] {exc}", file=sys.stderr)
-        return 2
-    sim = nodes[0]
-    # the episode is started with reset_episode once the whole graph is up and discovered both ways (a volatile
-    # reader that matches after step 0 was sent never gets it: lock-step would re-send after lockstep_timeout, real
-    # time would run without the pipeline); in lock-step step 0 also waits for the graph's observation subscribers
-    # plus our monitor and recorder
-    extra = {"seed": args.seed, "reactive": not args.non_reactive, "mode": mode, "autostart": False,
-             "min_subscribers": sim.extra_params.get("min_subscribers", 1) + 2, "min_debug_subscribers": 2}
-    if args.t_final is not None:
-        extra["t_final"] = args.t_final
-    nodes[0] = with_params(sim, **extra)
-    lot = load_lot(args.lot) if args.lot else load_bundled_lot()
-    from rclpy.executors import SingleThreadedExecutor
-
-    from avp_bringup.bag import BagRecorder
-    from avp_msgs.srv import ResetEpisode
-
-    bag = Path(args.bag) if args.bag else _root() / "bags" / f"demo_seed{args.seed}_{time.strftime('%Y%m%d-%H%M%S')}"
-    bag.parent.mkdir(parents=True, exist_ok=True)
-    method = args.method or "scripted"
-    from avp_bringup.bagwriter import BagWriteError
-
-    rclpy.init()
-    try:
-        recorder = BagRecorder(bag)
-    except BagWriteError as exc:
-        print(f"[avp demo] {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    monitor = EpisodeMonitor()
-    executor = SingleThreadedExecutor()
-    executor.add_node(monitor)
-    executor.add_node(recorder)
-    graph = Graph(nodes, log_dir, args.params)
-    t0 = time.monotonic()
-    graph.start()
-    print(f"[avp demo] method {method}, seed {args.seed} ({'non-' if args.non_reactive else ''}reactive), {mode}, "
-          f"through the live graph over DDS ({', '.join(n.name for n in nodes)}); node logs in {log_dir}/")
-    try:
-        _start_episode(monitor, executor, graph, ResetEpisode, args, len(nodes) - 1 + 2, log_dir)
-        while not monitor.finished:
-            executor.spin_once(timeout_sec=0.2)
-            dead = {n: rc for n, rc in graph.poll().items() if rc is not None}
-            if dead:
-                print(f"[avp demo] node(s) exited early: {dead}; see {log_dir}/", file=sys.stderr)
-                return 1
-            if time.monotonic() - t0 > args.timeout:
-                print(f"[avp demo] no episode end after {args.timeout} s wall time", file=sys.stderr)
-                return 1
-        wall = time.monotonic() - t0
-        t_end = time.monotonic()
-        while time.monotonic() - t_end < 1.0:  # drain: the last step's messages to the monitor and the bag
-            executor.spin_once(timeout_sec=0.05)
-        latency = monitor.latency_dict(mode)
-        metrics = monitor.write(lot, out, {"wall_time_s": round(wall, 2), "method": method,
-                                           "ego_node": nodes[-1].name, "closed_loop_step_time": latency})
-    except RuntimeError as exc:
-        print(f"[avp demo] {exc}", file=sys.stderr)
-        return 1
-    finally:
-        graph.stop()
-        recorder.close()
-        monitor.destroy_node()
-        recorder.destroy_node()
-        rclpy.try_shutdown()
-    if recorder.error:
-        print(f"[avp demo] the episode ran to its end but {recorder.error}", file=sys.stderr)
-    print(f"[avp demo] bag: {bag}\n[avp demo]   replay it: avp replay {bag}   metrics from it: avp metrics {bag}")
-    print(f"[avp demo] {metrics['state']} after {metrics['sim_time']:.1f} s sim time ({wall:.1f} s wall); "
-          f"wrote {out / 'metrics.json'} and {out / 'episode.png'}")
-    print(f"[avp demo] {_latency_line(latency)}")
-    if not args.no_gif:
-        from avp_bringup.episode_video import episode_gif
-
-        gif = out / "episode.gif"
-        info = episode_gif(bag, gif, title=f"{method} seed {args.seed}")
-        print(f"[avp demo] wrote {gif} ({info['frames']} frames, every {info['stride']}. step, "
-              f"{info['bytes'] / 1e6:.1f} MB) from the bag's topics")
-    return 0
-
-
-def _latency_line(lat: dict) -> str:
-    if not lat.get("steps"):
-        return "closed-loop step time: no step answered"
-    late = f", {lat['late_steps']} step(s) answered too late (ego held still)" if "late_steps" in lat else ""
-    return (f"closed-loop step time (observation k sent -> command k received, {lat['sim_mode']}, {lat['steps']} "
-            f"steps): median {lat['median_ms']:.1f} ms, p95 {lat['p95_ms']:.1f} ms, max {lat['max_ms']:.1f} ms "
-            f"(target p95 <= 100 ms){late}")
-
-
-def _start_episode(monitor, executor, graph, srv_type, args, n_obs_subs: int, log_dir: Path,
-                   timeout: float = 60.0) -> None:
-    """Wait until every node is up (observation subscribers, the ego's cmd publisher, the reset service) and a
-    second for discovery to settle, then start the episode with reset_episode (RuntimeError when that fails)."""
-    client = monitor.create_client(srv_type, "reset_episode")
-    t0 = time.monotonic()
-    while not (client.service_is_ready() and monitor.count_subscribers("/avp/observation") >= n_obs_subs
-               and monitor.count_publishers("/avp/cmd") >= 1):
-        executor.spin_once(timeout_sec=0.1)
-        dead = {n: rc for n, rc in graph.poll().items() if rc is not None}
-        if dead or time.monotonic() - t0 > timeout:
-            raise RuntimeError(f"graph not up ({dead or f'after {timeout} s'}); see {log_dir}/")
-    t1 = time.monotonic()
-    while time.monotonic() - t1 < 1.0:  # matching completes both ways; the latched lot map reaches every node
-        executor.spin_once(timeout_sec=0.05)
-    from avp_bringup.services import call_once
-
-    seed, reactive = int(args.seed), not args.non_reactive
-    try:  # sent once (a second reset would restart the running episode); its status also shows it happened
-        res = call_once(client, srv_type.Request(seed=seed, reactive=reactive),
-                        lambda s: executor.spin_once(timeout_sec=s),
-                        lambda: monitor.status is not None and (monitor.status.seed, monitor.status.reactive)
-                        == (seed, reactive), timeout=30.0)
-    except TimeoutError as exc:
-        raise RuntimeError(f"reset_episode failed: {exc}") from None
-    if res is not None and not res.success:
-        raise RuntimeError(f"reset_episode failed: {res.message}")
 
 
 def cmd_record(args: argparse.Namespace) -> int:
@@ -355,7 +196,9 @@ def cmd_swap_planner(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     import subprocess
 
-    script = _root() / "bench" / f"bench_{args.which}.py"
+    from avp_bringup.graph import avp_root
+
+    script = avp_root() / "bench" / f"bench_{args.which}.py"
     if not script.is_file():
         print(f"[avp bench] no benchmark script {script}", file=sys.stderr)
         return 2
@@ -398,6 +241,14 @@ def cmd_train_trajectory(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    return _in_domain(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``avp`` argument parser: one sub-command per tool (see the module docstring)."""
+    from avp_bringup import demo
+
     parser = argparse.ArgumentParser(prog="avp", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("launch", help="start the node graph")
@@ -408,21 +259,15 @@ def main(argv: list[str] | None = None) -> int:
                    "implicit, nawaz or a profile file): the same 4 nodes with the profile's parameters")
     p.set_defaults(func=cmd_launch)
     p = sub.add_parser("demo", help="run one seeded episode through the live graph")
-    p.add_argument("--seed", type=int, default=1, help="scenario seed (1: a car in view early; parks at ~17 s)")
-    p.add_argument("--non-reactive", action="store_true")
-    p.add_argument("--ego", choices=("planner", "scripted"), default="planner", help="the ego's node")
-    p.add_argument("--method", default=None, help="a Table I method profile (bezier, constant_velocity, "
-                   "hybrid_astar, implicit, nawaz or a profile file) [default: bezier; ignored with --ego scripted]")
-    p.add_argument("--realtime", action="store_true", help="the simulator steps at 1/dt wall rate (mode: realtime) "
-                   "instead of lock-step; the closed-loop step time then decides whether commands come in time")
-    p.add_argument("--no-gif", action="store_true", help="do not write episode.gif")
-    p.add_argument("--t-final", type=float, default=None)
-    p.add_argument("--out", default=str(_root() / "out" / "demo"))
-    p.add_argument("--params")
-    p.add_argument("--lot", help="lot YAML used for the picture (default: the bundled paper lot)")
-    p.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit [s]")
-    p.set_defaults(func=cmd_demo)
-    p.add_argument("--bag", help="where to record the demo's bag (default bags/demo_seed<N>_<time>)")
+    demo.add_arguments(p)
+    p.set_defaults(func=demo.run)
+    _add_bag_commands(sub)
+    _add_offline_commands(sub)
+    return parser
+
+
+def _add_bag_commands(sub) -> None:
+    """record, replay, metrics, swap-planner: tools for a running graph or its bags."""
     p = sub.add_parser("record", help="record the graph to a rosbag2")
     p.add_argument("out")
     p.add_argument("--topics", nargs="+")
@@ -457,6 +302,10 @@ def main(argv: list[str] | None = None) -> int:
                    "it down")
     p.add_argument("--timeout", type=float, default=30.0, help="per lifecycle call / start-up [s]")
     p.set_defaults(func=cmd_swap_planner)
+
+
+def _add_offline_commands(sub) -> None:
+    """experiment, bench, params and the training commands."""
     p = sub.add_parser("experiment", help="the Table I runner (episodes x methods x modes, resumable)")
     from avp_bringup.experiment.runner import add_arguments
 
@@ -482,8 +331,6 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("train-trajectory", help="train the learned trajectory predictor (docs/trajectory_model.md)")
     add_trajectory_arguments(p)
     p.set_defaults(func=cmd_train_trajectory)
-    args = parser.parse_args(argv)
-    return _in_domain(args)
 
 
 def _in_domain(args: argparse.Namespace) -> int:

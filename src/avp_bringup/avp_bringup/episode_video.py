@@ -118,20 +118,35 @@ def _belief_colour(b: float) -> tuple[int, int, int]:
 def render_frame(rec: EpisodeRecording, k: int, seen: np.ndarray, px_per_m: float = 12.0,
                  title: str = "") -> np.ndarray:
     """The picture of step ``k`` (BGR); ``seen``: spots observed up to step k (lot order)."""
+    c = Canvas(rec.lot, px_per_m, margin=1.0)
+    obs = rec.observations.get(k)
+    _draw_beliefs_and_rays(c, rec, k, seen, obs)
+    colour_of = _draw_vehicles(c, rec, k, obs)
+    _draw_intentions(c, rec, k, obs, colour_of)
+    _draw_predictions(c, rec, k, colour_of)
+    d = rec.decisions.get(k)
+    _draw_plan_and_ego(c, rec.lot, d, obs)
+    return np.vstack([_header(c, k, obs, d, title), c.img, _legend(c)])
+
+
+def _draw_beliefs_and_rays(c: Canvas, rec: EpisodeRecording, k: int, seen: np.ndarray, obs) -> None:
+    """The lot, its spots coloured by belief (grey until seen) and the area the rays cover."""
     lot = rec.lot
-    c = Canvas(lot, px_per_m, margin=1.0)
     c.poly(lot.boundary, ROAD)
     b = rec.beliefs.get(k)
     for i in range(lot.n_spots):
         val = float(b[i]) if b is not None and seen[i] else math.nan
         c.poly(lot.spot_corners[i], _belief_colour(val))
         c.poly(lot.spot_corners[i], (40, 40, 40), filled=False, thickness=1)
-    obs = rec.observations.get(k)
     if obs is not None and len(obs.ray_ranges):
         overlay = c.img.copy()
         cv2.fillPoly(overlay, [c.px(obs.ray_endpoints())], RAY, lineType=cv2.LINE_AA)
         c.img = cv2.addWeighted(overlay, 0.25, c.img, 0.75, 0)
-    # agents the ego does not see (ground truth, debug only): thin outlines
+
+
+def _draw_vehicles(c: Canvas, rec: EpisodeRecording, k: int, obs) -> dict[int, tuple]:
+    """Unseen agents as thin outlines (ground truth, debug only), the observed vehicles with their trails;
+    returns the colour given to each observed moving vehicle."""
     seen_ids = {int(v.id) for v in obs.vehicles} if obs is not None else set()
     gt = rec.ground_truth.get(k)
     if gt is not None:
@@ -146,7 +161,13 @@ def render_frame(rec: EpisodeRecording, k: int, seen: np.ndarray, px_per_m: floa
                 colour_of[int(v.id)] = PRED_COLOURS[len(colour_of) % len(PRED_COLOURS)]
                 c.line(np.asarray(v.history)[:, :2], colour_of[int(v.id)], 1)
             c.poly(rect_corners(np.asarray(v.pose), v.length, v.width), DYNAMIC if not v.is_static else PARKED)
-    # intentions: a line from the vehicle to every spot it may want, eta at the spot
+    return colour_of
+
+
+def _draw_intentions(c: Canvas, rec: EpisodeRecording, k: int, obs, colour_of: dict[int, tuple]) -> None:
+    """A line from each vehicle to every spot it may want (eta at the spot), rings at exploration points, and
+    the ego's own three most wanted spots numbered (implicit method)."""
+    lot = rec.lot
     for it in rec.intentions.get(k, []):
         v = next((v for v in (obs.vehicles if obs is not None else ()) if int(v.id) == it.vehicle_id), None)
         if v is None:
@@ -166,7 +187,10 @@ def render_frame(rec: EpisodeRecording, k: int, seen: np.ndarray, px_per_m: floa
                 cv2.circle(c.img, tuple(int(x) for x in c.px(np.asarray(q[:2]))), max(3, int(0.6 * c.s)), col,
                            1 + int(2 * eta), cv2.LINE_AA)
                 c.text((q[0] + 0.7, q[1] - 0.3), f"{eta:.2f}", col, 0.33)
-    # predicted trajectories: width and label by probability
+
+
+def _draw_predictions(c: Canvas, rec: EpisodeRecording, k: int, colour_of: dict[int, tuple]) -> None:
+    """Predicted trajectories (width and label by probability), then the ego's own intention ranks."""
     for p in rec.predictions.get(k, []):
         if p.is_pedestrian or len(p.poses) < 2:
             continue
@@ -174,16 +198,17 @@ def render_frame(rec: EpisodeRecording, k: int, seen: np.ndarray, px_per_m: floa
         c.line(np.asarray(p.poses)[:, :2], col, 1 + int(2 * p.probability))
         if p.probability < 0.999:
             c.text(np.asarray(p.poses)[-1, :2] + (0.2, 0.2), f"p={p.probability:.2f}", col, 0.33)
-    # the ego's own intention (implicit method): its three most wanted spots numbered
     ego_it = rec.ego_intention.get(k)
     if ego_it is not None:
         order = np.argsort(-np.asarray(ego_it.spot_probabilities), kind="stable")[:3]
         for rank, j in enumerate(order, start=1):
             sid = int(np.asarray(ego_it.spot_ids)[j])
-            sx, sy = lot.spot_poses[lot.spot_index(sid), :2]
+            sx, sy = rec.lot.spot_poses[rec.lot.spot_index(sid), :2]
             c.text((sx - 0.4, sy - 1.2), f"#{rank}", EGO_RANK, 0.45)
-    # the plan and the ego
-    d = rec.decisions.get(k)
+
+
+def _draw_plan_and_ego(c: Canvas, lot, d, obs) -> None:
+    """The planned path (parking or exploring), the chosen spot outlined, and the ego on top."""
     if d is not None:
         col = PARK if d.mode == 1 else EXPLORE
         pts = np.array([[q.pose.position.x, q.pose.position.y] for q in d.plan.poses]).reshape(-1, 2)
@@ -192,13 +217,19 @@ def render_frame(rec: EpisodeRecording, k: int, seen: np.ndarray, px_per_m: floa
             c.poly(lot.spot_corners[lot.spot_index(int(d.spot_id))], col, filled=False, thickness=3)
     if obs is not None:
         c.poly(rect_corners(np.asarray(obs.ego_pose), obs.ego_length, obs.ego_width), EGO)
-    # header and legend
+
+
+def _header(c: Canvas, k: int, obs, d, title: str) -> np.ndarray:
     band = np.full((22, c.img.shape[1], 3), 30, dtype=np.uint8)
     t = k * (obs.dt if obs is not None else 0.1)
     mode = f"{MODE_NAMES.get(int(d.mode), '?')}{' spot ' + str(d.spot_id) if d is not None and d.mode == 1 else ''}" \
         if d is not None else "-"
     cv2.putText(band, f"{title}  t={t:5.1f}s  {mode}", (6, 15), cv2.FONT_HERSHEY_SIMPLEX, 0.42, WHITE, 1,
                 cv2.LINE_AA)
+    return band
+
+
+def _legend(c: Canvas) -> np.ndarray:
     legend = np.full((18, c.img.shape[1], 3), 30, dtype=np.uint8)
     x = 6
     for name, col in (("b=0", tuple(int(v) for v in FREE)), ("b=1", tuple(int(v) for v in TAKEN)),
@@ -207,7 +238,7 @@ def render_frame(rec: EpisodeRecording, k: int, seen: np.ndarray, px_per_m: floa
         cv2.rectangle(legend, (x, 5), (x + 8, 13), col, -1)
         cv2.putText(legend, name, (x + 11, 13), cv2.FONT_HERSHEY_SIMPLEX, 0.32, WHITE, 1, cv2.LINE_AA)
         x += 16 + 6 * len(name)
-    return np.vstack([band, c.img, legend])
+    return legend
 
 
 def render_frames(rec: EpisodeRecording, stride: int = 1, px_per_m: float = 12.0, title: str = "") -> list[np.ndarray]:

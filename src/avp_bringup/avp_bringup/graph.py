@@ -91,6 +91,27 @@ def method_graph(method, *, deterministic: bool = False, intent_weights: str | N
     return nodes
 
 
+def ego_graph(method: str | None, ego: str = "planner", deterministic: bool = False) -> list[NodeSpec]:
+    """The 4-node graph of a Table I ``method`` (its parameters on the belief node, the prediction node and the
+    planner: :func:`method_graph`), or the simulator + scripted driver (``ego="scripted"``), or the default graph.
+    ValueError when a method is given with the scripted ego."""
+    if ego == "scripted":
+        if method:
+            raise ValueError("--method and --ego scripted exclude each other")
+        return default_graph("scripted")
+    return method_graph(method, deterministic=deterministic) if method else default_graph(ego)
+
+
+def avp_root() -> Path:
+    """Where ``out/`` and ``bags/`` go: $AVP_ROOT (set by tools/env.sh: the clone) or the working directory."""
+    return Path(os.environ.get("AVP_ROOT", Path.cwd()))
+
+
+def default_log_dir(arg: str | None = None) -> Path:
+    """``arg`` if given, else out/logs/<time>/ under :func:`avp_root`."""
+    return Path(arg) if arg else avp_root() / "out" / "logs" / time.strftime("%Y%m%d-%H%M%S")
+
+
 def _ros_value(v) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"

@@ -10,7 +10,7 @@ minADE horizon, the intent weights, the method profiles); re-running into the sa
 values is refused. Each invocation appends a line to ``OUT/runs.jsonl`` (start, wall time, episodes run, workers,
 commit, options, load average) so that the wall time of a run split over several invocations can be stated. At
 the end ``OUT/summary.md``, ``OUT/summary.json`` and ``OUT/plots/*.png`` are written
-(:mod:`.summary`).
+(:mod:`.summary`). The results folder itself (run.json, episodes.jsonl, runs.jsonl) is :mod:`.results`.
 
 Transports: ``inproc`` runs each episode in a worker process (``concurrent.futures``, spawn, one torch
 thread per worker) on the simulator core and :class:`~.ego.MethodEgo`; ``ros`` runs them through the live
@@ -21,15 +21,13 @@ DDS graph (:mod:`.ros_transport`, one episode at a time). The planner's wall-clo
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import os
 import sys
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import asdict
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
@@ -38,7 +36,22 @@ from avp_bringup.experiment.profiles import (
     MethodProfile,
     ProfileError,
     available_names,
-    load_profile,
+)
+from avp_bringup.experiment.results import (  # noqa: F401 - re-exported: the runner's API
+    RESULTS_FILE,
+    RUN_FILE,
+    RUNS_LOG,
+    ResultsWriter,
+    check_method,
+    check_run_file,
+    code_commit,
+    intent_identity,
+    log_invocation,
+    mode_name,
+    profile_digest,
+    read_results,
+    record_key,
+    run_identity,
 )
 from avp_bringup.experiment.run_config import (  # noqa: F401 - re-exported: the runner's API
     DEFAULT_HORIZON,
@@ -49,146 +62,8 @@ from avp_bringup.experiment.run_config import (  # noqa: F401 - re-exported: the
 )
 
 MODES = {"reactive": (True,), "non-reactive": (False,), "both": (False, True)}
-RESULTS_FILE = "episodes.jsonl"
-RUN_FILE = "run.json"
-RUNS_LOG = "runs.jsonl"
 SEEDS_FILE = "seeds.json"
-
-
 ORACLE_HORIZON = 10.0  # s of true future given to the oracle bound (.oracle)
-
-
-
-
-def mode_name(reactive: bool) -> str:
-    return "reactive" if reactive else "non_reactive"
-
-
-def record_key(r: dict) -> Key:
-    return (str(r["method"]), int(r["seed"]), str(r["mode"]))
-
-
-# ------------------------------------------------------------------------------------------ set-up
-
-
-def intent_identity(cfg: RunConfig) -> str:
-    """Which intent weights the episodes use: 'sha256:<hex> (shipped)', 'sha256:<hex> (<path as given>)' or
-    'random seed N' (no machine-specific path: summaries made on two machines compare)."""
-    from avp_perception.core.pipeline import shipped_weights_path
-
-    path = Path(cfg.intent_weights) if cfg.intent_weights else shipped_weights_path()
-    if path is None:
-        return f"random seed {cfg.intent_seed}"
-    if not path.is_file():
-        raise ValueError(f"--intent-weights {path}: no such file")
-    return f"sha256:{hashlib.sha256(path.read_bytes()).hexdigest()} ({cfg.intent_weights or 'shipped'})"
-
-
-def check_method(profile: MethodProfile) -> str:
-    """'' if the method can run in this build, else why not."""
-    if not profile.available:
-        return profile.unavailable_reason or "not available"
-    from avp_perception.core.prediction import make_predictor
-    from avp_world.lot import load_bundled_lot
-
-    try:
-        make_predictor(profile.predictor, load_bundled_lot())
-    except (ValueError, ImportError) as exc:
-        return f"predictor {profile.predictor!r} is not in this build ({exc})"
-    return ""
-
-
-def profile_digest(profile: MethodProfile) -> str:
-    """Hash of the profile file; for the learned predictor also of the shipped trajectory weights it loads (so
-    episodes of other weights are never mixed into one results folder)."""
-    h = hashlib.sha256(Path(profile.source).read_bytes())
-    if profile.planner != load_profile(profile.source).planner:  # protocol / --planner-param values on top
-        h.update(json.dumps(profile.planner, sort_keys=True).encode())
-    if profile.predictor == "learned":
-        from avp_perception.core.learned_prediction import default_weights_path
-
-        w = default_weights_path()
-        h.update(w.read_bytes() if w.is_file() else b"random weights")
-    return h.hexdigest()[:16]
-
-
-def run_identity(cfg: RunConfig, profiles: Iterable[MethodProfile]) -> dict:
-    """What OUT/run.json must match: the run config, the intent weights, every avp_sim parameter value (so that
-    a change of the shipped scenario defaults is not mixed with earlier episodes) and the method profiles."""
-    return {"config": asdict(cfg), "intent": intent_identity(cfg), "sim": sim_values(cfg),
-            "methods": {p.name: profile_digest(p) for p in profiles}}
-
-
-def check_run_file(out: Path, ident: dict) -> dict:
-    """Merge ``ident`` into OUT/run.json; ValueError if the folder holds results of other settings."""
-    path = out / RUN_FILE
-    if path.is_file():
-        old = json.loads(path.read_text())
-        if isinstance(old.get("config"), dict):  # fields added since (protocol, ...) read as their defaults
-            old["config"] = {**asdict(RunConfig()), **old["config"]}
-        if isinstance(old.get("sim"), dict):  # avp_sim parameters added since read as their defaults
-            from avp_sim.params import SIM_PARAMS
-
-            old["sim"] = {**{s.name: s.default for s in SIM_PARAMS if s.name not in old["sim"]}, **old["sim"]}
-        for k in ("sim", "intent", "config"):  # sim first: it names the parameters that differ
-            if old.get(k) != ident[k]:
-                if k == "sim" and isinstance(old.get(k), dict):
-                    diff = sorted(n for n in set(old[k]) | set(ident[k]) if old[k].get(n) != ident[k].get(n))
-                    what = f"other avp_sim parameters ({', '.join(diff)})"
-                elif k == "sim":
-                    what = "avp_sim parameters that were not recorded (an older run)"
-                else:
-                    what = f"{k} = {old.get(k)!r}, this command uses {ident[k]!r}"
-                raise ValueError(f"{path}: the results there were made with {what}; use another --out "
-                                 f"(or delete {out})")
-        for name, digest in ident["methods"].items():
-            if old.get("methods", {}).get(name, digest) != digest:
-                raise ValueError(f"{path}: method profile {name!r} changed since its episodes there were run; "
-                                 f"use another --out")
-        ident = {**old, "methods": {**old.get("methods", {}), **ident["methods"]}}
-    out.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(ident, indent=2) + "\n")
-    return ident
-
-
-# ------------------------------------------------------------------------------------------ results file
-
-
-def read_results(path: Path) -> list[dict]:
-    """Records of a JSONL file; a last line cut off by an interruption is removed from the file."""
-    if not path.is_file():
-        return []
-    data = path.read_bytes()
-    if data and not data.endswith(b"\n"):  # an interrupted write: drop the partial line
-        cut = data.rfind(b"\n") + 1
-        with path.open("r+b") as f:
-            f.truncate(cut)
-        data = data[:cut]
-    out = []
-    for n, line in enumerate(data.decode().splitlines(), 1):
-        if not line.strip():
-            continue
-        try:
-            out.append(json.loads(line))
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"{path}:{n}: not a JSON line ({exc})") from None
-    return out
-
-
-class ResultsWriter:
-    """Appends records as JSON lines, each flushed and fsync'ed (an interruption loses at most one line)."""
-
-    def __init__(self, path: Path):
-        self.path = path
-        self.f = path.open("a")
-
-    def write(self, record: dict) -> None:
-        self.f.write(json.dumps(record, sort_keys=True, allow_nan=False) + "\n")
-        self.f.flush()
-        os.fsync(self.f.fileno())
-
-    def close(self) -> None:
-        self.f.close()
 
 
 # ------------------------------------------------------------------------------------------ episodes
@@ -405,7 +280,7 @@ def run_experiment(args: argparse.Namespace) -> dict:
           flush=True)
     n_run = 0
     errors: list[str] = []
-    started, t0, commit = time.strftime("%Y-%m-%dT%H:%M:%S%z"), time.perf_counter(), _code_commit()
+    started, t0, commit = time.strftime("%Y-%m-%dT%H:%M:%S%z"), time.perf_counter(), code_commit()
     if todo and not args.summary_only:
         from tqdm import tqdm
 
@@ -442,25 +317,6 @@ def run_experiment(args: argparse.Namespace) -> dict:
         print(f"[avp experiment] {len(errors)} episode(s) raised and are not in the results (listed above); "
               "run the same command to retry them", file=sys.stderr)
     return {"ran": n_run, "skipped_methods": skipped, "summary": summary, "errors": errors}
-
-
-def _code_commit() -> str:
-    """The checked-out commit of the code this process runs (read when the run starts)."""
-    from avp_common.provenance import git_commit
-
-    return git_commit(Path(__file__).resolve().parents[4])
-
-
-def log_invocation(out: Path, args: argparse.Namespace, started: str, wall_s: float, ran: int, todo: int,
-                   commit: str) -> None:
-    """Append this invocation to ``OUT/runs.jsonl`` (see the module docstring)."""
-    line = {"started": started, "wall_s": round(wall_s, 1), "episodes_run": ran, "episodes_todo": todo,
-            "workers": args.workers, "transport": args.transport, "cpu_count": os.cpu_count(),
-            "loadavg_end": [round(x, 2) for x in os.getloadavg()],
-            "commit": commit,
-            "options": {k: v for k, v in sorted(vars(args).items()) if isinstance(v, (str, int, float, bool, list))}}
-    with open(out / RUNS_LOG, "a") as f:
-        f.write(json.dumps(line) + "\n")
 
 
 def _parse_params(items: list[str] | None, specs: dict, flag: str, node: str) -> dict[str, Any]:

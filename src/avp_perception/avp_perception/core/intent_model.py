@@ -52,255 +52,41 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from torch import nn
 
 from avp_perception.core.belief import BeliefMap
 from avp_perception.core.bev import BEVConfig, BEVRenderer, VehicleBEV
+from avp_perception.core.intent_features import (  # noqa: F401 - re-exported: the model's API
+    FEATURE_NAMES,
+    MOTION_COLUMN,
+    MOTION_FEATURES,
+    N_FEATURES,
+    PARKPREDICT_FEATURES,
+    ROLL_COLUMN,
+    ROLL_SPEED,
+    SPEED_WINDOWS,
+    intent_features,
+    motion_features,
+)
+from avp_perception.core.intent_net import (  # noqa: F401 - re-exported: the model's API
+    CHANNELS,
+    KERNELS,
+    SLOPE,
+    WEIGHTS_FILE,
+    FusedIntentNet,
+    SmallRegularizedCNN,
+    conv_output_size,
+    default_weights_path,
+    images_to_tensor,
+    load_cnn,
+    max_pool_2x2,
+    receptive_field,
+    sigmoid_normalise,
+)
 from avp_perception.core.intention import Intention, split_none_mass
 from avp_world.lot import LotMap
 from avp_world.types import Observation, ObservedVehicle
 
-PARKPREDICT_FEATURES = ("cos_to_target", "distance_to_target", "speed", "distance_to_entrance", "time_in_lot_min")
-SPEED_WINDOWS = 4  # past 1 s windows of the motion features (4 s: the history the observation model gives)
-MOTION_FEATURES = ("sin_to_target", *(f"mean_speed_{j}_{j + 1}s" for j in range(SPEED_WINDOWS)),
-                   "heading_change_2s", "slow_roll_distance")
-FEATURE_NAMES = PARKPREDICT_FEATURES + MOTION_FEATURES
-N_FEATURES = len(FEATURE_NAMES)  # 12
-MOTION_COLUMN = FEATURE_NAMES.index("mean_speed_0_1s")  # 6: the first column computed from the history
-ROLL_COLUMN = FEATURE_NAMES.index("slow_roll_distance")  # 11
-ROLL_SPEED = 1.6  # m/s: "slow" for slow_roll_distance (parkers roll their last 6-12 m at 0.8-1.5 m/s, cruise 2-4)
-KERNELS = (7, 5, 3)
-CHANNELS = (3, 8, 8, 3)
-
-
-def conv_output_size(size: int) -> int:
-    """Side of the conv-stack output for a ``size`` px input (valid convs, floor-mode 2x2 pools)."""
-    n = int(size)
-    for k in KERNELS:
-        n = (n - k + 1) // 2
-    if n < 1:
-        raise ValueError(f"input of {size} px is too small for the conv stack")
-    return n
-
-
-def receptive_field() -> tuple[int, int]:
-    """(receptive field, stride) in input pixels of one output cell of the conv stack: (30, 8)."""
-    r, s = 1, 1
-    for k in KERNELS:
-        r += (k - 1) * s  # conv
-        r += s  # 2x2 pool
-        s *= 2
-    return r, s
-
-
-def _block(c_in: int, c_out: int, k: int, dropout: float) -> nn.Sequential:
-    return nn.Sequential(nn.Conv2d(c_in, c_out, k), nn.BatchNorm2d(c_out), nn.Dropout(dropout),
-                         nn.LeakyReLU(SLOPE), nn.MaxPool2d(2))
-
-
-SLOPE = 0.01  # LeakyReLU slope of the conv blocks and the head
-
-
-class SmallRegularizedCNN(nn.Module):
-    """ParkPredict+ SmallRegularizedCNN (sheet §1.4) for ``image_size`` px RGB inputs in [0, 1]."""
-
-    def __init__(self, image_size: int = 100, n_features: int = N_FEATURES, hidden: int = 100,
-                 dropout: float = 0.2):
-        super().__init__()
-        if not 1 <= int(n_features) <= N_FEATURES:
-            raise ValueError(f"n_features must be 1..{N_FEATURES} (the first n of FEATURE_NAMES), got {n_features}")
-        self.image_size = int(image_size)
-        self.n_features = int(n_features)  # the first n of FEATURE_NAMES (5: ParkPredict+'s)
-        self.out_size = conv_output_size(self.image_size)
-        self.conv = nn.Sequential(*[_block(CHANNELS[i], CHANNELS[i + 1], KERNELS[i], dropout) for i in range(3)])
-        n_flat = CHANNELS[-1] * self.out_size**2
-        self.fc = nn.Sequential(nn.Linear(n_flat + n_features, hidden), nn.BatchNorm1d(hidden), nn.Dropout(dropout),
-                                nn.LeakyReLU(SLOPE), nn.Linear(hidden, 1))  # the activation: module docstring
-
-    def encode(self, images: torch.Tensor) -> torch.Tensor:
-        """(B, 3, H, W) -> (B, 3, h, w) conv features."""
-        return self.conv(images)
-
-    def head(self, encoded: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
-        """(B, 3, h, w) conv features and (B, >= n_features) features -> (B,) logits (the first ``n_features``
-        columns are used: the feature rows are always all of FEATURE_NAMES)."""
-        return self.fc(torch.cat([encoded.flatten(1), features[:, : self.n_features]], dim=1)).squeeze(1)
-
-    def forward(self, images: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
-        return self.head(self.encode(images), features)
-
-
-def sigmoid_normalise(logits: np.ndarray | torch.Tensor) -> np.ndarray:
-    """ParkPredict+ probabilities (sheet §1.5): sigmoid(z_j) / sum_j sigmoid(z_j) (float64; numpy, no overflow)."""
-    z = logits.detach().cpu().numpy() if isinstance(logits, torch.Tensor) else logits
-    z = np.asarray(z, dtype=np.float64)
-    e = np.exp(-np.abs(z))
-    s = np.where(z >= 0.0, 1.0 / (1.0 + e), e / (1.0 + e))
-    return s / s.sum()
-
-
-def motion_features(history: np.ndarray | None, dt: float, speed: float) -> np.ndarray:
-    """The vehicle's motion over its observed history (our extension of §V-A, module docstring):
-    [mean speed over [t-1, t], [t-2, t-1], [t-3, t-2], [t-4, t-3] s (path length of the history poses in the
-    window / 1 s), heading change over the last 2 s (wrapped, rad)]. Windows the history does not reach repeat
-    the oldest one measured; with fewer than two poses every speed is ``speed`` and the heading change 0."""
-    out = np.full(SPEED_WINDOWS + 1, float(speed))
-    out[-1] = 0.0
-    if history is None or dt <= 0:
-        return out
-    h = np.asarray(history, dtype=float).reshape(-1, 3)
-    if len(h) < 2:
-        return out
-    step = np.hypot(np.diff(h[:, 0]), np.diff(h[:, 1]))[::-1]  # newest first
-    n = max(1, int(round(1.0 / dt)))
-    for j in range(SPEED_WINDOWS):
-        seg = step[j * n:(j + 1) * n]
-        if len(seg) == 0:
-            out[j] = out[j - 1]
-        else:
-            out[j] = float(seg.sum()) / (len(seg) * dt)
-    back = min(len(h) - 1, 2 * n)
-    out[-1] = math.remainder(h[-1, 2] - h[-1 - back, 2], math.tau)
-    return out
-
-
-def intent_features(pose: np.ndarray, speed: float, targets: np.ndarray, entrance: np.ndarray,
-                    time_in_lot_min: float, history: np.ndarray | None = None, dt: float = 0.1,
-                    roll_distance: float = 0.0) -> np.ndarray:
-    """(K + 1, 12) float32 features: row 0 the "none" option, rows 1..K the candidate spot centres ``targets``.
-    Columns: ParkPredict+'s five [cos_k,i, d_k,i, v_hat_k, d_ent, t_lot] (the "none" row [0, 0, v_hat, d_ent,
-    t_lot]), then sin_k,i (the spot's side: + left; 0 for "none"), :func:`motion_features` of ``history``
-    (past poses at ``dt``, oldest first, ending with the current one) and ``roll_distance``
-    (:meth:`IntentPredictor.roll_distance`)."""
-    tg = np.asarray(targets, dtype=float).reshape(-1, 2)
-    p = np.asarray(pose, dtype=float)
-    d = tg - p[:2]
-    dist = np.hypot(d[:, 0], d[:, 1])
-    c, s = math.cos(p[2]), math.sin(p[2])
-    cos = (d @ np.array([c, s])) / np.maximum(dist, 1e-9)
-    sin = (d @ np.array([-s, c])) / np.maximum(dist, 1e-9)
-    cos[dist < 1e-9] = 1.0  # on top of the spot: aligned by convention
-    sin[dist < 1e-9] = 0.0
-    d_ent = float(np.hypot(*(p[:2] - np.asarray(entrance, dtype=float)[:2])))
-    out = np.empty((len(tg) + 1, N_FEATURES), dtype=np.float32)
-    out[0, :6] = (0.0, 0.0, speed, d_ent, time_in_lot_min, 0.0)
-    out[1:, 0] = cos
-    out[1:, 1] = dist
-    out[1:, 2] = speed
-    out[1:, 3] = d_ent
-    out[1:, 4] = time_in_lot_min
-    out[1:, 5] = sin
-    out[:, MOTION_COLUMN:ROLL_COLUMN] = motion_features(history, dt, speed)[None]
-    out[:, ROLL_COLUMN] = roll_distance
-    return out
-
-
-def images_to_tensor(images: np.ndarray) -> torch.Tensor:
-    """(B, H, W, 3) uint8 -> (B, 3, H, W) float32 in [0, 1] (channels-last memory, no transpose copy)."""
-    return torch.from_numpy(np.ascontiguousarray(images)).permute(0, 3, 1, 2).float().mul_(1.0 / 255.0)
-
-
-def _cell_range(lo: int, hi: int, n_out: int, field: int, stride: int) -> tuple[int, int]:
-    """Output cells whose window [stride*i, stride*i + field - 1] meets pixels lo..hi (inclusive)."""
-    a = max(0, -((field - 1 - lo) // stride))  # ceil((lo - field + 1) / stride)
-    b = min(n_out - 1, hi // stride)
-    return a, b
-
-
-def max_pool_2x2(x: torch.Tensor) -> torch.Tensor:
-    """nn.MaxPool2d(2) (floor mode) as the max of four strided views: the same numbers, several times faster
-    than this CPU build's pooling kernel on these small tensors."""
-    h, w = x.shape[-2] // 2 * 2, x.shape[-1] // 2 * 2
-    return torch.maximum(torch.maximum(x[..., 0:h:2, 0:w:2], x[..., 1:h:2, 0:w:2]),
-                         torch.maximum(x[..., 0:h:2, 1:w:2], x[..., 1:h:2, 1:w:2]))
-
-
-class FusedIntentNet:
-    """Inference form of a :class:`SmallRegularizedCNN` in eval mode (same function, fewer operations).
-
-    Each BatchNorm is folded into the layer before it, dropout is the identity, and LeakyReLU is applied
-    after the 2x2 max-pool (it is strictly increasing, so it commutes with max): per block
-    y = leaky_relu(maxpool(conv'(x))). Build it again after the model's weights change.
-    """
-
-    def __init__(self, model: SmallRegularizedCNN):
-        model = model.eval()
-        self.out_size = model.out_size
-        self.n_features = model.n_features
-        self.slope = SLOPE
-        self.convs: list[tuple[torch.Tensor, torch.Tensor]] = []
-        with torch.no_grad():
-            for block in model.conv:
-                conv, bn = block[0], block[1]
-                scale = bn.weight / torch.sqrt(bn.running_var + bn.eps)
-                w = (conv.weight * scale[:, None, None, None]).contiguous(memory_format=torch.channels_last)
-                b = (conv.bias - bn.running_mean) * scale + bn.bias
-                self.convs.append((w.detach().clone(), b.detach().clone()))
-            fc1, bn1, fc2 = model.fc[0], model.fc[1], model.fc[4]
-            scale = bn1.weight / torch.sqrt(bn1.running_var + bn1.eps)
-            self.w1 = (fc1.weight * scale[:, None]).detach().clone()
-            self.b1 = ((fc1.bias - bn1.running_mean) * scale + bn1.bias).detach().clone()
-            self.w2 = fc2.weight.detach().clone()
-            self.b2 = fc2.bias.detach().clone()
-        self.kernel1 = int(self.convs[0][0].shape[-1])
-        field, stride = receptive_field()
-        self.used = stride * (self.out_size - 1) + field  # input rows/cols the output depends on (94 of 100)
-
-    def conv1(self, x: torch.Tensor) -> torch.Tensor:
-        """First conv with BN folded in (affine in x): (B, 3, H, W) -> (B, 8, H - 6, W - 6)."""
-        w, b = self.convs[0]
-        return torch.nn.functional.conv2d(x, w, b)
-
-    def conv1_linear(self, dx: torch.Tensor) -> torch.Tensor:
-        """The linear part of :meth:`conv1` (no bias), for image differences."""
-        return torch.nn.functional.conv2d(dx, self.convs[0][0])
-
-    def after_conv1(self, a1: torch.Tensor) -> torch.Tensor:
-        """Everything after conv1: (B, 8, h1, w1) -> (B, 3, h, w)."""
-        lrelu = torch.nn.functional.leaky_relu
-        y = lrelu(max_pool_2x2(a1), self.slope)
-        for w, b in self.convs[1:]:
-            y = lrelu(max_pool_2x2(torch.nn.functional.conv2d(y, w, b)), self.slope)
-        return y
-
-    def encode(self, x: torch.Tensor) -> torch.Tensor:
-        """The floor-mode pools never read the last rows/cols: they are cropped first (same output)."""
-        return self.after_conv1(self.conv1(x[..., : self.used, : self.used]))
-
-    def head(self, encoded: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
-        x = torch.cat([encoded.flatten(1), features[:, : self.n_features]], dim=1)
-        h = torch.nn.functional.linear(x, self.w1, self.b1)
-        h = torch.nn.functional.leaky_relu(h, self.slope)
-        return torch.nn.functional.linear(h, self.w2, self.b2).squeeze(1)
-
-    def __call__(self, images: torch.Tensor, features: torch.Tensor) -> torch.Tensor:
-        return self.head(self.encode(images), features)
-
-
-def load_cnn(path: str | Path, image_size: int = 100) -> SmallRegularizedCNN:
-    """A :class:`SmallRegularizedCNN` with the state dict at ``path`` (saved by ``torch.save(model.state_dict())``),
-    in eval mode. The number of features it takes (the first n of FEATURE_NAMES; 5 = ParkPredict+'s) is read from
-    its first linear layer. ValueError names the file when it is not such a state dict."""
-    state = torch.load(Path(path), map_location="cpu", weights_only=True)
-    try:
-        n = int(state["fc.0.weight"].shape[1]) - CHANNELS[-1] * conv_output_size(image_size) ** 2
-        model = SmallRegularizedCNN(image_size, n_features=n)
-        model.load_state_dict(state)
-    except (KeyError, ValueError, RuntimeError, AttributeError) as e:
-        raise ValueError(f"intent weights {path}: not a {image_size} px SmallRegularizedCNN state dict ({e})") from None
-    return model.eval()
-
-
 MODES = ("incremental", "fused", "reference")
-WEIGHTS_FILE = "intent_cnn.pt"  # the shipped state dict, under avp_perception/models/ (docs/intent_model.md)
-
-
-def default_weights_path() -> Path:
-    """Where the shipped intent CNN weights live: ``avp_perception/models/intent_cnn.pt`` (made by
-    ``avp train-intent``; a JSON card with the same stem records data, command and accuracy)."""
-    return Path(__file__).resolve().parents[1] / "models" / WEIGHTS_FILE
-
-
 class IntentPredictor:
     """The intent model of §V-A on reconstructed BEVs: ``predict(obs, vehicle, beliefs, lot) -> Intention``.
 

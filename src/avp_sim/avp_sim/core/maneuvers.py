@@ -49,13 +49,25 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 
+from avp_sim.core.maneuver_scene import (
+    ALL_MANEUVERS,
+    START_OFFSET,
+    Maneuver,
+    ManeuverKey,
+    SceneGeometry,
+    check_key,
+    goal_pose,
+    parked_car_poses,
+    start_pose,
+    target_spot_pose,
+)
+from avp_sim.core.maneuver_tracking import MAX_ACCEL, MAX_SPEED, controls_ok, end_ok, pieces, track
 from avp_world.geometry import rect_corners, rects_overlap, wrap_angle
-from avp_world.kinematics import brake_speed, rollout_vehicle, step_vehicle
-from avp_world.reeds_shepp import RSBatch, RSPath, reeds_shepp_batch, sample_path, segment_end
+from avp_world.kinematics import rollout_vehicle
+from avp_world.reeds_shepp import RSBatch, RSPath, reeds_shepp_batch, sample_path
 from avp_world.vehicle import VehicleSpec
 
 __all__ = [
@@ -74,9 +86,6 @@ __all__ = [
     "target_spot_pose",
 ]
 
-MAX_SPEED = 2.0  # m/s, ParkSim parking speed limit
-MAX_ACCEL = 2.0  # m/s^2, ParkSim a_max_parking
-START_OFFSET = 4.0  # |x0| of the start pose (ParkSim: -4 "left" / +4 "right")
 
 # planner / tracker tuning
 _PLAN_RADIUS_FACTOR = 1.1  # plan with 1.1 R_min so the tracker keeps 10 % curvature authority
@@ -84,141 +93,7 @@ _PLAN_MARGIN = 0.05  # extra clearance (m) the plan keeps on top of SceneGeometr
 _CUSP_PENALTY = 3.0  # m of path length per change of direction
 _STRAIGHT_IN = (1.0, 0.5)  # m: every plan ends with a straight this long into the spot (tracking settles)
 _PLAN_STEP = 0.05  # m between collision-checked samples of a plan
-_REF_STEP = 0.01  # m between samples of the tracking reference
-_L_CORR = 1.0  # m: distance over which the tracker steers a lateral error away
-_STOP_EPS = 0.005  # m: a piece is finished when less than this is left
 _VERIFY_SLACK = 0.05  # rolled-out footprints may use this much of the clearance
-_END_LAT_TOL, _END_LON_TOL, _END_HEAD_TOL = 0.15, 0.3, math.radians(3.0)
-
-
-class ManeuverKey(NamedTuple):
-    """Which of the 8 maneuvers: side 'near'|'far', stop 'before'|'after', entry 'head_in'|'tail_in'."""
-
-    side: str
-    stop: str
-    entry: str
-
-
-ALL_MANEUVERS: tuple[ManeuverKey, ...] = tuple(
-    ManeuverKey(side, stop, entry)
-    for side in ("near", "far")
-    for stop in ("before", "after")
-    for entry in ("head_in", "tail_in")
-)
-
-
-@dataclass(frozen=True)
-class SceneGeometry:
-    """The canonical scene (paper lot defaults: 7 m aisle, 5.5 x 2.75 m spots).
-
-    clearance: minimum distance (m) a maneuver keeps to the parked cars and the geofence.
-    """
-
-    aisle_width: float = 7.0
-    spot_length: float = 5.5
-    spot_width: float = 2.75
-    clearance: float = 0.15
-
-    @property
-    def lane_y(self) -> float:
-        """Centre line of the right-hand lane for a car driving east."""
-        return -self.aisle_width / 4.0
-
-    @property
-    def spot_y(self) -> float:
-        """|y| of the spot centres."""
-        return self.aisle_width / 2.0 + self.spot_length / 2.0
-
-    @property
-    def geofence(self) -> tuple[float, float, float, float]:
-        """(xmin, ymin, xmax, ymax) = x in [-10, 10], y in [-(aisle/2 + spot_length), +(...)]."""
-        h = self.aisle_width / 2.0 + self.spot_length
-        return (-10.0, -h, 10.0, h)
-
-
-@dataclass(frozen=True, eq=False)
-class Maneuver:
-    """A maneuver in the canonical scene frame.
-
-    start: (3,) pose with v = 0; controls: (T, 2) = (v, omega) per dt; states: (T + 1, 3) =
-    ``rollout_vehicle(start, controls, dt)`` exactly (eq. (1)); scene: the geometry it was made for.
-    Arrays are read-only (results are cached); equality is identity.
-    """
-
-    key: ManeuverKey
-    start: np.ndarray
-    controls: np.ndarray
-    states: np.ndarray
-    dt: float = 0.1
-    scene: SceneGeometry = SceneGeometry()
-
-    @property
-    def duration(self) -> float:
-        return self.controls.shape[0] * self.dt
-
-    @property
-    def n_cusps(self) -> int:
-        """Number of driving-direction reversals of the controls."""
-        v = self.controls[:, 0]
-        s = np.sign(v[np.abs(v) > 1e-9])
-        return int(np.count_nonzero(s[1:] != s[:-1]))
-
-
-# ------------------------------------------------------------------------------------------- scene
-
-
-def _check_key(key: ManeuverKey) -> ManeuverKey:
-    key = ManeuverKey(*key)
-    if key.side not in ("near", "far") or key.stop not in ("before", "after"):
-        raise ValueError(f"bad maneuver key {key}")
-    if key.entry not in ("head_in", "tail_in"):
-        raise ValueError(f"bad maneuver key {key}")
-    return key
-
-
-def target_spot_pose(side: str, scene: SceneGeometry = SceneGeometry()) -> np.ndarray:
-    """Centre and heading (pointing away from the aisle) of the target spot in the canonical frame."""
-    if side == "near":
-        return np.array([0.0, -scene.spot_y, -0.5 * math.pi])
-    if side == "far":
-        return np.array([0.0, scene.spot_y, 0.5 * math.pi])
-    raise ValueError(f"side must be 'near' or 'far', got {side!r}")
-
-
-def start_pose(key: ManeuverKey, scene: SceneGeometry = SceneGeometry()) -> np.ndarray:
-    """(x0, -aisle/4, 0): x0 = -4 m (stop before the spot) or +4 m (after it)."""
-    key = _check_key(key)
-    x0 = -START_OFFSET if key.stop == "before" else START_OFFSET
-    return np.array([x0, scene.lane_y, 0.0])
-
-
-def goal_pose(key: ManeuverKey, scene: SceneGeometry = SceneGeometry()) -> np.ndarray:
-    """Spot centre with heading = spot heading (head-in) or spot heading + pi (tail-in), wrapped."""
-    key = _check_key(key)
-    g = target_spot_pose(key.side, scene)
-    if key.entry == "tail_in":
-        g[2] = float(wrap_angle(g[2] + math.pi))
-    return g
-
-
-def parked_car_poses(
-    side: str, scene: SceneGeometry = SceneGeometry(), vehicle: VehicleSpec = VehicleSpec()
-) -> np.ndarray:
-    """(P, 3) poses of the parked cars: every spot of both rows (x = k * spot_width) except the target,
-    each holding a car of ``vehicle``'s size centred in it along the spot axis, as far as it reaches into
-    the geofence."""
-    xmin, _, xmax, _ = scene.geofence
-    kmax = int(math.ceil((max(-xmin, xmax) + vehicle.width) / scene.spot_width))
-    out = []
-    for row_side, y, th in (("near", -scene.spot_y, -0.5 * math.pi), ("far", scene.spot_y, 0.5 * math.pi)):
-        for k in range(-kmax, kmax + 1):
-            x = k * scene.spot_width
-            if k == 0 and row_side == side:
-                continue
-            if x + vehicle.width / 2 <= xmin or x - vehicle.width / 2 >= xmax:
-                continue
-            out.append((x, y, th))
-    return np.array(out, dtype=float)
 
 
 # -------------------------------------------------------------------------------- collision checking
@@ -386,136 +261,6 @@ class _Planner:
                 yield _Plan(tuple(s1 + sm + s2), c)
 
 
-# ----------------------------------------------------------------------------------------- tracking
-
-
-@dataclass(frozen=True)
-class _Piece:
-    poses: np.ndarray  # (M, 3) reference poses
-    kappa: np.ndarray  # (M,) signed curvature (w.r.t. signed arc length) of the path just after each pose
-    s: np.ndarray  # (M,) arc length from the piece start (>= 0)
-    direction: int
-
-
-def _pieces(start: np.ndarray, segments: tuple[tuple[str, float], ...], radius: float) -> list[_Piece]:
-    """Split a chained path at its cusps and sample each piece densely for tracking."""
-    groups: list[list[tuple[str, float]]] = []
-    for kind, ln in segments:
-        d = 1 if ln > 0 else -1
-        if groups and (1 if groups[-1][0][1] > 0 else -1) == d:
-            groups[-1].append((kind, ln))
-        else:
-            groups.append([(kind, ln)])
-    pieces = []
-    pose = np.asarray(start, dtype=float)
-    for grp in groups:
-        d = 1 if grp[0][1] > 0 else -1
-        poses = [pose[None]]
-        kap: list[np.ndarray] = []
-        arcs: list[np.ndarray] = []
-        for kind, ln in grp:
-            n = max(1, math.ceil(abs(ln) / _REF_STEP))
-            p = segment_end(pose, kind, ln * np.arange(1, n + 1) / n, radius)
-            poses.append(p)
-            kap.append(np.full(n, {"L": 1.0 / radius, "R": -1.0 / radius, "S": 0.0}[kind]))
-            pose = p[-1]
-            arcs.append(np.full(n, abs(ln) / n))  # exact arc length between samples (not the chord)
-        pieces.append(
-            _Piece(
-                poses=np.concatenate(poses),
-                kappa=np.concatenate(kap + [kap[-1][-1:]]),
-                s=np.concatenate([[0.0], np.cumsum(np.concatenate(arcs))]),
-                direction=d,
-            )
-        )
-    return pieces
-
-
-def _project(pc: _Piece, p: np.ndarray, hint: int) -> tuple[int, float, float]:
-    """Nearest reference sample to point ``p`` (searched around index ``hint``): (index, progress along the
-    piece in metres, lateral offset to the left of the reference heading)."""
-    lo, hi = max(0, hint - 30), min(len(pc.s), hint + 80)
-    diff = p[:2] - pc.poses[lo:hi, :2]
-    j = lo + int(np.argmin(np.einsum("ij,ij->i", diff, diff)))
-    th = pc.poses[j, 2]
-    c, s = math.cos(th), math.sin(th)
-    ex, ey = p[0] - pc.poses[j, 0], p[1] - pc.poses[j, 1]
-    return j, float(pc.s[j] + pc.direction * (c * ex + s * ey)), -s * ex + c * ey
-
-
-def _track(start: np.ndarray, pieces: list[_Piece], vehicle: VehicleSpec, dt: float, max_speed: float = MAX_SPEED,
-           max_accel: float = MAX_ACCEL) -> np.ndarray:
-    """Controls (T, 2) that drive eq. (1) along the pieces, stopping (v = 0) at the end of each.
-
-    Speed: the largest of the discrete accelerate / cruise / brake-to-stop profile (see
-    :func:`avp_world.kinematics.brake_speed`, at most ``max_speed``), never changing by more than ``max_accel``
-    dt per step.
-    Steering: an Euler step moves the car along its *current* heading, so the heading is set one step
-    ahead: omega_k makes theta_{k+1} equal to the reference heading at the middle of step k + 1 (the chord
-    direction of the reference arc there, which removes the Euler drift off curves) minus d atan(e_lat / L)
-    to steer the lateral error e_lat of the already-determined position p_{k+1} back over L = 1 m; omega is
-    clipped to |v| / R_min.
-    """
-    kmax = (1.0 / vehicle.min_turning_radius) * (1.0 - 1e-12)
-    dv = max_accel * dt * (1.0 - 1e-12)
-    state = np.asarray(start, dtype=float).copy()
-    controls: list[tuple[float, float]] = []
-
-    def next_speed(speed: float, rem: float) -> float:
-        return max(min(max_speed, speed + dv, brake_speed(rem, dt, dv)), speed - dv, 0.0)
-
-    for pc in pieces:
-        d = pc.direction
-        length = float(pc.s[-1])
-        theta_u = np.unwrap(pc.poses[:, 2])
-        idx = 0
-        speed = 0.0
-        for _ in range(100000):
-            idx, sigma, _ = _project(pc, state, idx)
-            rem = length - sigma
-            if rem < _STOP_EPS and speed <= dv:
-                break
-            speed = next_speed(speed, rem)
-            if speed <= 1e-9:
-                break
-            v = d * speed
-            th = state[2]
-            p_next = state[:2] + v * dt * np.array([math.cos(th), math.sin(th)])
-            j2, sigma2, e_lat = _project(pc, p_next, idx)
-            mid = sigma2 + 0.5 * next_speed(speed, length - sigma2) * dt
-            th_ref = float(np.interp(min(max(mid, 0.0), length), pc.s, theta_u))
-            target = th_ref - d * math.atan(e_lat / _L_CORR)
-            omega = float(wrap_angle(target - th)) / dt
-            lim = speed * kmax
-            omega = min(max(omega, -lim), lim)
-            controls.append((v, omega))
-            state = step_vehicle(state, np.array([v, omega]), dt)
-        else:  # pragma: no cover
-            raise RuntimeError("maneuver tracking did not finish")
-        controls.append((0.0, 0.0))  # stop at the cusp / at the end
-        state = step_vehicle(state, np.zeros(2), dt)
-    return np.array(controls, dtype=float).reshape(-1, 2)
-
-
-def _end_ok(final: np.ndarray, goal: np.ndarray) -> bool:
-    c, s = math.cos(goal[2]), math.sin(goal[2])
-    ex, ey = final[0] - goal[0], final[1] - goal[1]
-    lon, lat = c * ex + s * ey, -s * ex + c * ey
-    dth = abs(float(wrap_angle(final[2] - goal[2])))
-    return abs(lat) <= _END_LAT_TOL and abs(lon) <= _END_LON_TOL and dth <= _END_HEAD_TOL
-
-
-def _controls_ok(controls: np.ndarray, vehicle: VehicleSpec, dt: float, max_speed: float = MAX_SPEED,
-                 max_accel: float = MAX_ACCEL) -> bool:
-    v, om = controls[:, 0], controls[:, 1]
-    acc = np.abs(np.diff(np.concatenate([[0.0], v]))) / dt
-    return bool(
-        (np.abs(v) <= max_speed + 1e-9).all()
-        and (np.abs(om) <= np.abs(v) / vehicle.min_turning_radius + 1e-9).all()
-        and (acc <= max_accel + 1e-9).all()
-    )
-
-
 # --------------------------------------------------------------------------------------------- API
 
 
@@ -537,7 +282,7 @@ def generate_maneuver(
         RuntimeError: no feasible maneuver was found for this scene/vehicle.
         ValueError: a non-positive ``max_speed`` or ``max_accel``.
     """
-    key = _check_key(key)
+    key = check_key(key)
     if not (max_speed > 0 and max_accel > 0):
         raise ValueError(f"max_speed and max_accel must be > 0, got {max_speed}, {max_accel}")
     planner = _Planner(key, scene, vehicle)
@@ -546,9 +291,9 @@ def generate_maneuver(
     for n_tried, plan in enumerate(planner.plans()):
         if n_tried >= 50:
             break
-        controls = _track(start, _pieces(start, plan.segments, planner.radius), vehicle, dt, max_speed, max_accel)
+        controls = track(start, pieces(start, plan.segments, planner.radius), vehicle, dt, max_speed, max_accel)
         states = rollout_vehicle(start, controls, dt)
-        ok = _controls_ok(controls, vehicle, dt, max_speed, max_accel) and _end_ok(states[-1], planner.goal)
+        ok = controls_ok(controls, vehicle, dt, max_speed, max_accel) and end_ok(states[-1], planner.goal)
         if ok and verify.free(states):
             for a in (controls, states):
                 a.flags.writeable = False

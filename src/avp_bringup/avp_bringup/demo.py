@@ -1,0 +1,202 @@
+"""``avp demo``: one seeded episode through the live graph over DDS, recorded to a bag (docs/experiment.md, "The
+demo"). Writes metrics.json (with the closed-loop step time), episode.png and episode.gif from the bag.
+
+Lock-step by default (the wall-clock caps lifted, so the episode is the same whatever the machine's load);
+``--realtime`` steps the simulator at 1/dt wall rate.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from avp_bringup.graph import avp_root
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--seed", type=int, default=1, help="scenario seed (1: a car in view early; parks at ~17 s)")
+    p.add_argument("--non-reactive", action="store_true")
+    p.add_argument("--ego", choices=("planner", "scripted"), default="planner", help="the ego's node")
+    p.add_argument("--method", default=None, help="a Table I method profile (bezier, constant_velocity, "
+                   "hybrid_astar, implicit, nawaz or a profile file) [default: bezier; ignored with --ego scripted]")
+    p.add_argument("--realtime", action="store_true", help="the simulator steps at 1/dt wall rate (mode: realtime) "
+                   "instead of lock-step; the closed-loop step time then decides whether commands come in time")
+    p.add_argument("--no-gif", action="store_true", help="do not write episode.gif")
+    p.add_argument("--t-final", type=float, default=None)
+    p.add_argument("--out", default=str(avp_root() / "out" / "demo"))
+    p.add_argument("--params")
+    p.add_argument("--lot", help="lot YAML used for the picture (default: the bundled paper lot)")
+    p.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit [s]")
+    p.add_argument("--bag", help="where to record the demo's bag (default bags/demo_seed<N>_<time>)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """One seeded episode through the live graph; exit code 0 when it ran to its end."""
+    import rclpy
+
+    from avp_bringup.bag import BagRecorder
+    from avp_bringup.bagwriter import BagWriteError
+
+    try:
+        nodes = _demo_nodes(args)
+    except ValueError as exc:
+        print(f"[avp demo] {exc}", file=sys.stderr)
+        return 2
+    from avp_world.lot import load_bundled_lot, load_lot
+
+    lot = load_lot(args.lot) if args.lot else load_bundled_lot()
+    bag = Path(args.bag) if args.bag else avp_root() / "bags" / f"demo_seed{args.seed}_{time.strftime('%Y%m%d-%H%M%S')}"
+    bag.parent.mkdir(parents=True, exist_ok=True)
+    rclpy.init()
+    try:
+        recorder = BagRecorder(bag)
+    except BagWriteError as exc:
+        print(f"[avp demo] {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    rc, result = _run_episode(args, nodes, recorder, lot)
+    if rc:
+        return rc
+    if recorder.error:
+        print(f"[avp demo] the episode ran to its end but {recorder.error}", file=sys.stderr)
+    _report(args, bag, *result)
+    return 0
+
+
+def _mode(args: argparse.Namespace) -> str:
+    return "realtime" if args.realtime else "lockstep"
+
+
+def _method(args: argparse.Namespace) -> str:
+    return args.method or "scripted"
+
+
+def _demo_nodes(args: argparse.Namespace) -> list:
+    """The graph of ``--method`` (bezier by default) with the simulator set up for one episode started by
+    ``reset_episode`` (ValueError on conflicting options)."""
+    from avp_bringup.graph import ego_graph, with_params
+
+    if args.ego == "planner" and not args.method:
+        args.method = "bezier"  # the paper's method
+    # lock-step: the wall-clock caps lifted, so the episode is the same whatever the machine's load
+    nodes = ego_graph(args.method, args.ego, deterministic=not args.realtime)
+    sim = nodes[0]
+    # the episode is started with reset_episode once the whole graph is up and discovered both ways (a volatile
+    # reader that matches after step 0 was sent never gets it: lock-step would re-send after lockstep_timeout, real
+    # time would run without the pipeline); in lock-step step 0 also waits for the graph's observation subscribers
+    # plus our monitor and recorder
+    extra = {"seed": args.seed, "reactive": not args.non_reactive, "mode": _mode(args), "autostart": False,
+             "min_subscribers": sim.extra_params.get("min_subscribers", 1) + 2, "min_debug_subscribers": 2}
+    if args.t_final is not None:
+        extra["t_final"] = args.t_final
+    nodes[0] = with_params(sim, **extra)
+    return nodes
+
+
+def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[int, tuple]:
+    """Start the graph, run the episode to its end while the monitor and the recorder listen, write
+    metrics.json and episode.png; returns (exit code, (metrics, latency, wall seconds))."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    from avp_bringup.graph import Graph
+    from avp_bringup.monitor import EpisodeMonitor
+    from avp_msgs.srv import ResetEpisode
+
+    out = Path(args.out)
+    log_dir = out / "logs"
+    monitor = EpisodeMonitor()
+    executor = SingleThreadedExecutor()
+    executor.add_node(monitor)
+    executor.add_node(recorder)
+    graph = Graph(nodes, log_dir, args.params)
+    t0 = time.monotonic()
+    graph.start()
+    print(f"[avp demo] method {_method(args)}, seed {args.seed} ({'non-' if args.non_reactive else ''}reactive), "
+          f"{_mode(args)}, through the live graph over DDS ({', '.join(n.name for n in nodes)}); node logs in "
+          f"{log_dir}/")
+    try:
+        _start_episode(monitor, executor, graph, ResetEpisode, args, len(nodes) - 1 + 2, log_dir)
+        while not monitor.finished:
+            executor.spin_once(timeout_sec=0.2)
+            dead = {n: rc for n, rc in graph.poll().items() if rc is not None}
+            if dead:
+                print(f"[avp demo] node(s) exited early: {dead}; see {log_dir}/", file=sys.stderr)
+                return 1, ()
+            if time.monotonic() - t0 > args.timeout:
+                print(f"[avp demo] no episode end after {args.timeout} s wall time", file=sys.stderr)
+                return 1, ()
+        wall = time.monotonic() - t0
+        t_end = time.monotonic()
+        while time.monotonic() - t_end < 1.0:  # drain: the last step's messages to the monitor and the bag
+            executor.spin_once(timeout_sec=0.05)
+        latency = monitor.latency_dict(_mode(args))
+        metrics = monitor.write(lot, out, {"wall_time_s": round(wall, 2), "method": _method(args),
+                                           "ego_node": nodes[-1].name, "closed_loop_step_time": latency})
+    except RuntimeError as exc:
+        print(f"[avp demo] {exc}", file=sys.stderr)
+        return 1, ()
+    finally:
+        graph.stop()
+        recorder.close()
+        monitor.destroy_node()
+        recorder.destroy_node()
+        rclpy.try_shutdown()
+    return 0, (metrics, latency, wall)
+
+
+def _report(args: argparse.Namespace, bag: Path, metrics: dict, latency: dict, wall: float) -> None:
+    """Print where everything went and write the GIF from the bag."""
+    out = Path(args.out)
+    print(f"[avp demo] bag: {bag}\n[avp demo]   replay it: avp replay {bag}   metrics from it: avp metrics {bag}")
+    print(f"[avp demo] {metrics['state']} after {metrics['sim_time']:.1f} s sim time ({wall:.1f} s wall); "
+          f"wrote {out / 'metrics.json'} and {out / 'episode.png'}")
+    print(f"[avp demo] {latency_line(latency)}")
+    if not args.no_gif:
+        from avp_bringup.episode_video import episode_gif
+
+        gif = out / "episode.gif"
+        info = episode_gif(bag, gif, title=f"{_method(args)} seed {args.seed}")
+        print(f"[avp demo] wrote {gif} ({info['frames']} frames, every {info['stride']}. step, "
+              f"{info['bytes'] / 1e6:.1f} MB) from the bag's topics")
+
+
+def latency_line(lat: dict) -> str:
+    """One line on the closed-loop step time of the monitor's latency dict."""
+    if not lat.get("steps"):
+        return "closed-loop step time: no step answered"
+    late = f", {lat['late_steps']} step(s) answered too late (ego held still)" if "late_steps" in lat else ""
+    return (f"closed-loop step time (observation k sent -> command k received, {lat['sim_mode']}, {lat['steps']} "
+            f"steps): median {lat['median_ms']:.1f} ms, p95 {lat['p95_ms']:.1f} ms, max {lat['max_ms']:.1f} ms "
+            f"(target p95 <= 100 ms){late}")
+
+
+def _start_episode(monitor, executor, graph, srv_type, args, n_obs_subs: int, log_dir: Path,
+                   timeout: float = 60.0) -> None:
+    """Wait until every node is up (observation subscribers, the ego's cmd publisher, the reset service) and a
+    second for discovery to settle, then start the episode with reset_episode (RuntimeError when that fails)."""
+    from avp_bringup.services import call_once
+
+    client = monitor.create_client(srv_type, "reset_episode")
+    t0 = time.monotonic()
+    while not (client.service_is_ready() and monitor.count_subscribers("/avp/observation") >= n_obs_subs
+               and monitor.count_publishers("/avp/cmd") >= 1):
+        executor.spin_once(timeout_sec=0.1)
+        dead = {n: rc for n, rc in graph.poll().items() if rc is not None}
+        if dead or time.monotonic() - t0 > timeout:
+            raise RuntimeError(f"graph not up ({dead or f'after {timeout} s'}); see {log_dir}/")
+    t1 = time.monotonic()
+    while time.monotonic() - t1 < 1.0:  # matching completes both ways; the latched lot map reaches every node
+        executor.spin_once(timeout_sec=0.05)
+    seed, reactive = int(args.seed), not args.non_reactive
+    try:  # sent once (a second reset would restart the running episode); its status also shows it happened
+        res = call_once(client, srv_type.Request(seed=seed, reactive=reactive),
+                        lambda s: executor.spin_once(timeout_sec=s),
+                        lambda: monitor.status is not None and (monitor.status.seed, monitor.status.reactive)
+                        == (seed, reactive), timeout=30.0)
+    except TimeoutError as exc:
+        raise RuntimeError(f"reset_episode failed: {exc}") from None
+    if res is not None and not res.success:
+        raise RuntimeError(f"reset_episode failed: {res.message}")
