@@ -1,5 +1,6 @@
-"""Plugins the ROS way in Python (issue #17 item 4): a predictor from a package outside src/, found through the
-``avp.predictors`` entry-point group, runs an episode through ``avp experiment --methods <its profile>``.
+"""Plugins the ROS way in Python (issue #17 item 4): a predictor and a spot selector from a package outside src/,
+found through the ``avp.predictors`` and ``avp.spot_selectors`` entry-point groups, run episodes through
+``avp experiment --methods <their profiles>``.
 
 The toy package is built and installed by pip (``--target``, so the workspace's environment is left as it was);
 the experiment's worker process finds it on PYTHONPATH, like any installed package.
@@ -28,13 +29,35 @@ class ToyPredictor(StaticPredictor):
         with open(os.environ["TOY_PREDICTOR_LOG"], "a") as f:
             f.write(f"{obs.step}\\n")
         return super().predict(obs, intentions, horizon)
+
+
+class FarthestFirst:
+    """A toy spot selector: the candidate farthest from the ego first, the first safe plan wins (each call's
+    order of spot ids is written to $TOY_SELECTOR_LOG)."""
+
+    name = "farthest"
+
+    def __init__(self, lot):
+        self.lot = lot
+
+    def select(self, candidates, context):
+        import numpy as np
+
+        from avp_planner.core.spot_selection import Selection
+
+        d = np.hypot(*(self.lot.spot_poses[candidates, :2] - context.ego[:2]).T)
+        rows = np.asarray(candidates)[np.argsort(-d, kind="stable")]
+        with open(os.environ["TOY_SELECTOR_LOG"], "a") as f:
+            f.write(" ".join(str(int(self.lot.spot_ids[r])) for r in rows) + "\\n")
+        return Selection(rows, True)
 '''
 
 TOY_SETUP = '''
 from setuptools import setup
 
 setup(name="toy-predictor", version="0.1.0", py_modules=["toy_predictor"],
-      entry_points={"avp.predictors": ["toy = toy_predictor:ToyPredictor"]})
+      entry_points={"avp.predictors": ["toy = toy_predictor:ToyPredictor"],
+                    "avp.spot_selectors": ["farthest = toy_predictor:FarthestFirst"]})
 '''
 
 TOY_PROFILE = """
@@ -51,6 +74,21 @@ planner:
   use_predictions: true
 """
 
+SELECTOR_PROFILE = """
+name: farthest
+label: Farthest spot first (a plugin)
+group: Plugins
+available: true
+perception:
+  beliefs: intent
+  predictor: bezier
+  ego_intent: false
+planner:
+  use_beliefs: true
+  use_predictions: true
+  decision.spot_selector: farthest
+"""
+
 
 @pytest.fixture(scope="module")
 def toy(tmp_path_factory) -> dict:
@@ -60,6 +98,7 @@ def toy(tmp_path_factory) -> dict:
     (root / "pkg" / "setup.py").write_text(TOY_SETUP)
     (root / "profiles").mkdir()
     (root / "profiles" / "toy.yaml").write_text(TOY_PROFILE)
+    (root / "profiles" / "farthest.yaml").write_text(SELECTOR_PROFILE)
     r = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation",
                         "--no-index", "--target", str(root / "site"), str(root / "pkg")],
                        capture_output=True, text=True)
@@ -67,6 +106,7 @@ def toy(tmp_path_factory) -> dict:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(root / "site"), env.get("PYTHONPATH", "")])
     env["TOY_PREDICTOR_LOG"] = str(root / "calls.log")
+    env["TOY_SELECTOR_LOG"] = str(root / "selector.log")
     return {"root": root, "env": env}
 
 
@@ -101,3 +141,35 @@ def test_avp_experiment_runs_an_episode_with_the_plugin(toy, tmp_path):
     toy_rec = next(x for x in records if x["method"] == "toy")
     assert len(calls) >= toy_rec["steps"] > 0  # the plugin predicted on every step of its episode
     assert "Toy (a plugin)" in (out / "summary.md").read_text()
+
+
+def test_a_spot_selector_plugin_chooses_the_spot(toy, tmp_path):
+    """The selector plugin orders the candidates of every planning step, and the ego parks where the first of
+    them with a safe plan lies (the farthest); an unknown selector is one error naming the parameter."""
+    out = tmp_path / "out"
+    profile = toy["root"] / "profiles" / "farthest.yaml"
+    # seed 5: two candidate spots are in view when the ego first can park (on most seeds of the paper lot only one
+    # is, and every rule parks in it)
+    r = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "experiment", "--methods", f"bezier,{profile}",
+                        "--scenarios", "1", "--seed-base", "5", "--mode", "non-reactive", "--workers", "1",
+                        "--t-final", "40", "--no-progress", "--out", str(out)], env=toy["env"], capture_output=True,
+                       text=True, timeout=600)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    records = {x["method"]: x for x in map(json.loads, (out / "episodes.jsonl").read_text().splitlines())}
+    assert records["bezier"]["seed"] == records["farthest"]["seed"] == 5
+    orders = [line.split() for line in (toy["root"] / "selector.log").read_text().splitlines() if line.strip()]
+    assert orders, "the plugin was never asked"
+    far, near = records["farthest"]["parked_spot_id"], records["bezier"]["parked_spot_id"]
+    assert records["farthest"]["success"] and records["bezier"]["success"]
+    assert far != near  # the lowest c_park (the paper's rule) and the farthest-first plugin choose apart
+    # when the plugin's choice was made, it ranked that spot before the one c_park took
+    assert any(far in o and near in o and o.index(far) < o.index(near) for o in
+               ([int(s) for s in line] for line in orders))
+    code = ("from avp_planner.core.decision import EgoPlanner\n"
+            "from avp_planner.core.settings import PlannerSettings, DecisionSettings\n"
+            "from avp_world.lot import load_bundled_lot\n"
+            "s = PlannerSettings(decision=DecisionSettings(spot_selector='nope'))\n"
+            "try:\n    EgoPlanner(load_bundled_lot(), s)\n"
+            "except ValueError as e:\n    print(e)\n")
+    r = subprocess.run([sys.executable, "-c", code], env=toy["env"], capture_output=True, text=True)
+    assert "unknown spot selector 'nope'" in r.stdout and "'farthest'" in r.stdout and "'c_park'" in r.stdout

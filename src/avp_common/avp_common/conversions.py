@@ -84,6 +84,16 @@ def lot_from_msg(msg: LotMapMsg, source: str = "lot_map topic") -> LotMap:
 # ---------------------------------------------------------------------------------------- observation
 
 
+def lot_from_msg_or_log(msg: LotMapMsg, logger) -> LotMap | None:
+    """:func:`lot_from_msg` for a node's ``lot_map`` callback: None after one error line naming the topic (the
+    node keeps its previous lot and keeps running)."""
+    try:
+        return lot_from_msg(msg)
+    except ValueError as exc:
+        logger.error(f"lot_map: {exc}")
+        return None
+
+
 def observation_to_msg(obs: Observation, frame_id: str = "map") -> ObservationMsg:
     msg = ObservationMsg()
     msg.header.frame_id = frame_id

@@ -161,6 +161,15 @@ def _field_comments(cls) -> dict[str, str]:
     return out
 
 
+def _init_fields(instance, prefix: str):
+    """(field, value, dotted name) of each init field of a settings dataclass."""
+    import dataclasses
+
+    for f in dataclasses.fields(instance):
+        if f.init:
+            yield f, getattr(instance, f.name), f"{prefix}{f.name}"
+
+
 def specs_from_dataclass(instance, prefix: str = "") -> list[ParamSpec]:
     """One :class:`ParamSpec` per leaf field of a (nested) frozen settings dataclass, named ``a.b.c``.
 
@@ -171,11 +180,7 @@ def specs_from_dataclass(instance, prefix: str = "") -> list[ParamSpec]:
 
     specs: list[ParamSpec] = []
     docs = _field_comments(type(instance))
-    for f in dataclasses.fields(instance):
-        if not f.init:
-            continue
-        value = getattr(instance, f.name)
-        name = f"{prefix}{f.name}"
+    for f, value, name in _init_fields(instance, prefix):
         if dataclasses.is_dataclass(value):
             specs += specs_from_dataclass(value, name + ".")
             continue
@@ -201,11 +206,7 @@ def dataclass_from_values(instance, values: dict[str, Any], prefix: str = ""):
     import dataclasses
 
     changes = {}
-    for f in dataclasses.fields(instance):
-        if not f.init:
-            continue
-        value = getattr(instance, f.name)
-        name = f"{prefix}{f.name}"
+    for f, value, name in _init_fields(instance, prefix):
         if dataclasses.is_dataclass(value):
             changes[f.name] = dataclass_from_values(value, values, name + ".")
         elif name in values:

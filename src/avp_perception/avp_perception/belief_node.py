@@ -39,7 +39,7 @@ from avp_common.conversions import (
     MessageError,
     beliefs_to_msg,
     check_stamp,
-    lot_from_msg,
+    lot_from_msg_or_log,
     observation_from_msg,
 )
 from avp_common.msg_auth import Authenticator
@@ -104,10 +104,8 @@ class BeliefNode(Node):
 
     # ------------------------------------------------------------------------------------------ inputs
     def _on_lot(self, msg: LotMap) -> None:
-        try:
-            lot = lot_from_msg(msg)
-        except ValueError as exc:
-            self.get_logger().error(f"lot_map: {exc}")
+        lot = lot_from_msg_or_log(msg, self.get_logger())
+        if lot is None:
             return
         self.lot = lot
         self.intent.renderer(lot)

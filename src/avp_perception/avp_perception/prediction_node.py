@@ -28,7 +28,7 @@ from rclpy.node import Node
 from avp_common.conversions import (
     MessageError,
     check_stamp,
-    lot_from_msg,
+    lot_from_msg_or_log,
     observation_from_msg,
     predictions_to_msg,
     time_to_ns,
@@ -67,11 +67,10 @@ class PredictionNode(Node):
         self.get_logger().info(f"prediction method '{self.method}'")
 
     def _on_lot(self, msg: LotMap) -> None:
-        try:
-            self.lot = lot_from_msg(msg)
-        except ValueError as exc:
-            self.get_logger().error(f"lot_map: {exc}")
+        lot = lot_from_msg_or_log(msg, self.get_logger())
+        if lot is None:
             return
+        self.lot = lot
         try:
             self.predictor = make_predictor(self.method, self.lot, self.config)
         except ValueError as exc:  # e.g. learned.weights that cannot be loaded: one error, no predictions

@@ -33,7 +33,7 @@ from avp_common.conversions import (
     MessageError,
     beliefs_from_msg,
     check_probabilities,
-    lot_from_msg,
+    lot_from_msg_or_log,
     observation_from_msg,
     predictions_from_msg,
 )
@@ -58,6 +58,7 @@ from avp_msgs.msg import (
     SpotBeliefs,
 )
 from avp_planner.core.settings import DEFAULT_SETTINGS
+from avp_planner.core.spot_selection import spot_selector_class
 
 NODE_PARAMS = [
     ParamSpec("autostart", bool, "Lifecycle: configure and activate at start-up; false = stay unconfigured until "
@@ -125,6 +126,10 @@ class PlannerNode(LifecycleNode):
         self.answered: tuple[int, float, float] | None = None
         self.answered_at = -float("inf")
         self.settings = dataclass_from_values(DEFAULT_SETTINGS, p).validate()
+        try:
+            spot_selector_class(self.settings.decision.spot_selector)
+        except ValueError as exc:
+            raise ValueError(f"parameter decision.spot_selector: {exc}") from None
         self.planner = None
         self.lot = None
         self.configured = False
@@ -197,11 +202,10 @@ class PlannerNode(LifecycleNode):
 
     # ---------------------------------------------------------------- inputs
     def _on_lot(self, msg: LotMap) -> None:
-        try:
-            self.lot = lot_from_msg(msg)
-        except ValueError as exc:
-            self.get_logger().error(f"lot_map: {exc}")
+        lot = lot_from_msg_or_log(msg, self.get_logger())
+        if lot is None:
             return
+        self.lot = lot
         self.planner = None
         self._build()
         for k in sorted(self.obs):

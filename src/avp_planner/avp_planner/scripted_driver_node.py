@@ -11,7 +11,7 @@ import sys
 from geometry_msgs.msg import TwistStamped
 from rclpy.node import Node
 
-from avp_common.conversions import MessageError, lot_from_msg, observation_from_msg
+from avp_common.conversions import MessageError, lot_from_msg_or_log, observation_from_msg
 from avp_common.msg_auth import Authenticator
 from avp_common.node_main import run_node
 from avp_common.params import ParamSpec, declare_and_validate
@@ -42,11 +42,10 @@ class ScriptedDriverNode(Node):
         self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP)
 
     def _on_lot(self, msg: LotMap) -> None:
-        try:
-            self.driver = ScriptedDriver(lot_from_msg(msg), self.config)
-        except ValueError as exc:
-            self.get_logger().error(f"lot_map: {exc}")
+        lot = lot_from_msg_or_log(msg, self.get_logger())
+        if lot is None:
             return
+        self.driver = ScriptedDriver(lot, self.config)
         if self.pending is not None:
             self._on_obs(self.pending)
 

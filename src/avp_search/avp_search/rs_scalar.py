@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import math
 
+from avp_world.reeds_shepp import formula_instances
+
 _PI = math.pi
 _TWO_PI = 2.0 * math.pi
 _HALF_PI = 0.5 * math.pi
@@ -152,31 +154,8 @@ def _lrslr(x, y, phi):
     return None
 
 
-_BASE = (
-    (_lsl, "LSL", False),
-    (_lsr, "LSR", False),
-    (_lrl, "LRL", True),
-    (_lrlr_a, "LRLR", False),
-    (_lrlr_b, "LRLR", False),
-    (_lrsl, "LRSL", True),
-    (_lrsr, "LRSR", True),
-    (_lrslr, "LRSLR", False),
-)
-_SWAP = str.maketrans("LR", "RL")
-
-
-def _instances():
-    out = []
-    for f, word, has_back in _BASE:
-        for back in (False, True) if has_back else (False,):
-            for flip in (False, True):
-                for refl in (False, True):
-                    w = word[::-1] if back else word
-                    out.append((f, w.translate(_SWAP) if refl else w, back, flip, refl))
-    return tuple(out)
-
-
-_INSTANCES = _instances()
+_FORMULAS = (_lsl, _lsr, _lrl, _lrlr_a, _lrlr_b, _lrsl, _lrsr, _lrslr)  # as avp_world.reeds_shepp.BASE_WORDS
+_INSTANCES = formula_instances(_FORMULAS)
 CURVATURE_SIGN = {"L": 1.0, "R": -1.0, "S": 0.0}
 
 

@@ -149,6 +149,18 @@ def write_card(prog: str, card: dict, weights: Path, out: Path, log) -> None:
     log(f"[{prog}] wrote {weights} ({card['weights_bytes'] / 1e6:.2f} MB) and {card_path}")
 
 
+def finish_run(prog: str, card: dict, config, history, metrics: dict, timings: dict[str, float], weights: Path,
+               out: Path, log, table: str) -> int:
+    """Complete ``card`` with what every training run records (its config, learning curve, metrics, timings and
+    machine), write it beside the weights, log the summary ``table`` and the wall time; exit code 0."""
+    card.update({"train_config": asdict(config), "history": history, "metrics": metrics,
+                 "timings_s": {k: round(v, 1) for k, v in timings.items()}, "machine": card_machine()})
+    write_card(prog, card, weights, out, log)
+    log(table)
+    log_wall_time(prog, timings, log)
+    return 0
+
+
 def log_wall_time(prog: str, timings: dict[str, float], log) -> None:
     log(f"[{prog}] wall time {timings['total_s'] / 60:.1f} min "
         f"(data {sum(v for k, v in timings.items() if k.startswith('data_')) / 60:.1f}, "
@@ -190,16 +202,9 @@ def cmd_train_intent(args: argparse.Namespace) -> int:
                         "none_share": float((sets[name].labels == 0).mean()) if len(sets[name]) else 0.0}
                  for name, n in episodes.items()},
         "data_spec": {k: (v if not hasattr(v, "__dataclass_fields__") else asdict(v)) for k, v in asdict(spec).items()},
-        "train_config": asdict(config),
-        "history": history,
-        "metrics": metrics,
-        "timings_s": {k: round(v, 1) for k, v in timings.items()},
-        "machine": card_machine(),
     }
-    write_card("train-intent", card, weights, out, log)
-    log(summary_table(metrics))
-    log_wall_time("train-intent", timings, log)
-    return 0
+    return finish_run("train-intent", card, config, history, metrics, timings, weights, out, log,
+                      summary_table(metrics))
 
 
 def summary_table(metrics: dict) -> str:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import time
-from dataclasses import asdict
 
 SCALES = {
     # episodes per split: train, val, test, paper; epochs
@@ -41,13 +40,11 @@ def cmd_train_trajectory(args: argparse.Namespace) -> int:
 
     from avp_perception.core.learned_prediction import default_weights_path, save_model
     from avp_training.run import (
-        card_machine,
         card_provenance,
+        finish_run,
         load_splits,
-        log_wall_time,
         save_weights,
         start_run,
-        write_card,
     )
     from avp_training.trajectory import (
         TRAJ_SEED0,
@@ -86,16 +83,9 @@ def cmd_train_trajectory(args: argparse.Namespace) -> int:
                         "goal_kinds": np.bincount(sets[name].goal_kind, minlength=3).tolist()}
                  for name, n in episodes.items()},
         "data_spec": repr(spec),
-        "train_config": asdict(config),
-        "history": history,
-        "metrics": metrics,
-        "timings_s": {k: round(v, 1) for k, v in timings.items()},
-        "machine": card_machine(),
     }
-    write_card("train-trajectory", card, weights, out, log)
-    log(summary_table(metrics))
-    log_wall_time("train-trajectory", timings, log)
-    return 0
+    return finish_run("train-trajectory", card, config, history, metrics, timings, weights, out, log,
+                      summary_table(metrics))
 
 
 def summary_table(metrics: dict) -> str:

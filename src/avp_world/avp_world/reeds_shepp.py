@@ -171,25 +171,20 @@ def _lrslr(x, y, phi):
 
 _Formula = Callable[[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, list[np.ndarray]]]
 
-# (formula, base word, also evaluate the backwards word)
-_BASE: tuple[tuple[_Formula, str, bool], ...] = (
-    (_lsl, "LSL", False),
-    (_lsr, "LSR", False),
-    (_lrl, "LRL", True),
-    (_lrlr_a, "LRLR", False),
-    (_lrlr_b, "LRLR", False),
-    (_lrsl, "LRSL", True),
-    (_lrsr, "LRSR", True),
-    (_lrslr, "LRSLR", False),
-)
+#: (base word, also evaluate the backwards word) of the base formulas 8.1-8.11, in evaluation order
+BASE_WORDS: tuple[tuple[str, bool], ...] = (("LSL", False), ("LSR", False), ("LRL", True), ("LRLR", False),
+                                           ("LRLR", False), ("LRSL", True), ("LRSR", True), ("LRSLR", False))
+_FORMULAS: tuple[_Formula, ...] = (_lsl, _lsr, _lrl, _lrlr_a, _lrlr_b, _lrsl, _lrsr, _lrslr)
 
 _SWAP = str.maketrans("LR", "RL")
 
 
-def _instances() -> tuple[tuple[_Formula, str, bool, bool, bool], ...]:
-    """All 44 formula instances: (formula, word, backwards, timeflip, reflect)."""
+def formula_instances(formulas: tuple) -> tuple[tuple, ...]:
+    """All 44 formula instances (formula, word, backwards, timeflip, reflect) of the 8 base formulas
+    ``formulas`` (one per :data:`BASE_WORDS` entry), in the order both this module and the scalar version
+    (:mod:`avp_search.rs_scalar`) evaluate them."""
     out = []
-    for f, word, has_back in _BASE:
+    for f, (word, has_back) in zip(formulas, BASE_WORDS, strict=True):
         for back in (False, True) if has_back else (False,):
             for flip in (False, True):
                 for refl in (False, True):
@@ -198,7 +193,7 @@ def _instances() -> tuple[tuple[_Formula, str, bool, bool, bool], ...]:
     return tuple(out)
 
 
-_INSTANCES = _instances()
+_INSTANCES: tuple[tuple[_Formula, str, bool, bool, bool], ...] = formula_instances(_FORMULAS)
 WORDS: tuple[str, ...] = tuple(inst[1] for inst in _INSTANCES)
 """The word (segment kinds) of each formula instance, indexed by :attr:`RSBatch.word_index`."""
 MAX_SEGMENTS = 5

@@ -45,6 +45,7 @@ from typing import Protocol
 import numpy as np
 
 from avp_perception.core.intention import Intention
+from avp_world import plugins
 from avp_world.geometry import wrap_angle
 from avp_world.lot import LotMap
 from avp_world.types import Observation, ObservedPedestrian, ObservedVehicle, PredictedTrajectory
@@ -224,6 +225,25 @@ def follow_bezier(ctrl: np.ndarray, speed: float, dt: float, n_steps: int, n_cur
     return out
 
 
+def intention_trajectory(vehicle: ObservedVehicle, poses: np.ndarray, dt: float, probability: float, spot_id: int,
+                         goal: np.ndarray) -> PredictedTrajectory:
+    """The prediction of ``vehicle`` for one intention (a spot ``spot_id`` >= 0 or an exploration point, -1)."""
+    return PredictedTrajectory(agent_id=int(vehicle.id), poses=poses, dt=dt, probability=probability,
+                               length=float(vehicle.length), width=float(vehicle.width), spot_id=int(spot_id),
+                               goal=np.asarray(goal, dtype=float).copy())
+
+
+def complete_predictions(out: list[PredictedTrajectory], vehicle: ObservedVehicle, intention: Intention, dt: float,
+                         n_steps: int, mu: float) -> list[PredictedTrajectory]:
+    """What the intentions leave to constant velocity (§V-C): the "none" mass >= mu when there is no exploration
+    point to condition it on, and a vehicle with no intention >= mu at all. Appends to ``out`` and returns it."""
+    if intention.none_probability >= mu and len(intention.exploration_points) == 0:
+        out.append(constant_velocity_vehicle(vehicle, dt, n_steps, intention.none_probability))
+    if not out:
+        out.append(constant_velocity_vehicle(vehicle, dt, n_steps))
+    return out
+
+
 def constant_velocity_vehicle(vehicle: ObservedVehicle, dt: float, n_steps: int,
                               probability: float = 1.0) -> PredictedTrajectory:
     """Constant velocity: p_t + j (p_t - p_t-dt), heading kept."""
@@ -318,14 +338,8 @@ class BezierPredictor(ConstantVelocityPredictor):
         for goal, p, sid in self.goals(intention):
             ctrl = bezier_control_points(pose, speed, goal, cfg.zeta, phi)
             poses = follow_bezier(ctrl, speed, dt, n_steps, n_curve, float(pose[2]), flip, cfg.samples)
-            out.append(PredictedTrajectory(agent_id=int(vehicle.id), poses=poses, dt=dt, probability=p,
-                                           length=float(vehicle.length), width=float(vehicle.width), spot_id=sid,
-                                           goal=np.asarray(goal, dtype=float).copy()))
-        if intention.none_probability >= cfg.mu and len(intention.exploration_points) == 0:
-            out.append(constant_velocity_vehicle(vehicle, dt, n_steps, intention.none_probability))
-        if not out:
-            out.append(constant_velocity_vehicle(vehicle, dt, n_steps))
-        return out
+            out.append(intention_trajectory(vehicle, poses, dt, p, sid, goal))
+        return complete_predictions(out, vehicle, intention, dt, n_steps, cfg.mu)
 
     def predict(self, obs: Observation, intentions: Iterable[Intention] = (),
                 horizon: float | None = None) -> list[PredictedTrajectory]:
@@ -377,31 +391,17 @@ ENTRY_POINT_GROUP = "avp.predictors"
 def available_predictors() -> dict[str, str]:
     """Every predictor this installation can make: the built-ins, then the plugins (a plugin cannot replace a
     built-in name)."""
-    from importlib.metadata import entry_points
-
-    out = dict(BUILTIN_PREDICTORS)
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
-        out.setdefault(ep.name, ep.value)
-    return out
+    return plugins.available(ENTRY_POINT_GROUP, BUILTIN_PREDICTORS)
 
 
 def make_predictor(name: str, lot: LotMap | None = None, config: PredictionConfig = PredictionConfig()
                    ) -> TrajectoryPredictor:
     """The predictor called ``name`` (a built-in or an ``avp.predictors`` plugin); ValueError lists the names."""
-    import importlib
-
-    known = available_predictors()
-    if name not in known:
-        raise ValueError(f"unknown predictor {name!r}; choose one of {sorted(known)} (plugins: entry-point group "
-                         f"{ENTRY_POINT_GROUP!r}, docs/custom_predictor.md)")
-    module, _, attr = known[name].partition(":")
-    try:
-        cls = getattr(importlib.import_module(module), attr)
-    except (ImportError, AttributeError) as exc:
-        raise ValueError(f"predictor {name!r}: cannot load {known[name]!r} ({type(exc).__name__}: {exc})") from None
+    cls = plugins.load_class(ENTRY_POINT_GROUP, BUILTIN_PREDICTORS, name, "predictor", "docs/custom_predictor.md")
     predictor = cls(lot, config)
     if not callable(getattr(predictor, "predict", None)):
-        raise ValueError(f"predictor {name!r}: {known[name]!r} made an object without a predict(obs, intentions)")
+        raise ValueError(f"predictor {name!r}: {available_predictors()[name]!r} made an object without a "
+                         "predict(obs, intentions)")
     return predictor
 
 

@@ -49,8 +49,10 @@ from avp_perception.core.prediction import (
     BezierPredictor,
     PredictionConfig,
     _n_steps,
+    complete_predictions,
     constant_velocity_pedestrian,
     constant_velocity_vehicle,
+    intention_trajectory,
     vehicle_motion,
 )
 from avp_search.collision import StaticWorld
@@ -202,14 +204,8 @@ class HybridAStarPredictor(BezierPredictor):
                 traj = constant_velocity_vehicle(vehicle, dt, n_steps, p)
                 out.append(replace(traj, spot_id=int(sid), goal=np.asarray(goal, dtype=float).copy()))
             else:
-                out.append(PredictedTrajectory(agent_id=int(vehicle.id), poses=poses, dt=dt, probability=p,
-                                               length=float(vehicle.length), width=float(vehicle.width),
-                                               spot_id=int(sid), goal=np.asarray(goal, dtype=float).copy()))
-        if intention.none_probability >= cfg.mu and len(intention.exploration_points) == 0:
-            out.append(constant_velocity_vehicle(vehicle, dt, n_steps, intention.none_probability))
-        if not out:
-            out.append(constant_velocity_vehicle(vehicle, dt, n_steps))
-        return out
+                out.append(intention_trajectory(vehicle, poses, dt, p, sid, goal))
+        return complete_predictions(out, vehicle, intention, dt, n_steps, cfg.mu)
 
     def predict(self, obs: Observation, intentions: Iterable[Intention] = (),
                 horizon: float | None = None) -> list[PredictedTrajectory]:

@@ -81,6 +81,7 @@ from avp_planner.core.planner_types import (
     _Step,
 )
 from avp_planner.core.settings import PlannerSettings
+from avp_planner.core.spot_selection import SelectionContext, make_spot_selector
 from avp_search.collision import DynamicObstacles, StaticWorld
 from avp_search.hybrid_astar import PlanResult
 from avp_search.paths import wrap
@@ -102,6 +103,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
     def __init__(self, lot: LotMap, settings: PlannerSettings = PlannerSettings()):
         self.lot = lot
         self.settings = settings.validate()
+        self.spot_selector = make_spot_selector(self.settings.decision.spot_selector, lot)
         from avp_search.hybrid_astar import rs_length_table
 
         s = settings.search
@@ -158,10 +160,8 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         t0 = time.perf_counter()
         world = self._static_world(obs, b)
         dyn = self._dynamic(obs, predictions)
-        cands = self.candidate_spots(obs, b)
-        ordered = spot_priority is not None
-        if ordered:
-            cands = self._prioritised(cands, spot_priority, ego)
+        sel = self.spot_selector.select(self.candidate_spots(obs, b), SelectionContext(obs, b, ego, spot_priority))
+        cands, ordered = np.asarray(sel.rows, dtype=np.int64).reshape(-1), bool(sel.first_feasible)
         timing["spot_selection_time"] += time.perf_counter() - t0
         return _Step(obs=obs, b=b, ego=ego, world=world, dyn=dyn, cands=cands, ordered=ordered, timing=timing,
                      t_start=t_start, t_end=t_start + self.settings.decision.decision_time_cap)

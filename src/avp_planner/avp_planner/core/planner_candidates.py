@@ -7,7 +7,6 @@ A part of :class:`avp_planner.core.decision.EgoPlanner` (split by job, issue #17
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
 
@@ -27,18 +26,6 @@ class CandidatesMixin:
         idx = [self.lot.spot_index(s) for s in np.asarray(obs.vacant_spot_ids).tolist()]
         idx = sorted(i for i in idx if beliefs[i] <= self.settings.decision.candidate_threshold)
         return np.asarray(idx, dtype=np.int64)
-
-    def _prioritised(self, cands: np.ndarray, priority: Sequence[int], ego: np.ndarray) -> np.ndarray:
-        """Candidate rows in the order of ``priority`` (spot ids); the rest after them, nearest first."""
-        rank = {}
-        for sid in priority:
-            if self.lot.has_spot(int(sid)):
-                rank.setdefault(self.lot.spot_index(int(sid)), len(rank))
-        listed = sorted((int(i) for i in cands if int(i) in rank), key=lambda i: rank[i])
-        rest = [int(i) for i in cands if int(i) not in rank]
-        dist = {i: math.hypot(*(self.lot.spot_poses[i, :2] - ego[:2])) for i in rest}
-        rest.sort(key=lambda i: (dist[i], i))
-        return np.asarray(listed + rest, dtype=np.int64)
 
     def spot_goals(self, k: int) -> np.ndarray:
         """The two goal poses of spot row ``k``: centred, spot heading and spot heading + π."""

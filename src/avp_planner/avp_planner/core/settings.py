@@ -65,6 +65,7 @@ class DecisionSettings:
     decision_time_cap: float = 0.4  # seconds of searching per decision step (remaining candidates skipped)
     park_retry_steps: int = 5  # while exploring, parking is re-tried at least this often (and on any change)
     idle_replan_steps: int = 1  # after an idle decision (no safe plan) search again only this many steps later
+    spot_selector: str = "auto"  # §V-D-1 spot choice: auto, c_park, ego_intention or a plugin (avp.spot_selectors)
 
 
 @dataclass(frozen=True)

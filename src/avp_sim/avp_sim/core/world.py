@@ -26,6 +26,15 @@ from avp_world.types import Observation, ObservedPedestrian, ObservedVehicle
 __all__ = ["World", "WorldConfig", "EpisodeMetrics", "RUNNING", "SUCCESS", "COLLISION", "TIMEOUT"]
 
 
+def _control_table(controls: list[np.ndarray], t_steps: int) -> np.ndarray:
+    """(N, t_steps, 2) planned controls of N agents, zero (stand still) after each plan's end."""
+    out = np.zeros((len(controls), t_steps, 2))
+    for i, c in enumerate(controls):
+        m = min(len(c), t_steps)
+        out[i, :m] = c[:m]
+    return out
+
+
 @dataclass(frozen=True)
 class WorldConfig:
     t_final: float = 100.0  # t_f [s] (§VI-A)
@@ -52,10 +61,7 @@ class World:
         self.target_spot = np.array([v.target_spot_id for v in sc.vehicles], dtype=np.int64)
         self.is_dynamic = np.array([not v.parked for v in sc.vehicles], dtype=bool)
         t_steps = int(round(config.t_final / self.dt)) + self.hist + int(self.passiveness.max(initial=0)) + 2
-        self.plans = np.zeros((n, t_steps, 2))
-        for i, v in enumerate(sc.vehicles):
-            m = min(len(v.controls), t_steps)
-            self.plans[i, :m] = v.controls[:m]
+        self.plans = _control_table([v.controls for v in sc.vehicles], t_steps)
         self.plan_index = np.zeros(n, dtype=np.int64)
         self.states = np.array([v.initial_state for v in sc.vehicles], dtype=float).reshape(n, 3)
         # how far an agent's centre may be from the ego's for A_tau to meet V_0 within its n_pass steps: the
@@ -68,10 +74,7 @@ class World:
         self.ped_ids = np.array([q.id for q in sc.pedestrians], dtype=np.int64)
         self.ped_radii = np.array([q.radius for q in sc.pedestrians], dtype=float)
         self.ped_pass = np.array([q.passiveness for q in sc.pedestrians], dtype=np.int64) * sc.passiveness_unit_steps
-        self.ped_plans = np.zeros((p, t_steps, 2))
-        for i, q in enumerate(sc.pedestrians):
-            m = min(len(q.controls), t_steps)
-            self.ped_plans[i, :m] = q.controls[:m]
+        self.ped_plans = _control_table([q.controls for q in sc.pedestrians], t_steps)
         self.ped_index = np.zeros(p, dtype=np.int64)
         self.ped_pos = np.array([q.initial_position for q in sc.pedestrians], dtype=float).reshape(p, 2)
         self.ped_prev = self.ped_pos.copy()
