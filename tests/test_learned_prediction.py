@@ -200,15 +200,15 @@ def test_make_predictor_and_bad_weights(paper_lot, tmp_path):
 
 def test_data_labels_and_determinism():
     from avp_training.dataset import SPLIT_SEED0
-    from avp_training.trajectory import TRAJ_SEED0, TrajDataSpec, _episode
+    from avp_training.trajectory_data import TRAJ_SEED0, TrajDataSpec, episode_samples
 
     # seeds: disjoint from each other and from every intent split (the intent CNN trained on SPLIT_SEED0["train"]+)
     ranges = [range(v, v + 100_000) for v in TRAJ_SEED0.values()]
     assert all(not set(r1) & set(r2) for i, r1 in enumerate(ranges) for r2 in ranges[i + 1:])
     assert all(s not in r for s in SPLIT_SEED0.values() for r in ranges)
     spec = TrajDataSpec()
-    a = _episode(("train", TRAJ_SEED0["train"] + 5, spec))
-    b = _episode(("train", TRAJ_SEED0["train"] + 5, spec))
+    a = episode_samples(("train", TRAJ_SEED0["train"] + 5, spec))
+    b = episode_samples(("train", TRAJ_SEED0["train"] + 5, spec))
     assert len(a) > 10
     for name in ("images", "history", "future", "goal", "vehicle", "step"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
@@ -263,10 +263,10 @@ def test_shipped_weights_beat_constant_velocity_on_fresh_episodes():
     """Fresh held-out episodes (seeds used by no split) generated here; minADE with the true goal at least MARGIN
     below constant velocity's on the same samples."""
     from avp_perception.core.learned_prediction import load_model as load
-    from avp_training.trajectory import TRAJ_SEED0, TrajDataSpec, TrajSamples, _episode, evaluate
+    from avp_training.trajectory import TRAJ_SEED0, TrajDataSpec, TrajSamples, episode_samples, evaluate
 
     seeds = [TRAJ_SEED0["test"] + 90_000 + i for i in range(8)]  # some episodes see no traffic car
-    s = TrajSamples.concat([_episode(("val", sd, TrajDataSpec())) for sd in seeds])
+    s = TrajSamples.concat([episode_samples(("val", sd, TrajDataSpec())) for sd in seeds])
     assert len(s) > 100
     res = evaluate(load(default_weights_path()), s)["all"]
     assert res["oracle_learned"][0] <= (1 - MARGIN) * res["cv"][0], res

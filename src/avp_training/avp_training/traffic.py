@@ -36,166 +36,32 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from dataclasses import dataclass, field
 
 import numpy as np
 import shapely
 
-from avp_sim.core.maneuvers import ManeuverKey, SceneGeometry, generate_maneuver, maneuver_to_world
 from avp_sim.core.scenario import Scenario, VehicleAgent
-from avp_training.lanes import A_DEC, LaneGraph, Path, follow, rollout
+from avp_training.lanes import LaneGraph, Path, follow, rollout
 from avp_training.lots import spot_aisles
+from avp_training.traffic_agents import AgentPlannersMixin
+from avp_training.traffic_types import (  # noqa: F401 - re-exported: the generator's API
+    AGENT_ID0,
+    LEAVE,
+    PARK,
+    WANDER,
+    AgentPlan,
+    ManeuverLibrary,
+    Traffic,
+    TrafficParams,
+    moving_flags,
+    slow_tail,
+)
 from avp_world.geometry import polygon_contains_points, rect_corners, rect_inside_rect, rects_overlap, wrap_angle
 from avp_world.lot import LotMap
 from avp_world.vehicle import VehicleSpec
 
-PARK, LEAVE, WANDER = "park", "leave", "wander"
-AGENT_ID0 = 10000  # ids of the traffic agents (parked cars keep their spot's row)
 
-
-@dataclass(frozen=True)
-class TrafficParams:
-    """Knobs of the traffic generator (module docstring); times in s, distances in m, speeds in m/s."""
-
-    dt: float = 0.1
-    t_hist: float = 4.0
-    t_final: float = 60.0  # episode length after t = 0
-    t_pre: float = 40.0  # traffic simulated before t = -t_hist
-    occupancy: tuple[float, float] = (0.5, 0.95)
-    arrival_gap: tuple[float, float] = (4.0, 12.0)  # mean gap between arrivals, drawn per episode
-    departure_gap: tuple[float, float] = (10.0, 30.0)
-    min_arrival_gap: float = 3.0
-    cruise_speed: tuple[float, float] = (2.0, 4.0)  # ParkSim cruises at up to 5 m/s (reference sheet §3.1)
-    approach_speed: float = 2.0
-    p_explore: float = 0.15  # share of parkers who search (the rest drive to a spot chosen at the entrance)
-    preference_length: tuple[float, float] = (15.0, 60.0)  # goal choice: weight exp(-route length / L), L per driver
-    p_take: tuple[float, float] = (0.3, 0.85)
-    patience: float = 60.0
-    far_factor: float = 0.7
-    give_up: tuple[float, float] = (150.0, 400.0)
-    p_stop_before: float = 0.8  # ParkSim overshoots ('after') only near the ends of rows
-    p_head_in: float = 0.5
-    slow_distance: tuple[float, float] = (6.0, 12.0)  # a parker rolls the last metres to its maneuver start ...
-    slow_speed: tuple[float, float] = (0.8, 1.5)  # ... at this speed (ParkSim: v_end = 1 m/s, sheet §3.1)
-    pause: tuple[float, float] = (0.0, 1.5)
-    queue_distance: float = 12.0
-    exit_distance: float = 15.0
-    moving_margin: float = 0.3
-    still_margin: float = 0.02
-    tries: int = 4
-    delays: int = 3
-    delay: float = 3.0
-    passiveness: tuple[int, int] = (2, 6)
-    parked_length: float = 4.6
-    parked_width: float = 1.85
-    ego_speed: tuple[float, float] = (1.5, 3.0)
-    ego_clearance: float = 1.0
-
-
-@dataclass
-class AgentPlan:
-    """One traffic car on the generation timeline (index 0 = t_0 = -t_pre - t_hist)."""
-
-    kind: str
-    spot_row: int  # target (park) or start (leave) spot row; -1 for wanderers
-    maneuver: str
-    states: np.ndarray  # (K + 1, 3)
-    controls: np.ndarray  # (K, 2)
-    moving: np.ndarray  # (K + 1,) bool: moved into or out of this state
-    drive_end: int = -1  # parkers: timeline index where the maneuver starts (the car stopped on its lane)
-    end_lane: int = -1  # parkers: lane and lane coordinate of that stop
-    end_t: float = 0.0
-    cruise_speed: float = 0.0  # parkers: v_c and the final roll's length (slow_distance draw)
-    roll_distance: float = 0.0
-    # goal-directed parkers: the options (row, lane, side) the driver chose among and their weights (empty for
-    # explorers) — for analysis (training.oracle); drawing them consumed no extra random numbers
-    goal_options: tuple = ()
-    goal_weights: np.ndarray = field(default_factory=lambda: np.zeros(0))
-
-
-@dataclass
-class Traffic:
-    """A generated episode: the World scenario, a label per dynamic agent and the ego's plan."""
-
-    scenario: Scenario
-    labels: dict[int, int]  # vehicle id -> spot id it parks in, -1 = none (leaving, wandering)
-    kinds: dict[int, str]
-    ego_controls: np.ndarray  # (T, 2) the ego's tour; the runner holds it while blocked
-    ego_states: np.ndarray  # (T + 1, 3)
-    n_parked: int = 0
-    stats: dict = field(default_factory=dict)
-    plans: dict[int, AgentPlan] = field(default_factory=dict)  # vehicle id -> its plan (analysis only)
-
-
-class ManeuverLibrary:
-    """The 8 maneuvers per scene geometry (cached) and their world versions per spot, checked to stay inside
-    the lot boundary."""
-
-    _canon: dict = {}
-
-    def __init__(self, lot: LotMap, graph: LaneGraph, spot_road: np.ndarray, vehicle: VehicleSpec):
-        self.lot, self.graph, self.vehicle = lot, graph, vehicle
-        self.spot_road = spot_road
-        self._world: dict[tuple[int, ManeuverKey], tuple | None] = {}
-
-    def scene(self, row: int) -> SceneGeometry:
-        road = self.lot.roads[int(self.spot_road[row])]
-        return SceneGeometry(aisle_width=round(road.width, 6), spot_length=round(float(self.lot.spot_dims[row, 0]), 6),
-                             spot_width=round(float(self.lot.spot_dims[row, 1]), 6))
-
-    def canonical(self, key: ManeuverKey, scene: SceneGeometry, dt: float):
-        k = (key, scene, self.vehicle, dt)
-        if k not in self._canon:
-            try:
-                self._canon[k] = generate_maneuver(key, scene, self.vehicle, dt)
-            except RuntimeError:
-                self._canon[k] = None
-        return self._canon[k]
-
-    def world(self, row: int, key: ManeuverKey, dt: float):
-        """(start pose, states, controls) of maneuver ``key`` into spot ``row`` in world coordinates, or None if
-        it leaves the lot or does not exist."""
-        if (row, key) not in self._world:
-            out = None
-            scene = self.scene(row)
-            man = self.canonical(key, scene, dt)
-            if man is not None:
-                start, states = maneuver_to_world(man, self.lot.spot_poses[row], scene.aisle_width, key.side)
-                fp = rect_corners(states, self.vehicle.length, self.vehicle.width)
-                if polygon_contains_points(self.lot.boundary, fp.reshape(-1, 2)).all():
-                    out = (start, states, np.asarray(man.controls))
-            self._world[(row, key)] = out
-        return self._world[(row, key)]
-
-
-def slow_tail(pieces: list[tuple[float, float, float]], distance: float, speed: float
-              ) -> list[tuple[float, float, float]]:
-    """Cap the speed at ``speed`` over the last ``distance`` metres of a path (splitting a piece if needed):
-    a driver who has picked a spot rolls up to the maneuver start slowly."""
-    out: list[tuple[float, float, float]] = []
-    left = distance
-    for length, kappa, cap in reversed(pieces):
-        if left <= 0.0:
-            out.append((length, kappa, cap))
-        elif length <= left:
-            out.append((length, kappa, min(cap, speed)))
-            left -= length
-        else:
-            out.append((left, kappa, min(cap, speed)))
-            out.append((length - left, kappa, cap))
-            left = 0.0
-    return out[::-1]
-
-
-def _moving(states: np.ndarray) -> np.ndarray:
-    step = np.abs(np.diff(states, axis=0)).max(axis=1) > 1e-9
-    m = np.zeros(len(states), dtype=bool)
-    m[1:] |= step
-    m[:-1] |= step
-    return m
-
-
-class TrafficGenerator:
+class TrafficGenerator(AgentPlannersMixin):
     """Builds :class:`Traffic` episodes on one lot (module docstring)."""
 
     def __init__(self, lot: LotMap, params: TrafficParams = TrafficParams(), vehicle: VehicleSpec = VehicleSpec()):
@@ -260,195 +126,6 @@ class TrafficGenerator:
         return not reserved[row] and free_from[row] <= t
 
     # ------------------------------------------------------------------ parkers and wanderers
-    def _parker(self, rng: np.random.Generator, k0: int, free_from: np.ndarray, reserved: np.ndarray
-                ) -> AgentPlan | None:
-        """A car from the queue: goal-directed (1 - ``p_explore``, ParkSim's task-based drivers) or exploring."""
-        if rng.random() < self.p.p_explore:
-            return self._explorer(rng, k0, free_from, reserved)
-        return self._goal_parker(rng, k0, free_from, reserved)
-
-    def _maneuver_on_lane(self, rng: np.random.Generator, row: int, side: str, lane: int, t_in: float,
-                          brake_d: float) -> tuple | None:
-        """(row, key, world maneuver, t_s) for parking in ``row`` from ``lane`` joined at ``t_in``: stop before
-        (``p_stop_before``) or after the spot, head-in or tail-in (``p_head_in``), the other options as fall-backs;
-        the maneuver must start at least ``brake_d`` into the lane. None if no option fits."""
-        p, cur = self.p, self.graph.lanes[lane]
-        stops = ["before", "after"] if rng.random() < p.p_stop_before else ["after", "before"]
-        entries = ["head_in", "tail_in"] if rng.random() < p.p_head_in else ["tail_in", "head_in"]
-        for stop in stops:
-            for entry in entries:
-                key = ManeuverKey(side, stop, entry)
-                man = self.lib.world(row, key, p.dt)
-                if man is None:
-                    continue
-                t_s = float((man[0][:2] - cur.a) @ cur.d)
-                if t_in + brake_d <= t_s <= cur.length + 1.0:
-                    return row, key, man, t_s
-        return None
-
-    def _goal_parker(self, rng: np.random.Generator, k0: int, free_from: np.ndarray, reserved: np.ndarray
-                     ) -> AgentPlan | None:
-        """ParkSim's task-based driver (reference sheet §3.3): a spot chosen at the entrance among those free at
-        the estimated arrival (weight exp(-d / L) over the route length d, L ~ ``preference_length`` per
-        driver, x ``far_factor`` across the aisle), the shortest lane route to it, then the maneuver."""
-        p, g = self.p, self.graph
-        v_c = float(rng.uniform(*p.cruise_speed))
-        pref = float(rng.uniform(*p.preference_length))
-        t0 = self._time(k0) + p.queue_distance / p.approach_speed
-        brake_d = v_c**2 / (2.0 * A_DEC) + 0.5
-        options, weights = [], []
-        for row, items in self.spot_lanes.items():
-            for lane, t_k, side in items:
-                if lane not in self.entry_dist:
-                    continue
-                d = self.entry_dist[lane] + t_k
-                if not self._available(row, t0 + d / (0.8 * v_c), free_from, reserved):
-                    continue
-                options.append((row, lane, side))
-                weights.append(math.exp(-d / pref) * (p.far_factor if side == "far" else 1.0))
-        if not options:
-            self.why["no_free_spot"] += 1
-            return None
-        w = np.asarray(weights)
-        for i in rng.choice(len(options), size=min(3, len(options)), replace=False, p=w / w.sum()):
-            row, lane, side = options[int(i)]
-            lanes = self.entry_routes[lane]
-            t_in = g.turns[(lanes[-2], lane)].t2 if len(lanes) > 1 else 0.0
-            chosen = self._maneuver_on_lane(rng, row, side, lane, t_in, brake_d)
-            if chosen is not None:
-                plan = self._park_plan(rng, k0, lanes, chosen, v_c)
-                if plan is not None:
-                    plan.goal_options, plan.goal_weights = tuple(options), w
-                return plan
-        self.why["goal_maneuver"] += 1
-        return None
-
-    def _explorer(self, rng: np.random.Generator, k0: int, free_from: np.ndarray, reserved: np.ndarray
-                  ) -> AgentPlan | None:
-        """An exploring driver (module docstring): takes a passed free spot with a growing probability or gives
-        up and leaves (a wanderer)."""
-        p, g = self.p, self.graph
-        v_c = float(rng.uniform(*p.cruise_speed))
-        p_driver = float(rng.uniform(*p.p_take))
-        give_up = float(rng.uniform(*p.give_up))
-        t0 = self._time(k0) + p.queue_distance / p.approach_speed  # time at the entrance
-        brake_d = v_c**2 / (2.0 * A_DEC) + 0.5
-        lanes = [g.entry]
-        visits = {g.entry: 1}
-        t_in = 0.0  # lane coordinate where the car joins the current lane
-        dist = 0.0  # driven since the entrance (to the joining point)
-        chosen = None
-        while chosen is None:
-            cur = g.lanes[lanes[-1]]
-            if cur.road >= 0:
-                for row, t_k, side in g.spot_lanes[cur.id]:
-                    if t_k < t_in + 2.0:
-                        continue
-                    travelled = dist + t_k - t_in
-                    t_arrive = t0 + travelled / (0.8 * v_c)
-                    if not self._available(row, t_arrive, free_from, reserved):
-                        continue
-                    prob = 1.0 - (1.0 - p_driver) * math.exp(-(travelled / v_c) / p.patience)
-                    if side == "far":
-                        prob *= p.far_factor
-                    if rng.random() >= prob:
-                        continue
-                    chosen = self._maneuver_on_lane(rng, row, side, cur.id, t_in, brake_d)
-                    if chosen:
-                        break
-            if chosen:
-                break
-            dist += cur.length - t_in
-            if dist > give_up:
-                break
-            opts = [n for n in g.nexts[cur.id] if n in self.walk_lanes]
-            if not opts:
-                self.why["no_lane"] += 1
-                return None
-            w = np.ones(len(opts))
-            for i, n in enumerate(opts):
-                w[i] *= 0.25 ** visits.get(n, 0)
-                t_est = t0 + dist / (0.8 * v_c)
-                if any(self._available(r, t_est, free_from, reserved) for r, _, _ in g.spot_lanes[n]):
-                    w[i] *= 2.5
-            nxt = int(opts[int(rng.choice(len(opts), p=w / w.sum()))])
-            t_in = g.turns[(cur.id, nxt)].t2
-            lanes.append(nxt)
-            visits[nxt] = visits.get(nxt, 0) + 1
-        if chosen is not None:
-            return self._park_plan(rng, k0, lanes, chosen, v_c)
-        start = self._queue_start()
-        lanes = lanes[:-1] + g.shortest(lanes[-1], g.exit)  # a wanderer: leave by the shortest way
-        try:
-            s, pieces = g.route_pieces(lanes, -p.queue_distance, g.lanes[g.exit].length + p.exit_distance, v_c,
-                                       {g.entry: p.approach_speed})
-        except (ValueError, KeyError):
-            self.why["wander_route"] += 1
-            return None
-        u, _ = follow(Path.build(s, pieces), start, p.dt, self.vehicle)
-        u_full, x_full = self._pad(k0, start, u)
-        return AgentPlan(WANDER, -1, "", x_full, u_full, _moving(x_full))
-
-    def _queue_start(self) -> np.ndarray:
-        entry = self.graph.lanes[self.graph.entry]
-        queue = np.asarray(entry.point(-self.p.queue_distance))
-        return np.array([queue[0], queue[1], entry.heading])
-
-    def _park_plan(self, rng: np.random.Generator, k0: int, lanes: list[int], chosen: tuple, v_c: float
-                   ) -> AgentPlan | None:
-        """From the queue along ``lanes`` at ``v_c``, slowing to U[slow_speed] over the last U[slow_distance] m,
-        to the maneuver start; a pause, then the maneuver ``chosen`` = (row, key, world maneuver, t_s)."""
-        p, g = self.p, self.graph
-        row, key, man, t_s = chosen
-        start = self._queue_start()
-        try:
-            s, pieces = g.route_pieces(lanes, -p.queue_distance, t_s, v_c, {g.entry: p.approach_speed})
-        except ValueError:
-            self.why["park_route"] += 1
-            return None
-        roll = float(rng.uniform(*p.slow_distance))
-        pieces = slow_tail(pieces, roll, float(rng.uniform(*p.slow_speed)))
-        u_drive, x_drive = follow(Path.build(s, pieces), start, p.dt, self.vehicle)
-        pause = np.zeros((int(round(rng.uniform(*p.pause) / p.dt)), 2))
-        controls = np.concatenate([u_drive, pause, man[2]])
-        u_full, x_full = self._pad(k0, start, controls)
-        end = rect_corners(rollout(x_drive[-1], man[2], p.dt)[-1], self.vehicle.length, self.vehicle.width)
-        if not rect_inside_rect(end[None], self.lot.spot_corners[row][None])[0]:  # (the episode may end first)
-            self.why["not_in_spot"] += 1
-            return None
-        return AgentPlan(PARK, row, "/".join(key), x_full, u_full, _moving(x_full), drive_end=k0 + len(u_drive) - 1,
-                         end_lane=lanes[-1], end_t=t_s, cruise_speed=v_c, roll_distance=roll)
-
-    # ------------------------------------------------------------------ leavers
-    def _leaver(self, rng: np.random.Generator, row: int, k0: int) -> AgentPlan | None:
-        p, g = self.p, self.graph
-        v_c = float(rng.uniform(*p.cruise_speed))
-        options = [(lane, t, side, stop, entry) for lane, t, side in self.spot_lanes.get(row, [])
-                   for stop in ("before", "after") for entry in ("head_in", "tail_in")]
-        for i in rng.permutation(len(options)):
-            lane, _, side, stop, entry = options[int(i)]
-            key = ManeuverKey(side, stop, entry)
-            man = self.lib.world(row, key, p.dt)
-            if man is None:
-                continue
-            ln = g.lanes[lane]
-            t_s = float((man[0][:2] - ln.a) @ ln.d)
-            if not 0.0 <= t_s <= ln.length + 1.0:
-                continue
-            parked = man[1][-1]
-            unpark = -man[2][::-1]
-            x_un = rollout(parked, unpark, p.dt)
-            try:
-                seq = g.shortest(lane, g.exit)
-                s, pieces = g.route_pieces(seq, t_s, g.lanes[g.exit].length + p.exit_distance, v_c)
-            except (ValueError, KeyError):
-                continue
-            u_out, _ = follow(Path.build(s, pieces), x_un[-1], p.dt, self.vehicle)
-            u_full, x_full = self._pad(k0, parked, np.concatenate([unpark, u_out]))
-            return AgentPlan(LEAVE, row, "/".join(key), x_full, u_full, _moving(x_full))
-        return None
-
-    # ------------------------------------------------------------------ ego
     def plan_ego(self, rng: np.random.Generator, accepted: list[AgentPlan], start_pose=None
                  ) -> tuple[np.ndarray, np.ndarray]:
         """The observer's plan (controls, states from t = 0). From ``start_pose`` (merging into the lane it lies
