@@ -55,6 +55,27 @@ def test_demo_writes_results_and_a_readable_bag(ros_env, tmp_path):
     assert "equal the live ones" in m.stdout
 
 
+def test_demo_parks_on_a_lot_without_a_scenario_block(ros_env, tmp_path):
+    """Issue #18: ``avp demo --lot`` simulates and plans on the given lot (here the shipped side lot, whose scenario
+    roles all come from its geometry) to a parked ego; metrics.json and the bag's lot map name that lot."""
+    from avp_world.lot import bundled_lot_path, load_lot
+
+    lot_file = bundled_lot_path("side_lot")
+    out, bag = tmp_path / "demo", tmp_path / "bag"
+    r = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "demo", "--lot", str(lot_file), "--seed", "1",
+                        "--no-gif", "--out", str(out), "--bag", str(bag), "--timeout", "300"], env=ros_env,
+                       capture_output=True, text=True, timeout=360)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["state"] == "success" and metrics["parked_spot_id"] >= 0, metrics
+    assert metrics["lot"] == {"name": "side_lot", "sha256": load_lot(lot_file).sha256}
+    from avp_bringup.bagread import BagReader
+
+    reader = BagReader(bag)
+    lots = [reader.deserialize(raw, msgtype) for _, msgtype, _, raw in reader.messages(["/avp/lot_map"])]
+    assert len(lots) == 1 and lots[0].name == "side_lot" and len(lots[0].spots) == 27
+
+
 def check_step_time(metrics: dict, mode: str, steps: int) -> None:
     """The closed-loop step time is in metrics.json: one value per answered step, positive, ordered figures."""
     lat = metrics["closed_loop_step_time"]

@@ -9,11 +9,11 @@ import pytest
 from shapely.geometry import Polygon
 
 from avp_sim.core.maneuvers import ManeuverKey, SceneGeometry, generate_maneuver
-from avp_sim.core.scenario import ScenarioParams, generate_paper_scenario, outer_rows, plan_states
+from avp_sim.core.scenario import ScenarioError, ScenarioParams, generate_paper_scenario, plan_states
 from avp_sim.core.world import World, WorldConfig
 from avp_world.geometry import rect_corners
 
-CONTESTED = set(ScenarioParams().contested_spot_ids)
+CONTESTED = set(range(10, 15)) | set(range(20, 25))  # the paper lot's bottom rows of the middle columns
 SEEDS = range(12)
 
 
@@ -116,9 +116,11 @@ def test_dynamic_vehicles_park_at_parksims_pace(paper_lot):
 
 
 def test_outer_fallback_rows_are_a_parameter(paper_lot):
-    """Default rows 0-4 of the outer columns; ``outer_rows(0, 9)`` (anywhere, the earlier reading) is reachable."""
-    assert outer_rows(0, 4) == ((0, 1, 2, 3, 4), (30, 31, 32, 33, 34)) == ScenarioParams().outer_spot_groups
-    anywhere = replace(ScenarioParams(), outer_spot_groups=outer_rows(0, 9))
+    """Default rows 0-4 of the outer columns; rows 0-9 (anywhere, the earlier reading) are reachable."""
+    resolved = ScenarioParams().resolve(paper_lot)
+    assert resolved.outer_spot_groups == ((0, 1, 2, 3, 4), (30, 31, 32, 33, 34))
+    assert set(resolved.contested_spot_ids) == CONTESTED
+    anywhere = replace(ScenarioParams(), fallback_rows=(0, 9))
     high = set()
     for seed in range(20):
         sc = generate_paper_scenario(paper_lot, seed, False, anywhere)
@@ -127,5 +129,5 @@ def test_outer_fallback_rows_are_a_parameter(paper_lot):
         assert len(outer) == 2 and outer <= set(range(0, 10)) | set(range(30, 40))
         high |= {s % 10 for s in outer if s % 10 >= 5}
     assert high  # some fallback spot above row 4
-    with pytest.raises(ValueError):
-        outer_rows(5, 4)
+    with pytest.raises(ScenarioError):
+        replace(ScenarioParams(), fallback_rows=(5, 4)).resolve(paper_lot)

@@ -1,8 +1,8 @@
 """The ``avp`` command: run the live graph and its tools (ros2cli/launch are not on PyPI here).
 
-  avp launch [--method NAME] [--params FILE] [--log-dir DIR]
+  avp launch [--method NAME] [--params FILE] [--log-dir DIR] [--lot FILE]
                                                    start the node graph (a Table I method); Ctrl-C stops it
-  avp demo   [--method NAME] [--seed N] [--non-reactive] [--realtime] [--out DIR] [--params FILE]
+  avp demo   [--method NAME] [--seed N] [--non-reactive] [--realtime] [--out DIR] [--params FILE] [--lot FILE]
                                                    one seeded episode over DDS -> metrics.json (with the
                                                    closed-loop step time), episode.png, episode.gif
   avp record OUT [--topics T ...] [--storage mcap|sqlite3] [--split-period S]
@@ -12,7 +12,7 @@
   avp metrics BAG                                  recompute an episode's metrics from a bag
   avp swap-planner PROFILE|--node NODE [--keep-old] replace the running planner (lifecycle) while the sim steps
   avp experiment [--scenarios N] [--seed-base S] [--mode reactive|non-reactive|both] [--methods M,...|all]
-                 [--workers W] [--out DIR] [--transport inproc|ros]
+                 [--workers W] [--out DIR] [--transport inproc|ros] [--lot FILE]
                                                    the Table I runner (docs/experiment.md); resumable
   avp bench sensing|planner|perception|soak|live_latency|learned [ARGS...]
                                                    run a benchmark script of bench/ (figures in docs/benchmarks.md)
@@ -43,11 +43,16 @@ def cmd_experiment(args: argparse.Namespace) -> int:
 
 
 def cmd_launch(args: argparse.Namespace) -> int:
-    from avp_bringup.graph import Graph, default_log_dir, ego_graph
+    from avp_bringup.graph import Graph, default_log_dir, ego_graph, with_params
 
     log_dir = default_log_dir(args.log_dir)
     try:
         nodes = ego_graph(args.method, args.ego)
+        if args.lot:
+            from avp_world.lot import load_lot
+
+            load_lot(args.lot)  # a bad lot: one line naming the file and the field, before any node starts
+            nodes[0] = with_params(nodes[0], lot_file=str(Path(args.lot).resolve()))
     except ValueError as exc:
         print(f"[avp launch] {exc}", file=sys.stderr)
         return 2
@@ -257,6 +262,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ego", choices=("planner", "scripted"), default="planner", help="the ego's node")
     p.add_argument("--method", help="a Table I method profile (bezier, constant_velocity, hybrid_astar, learned, "
                    "implicit, nawaz or a profile file): the same 4 nodes with the profile's parameters")
+    p.add_argument("--lot", help="lot map YAML to simulate and plan on (default: the bundled paper lot)")
     p.set_defaults(func=cmd_launch)
     p = sub.add_parser("demo", help="run one seeded episode through the live graph")
     demo.add_arguments(p)

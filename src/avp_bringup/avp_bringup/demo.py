@@ -27,7 +27,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--t-final", type=float, default=None)
     p.add_argument("--out", default=str(avp_root() / "out" / "demo"))
     p.add_argument("--params")
-    p.add_argument("--lot", help="lot YAML used for the picture (default: the bundled paper lot)")
+    p.add_argument("--lot", help="lot map YAML to simulate and plan on (default: the bundled paper lot; the scenario "
+                   "comes from its scenario: block or its geometry)")
     p.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit [s]")
     p.add_argument("--bag", help="where to record the demo's bag (default bags/demo_seed<N>_<time>)")
 
@@ -46,7 +47,11 @@ def run(args: argparse.Namespace) -> int:
         return 2
     from avp_world.lot import load_bundled_lot, load_lot
 
-    lot = load_lot(args.lot) if args.lot else load_bundled_lot()
+    try:
+        lot = load_lot(args.lot) if args.lot else load_bundled_lot()
+    except ValueError as exc:  # LotMapError: one line naming the file and the field
+        print(f"[avp demo] {exc}", file=sys.stderr)
+        return 2
     bag = Path(args.bag) if args.bag else avp_root() / "bags" / f"demo_seed{args.seed}_{time.strftime('%Y%m%d-%H%M%S')}"
     bag.parent.mkdir(parents=True, exist_ok=True)
     rclpy.init()
@@ -91,6 +96,8 @@ def _demo_nodes(args: argparse.Namespace) -> list:
              "min_subscribers": sim.extra_params.get("min_subscribers", 1) + 2, "min_debug_subscribers": 2}
     if args.t_final is not None:
         extra["t_final"] = args.t_final
+    if args.lot:
+        extra["lot_file"] = str(Path(args.lot).resolve())
     nodes[0] = with_params(sim, **extra)
     return nodes
 
@@ -101,6 +108,7 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
+    from avp_bringup.experiment.metrics import lot_record
     from avp_bringup.graph import Graph
     from avp_bringup.monitor import EpisodeMonitor
     from avp_msgs.srv import ResetEpisode
@@ -134,7 +142,8 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
             executor.spin_once(timeout_sec=0.05)
         latency = monitor.latency_dict(_mode(args))
         metrics = monitor.write(lot, out, {"wall_time_s": round(wall, 2), "method": _method(args),
-                                           "ego_node": nodes[-1].name, "closed_loop_step_time": latency})
+                                           "lot": lot_record(lot), "ego_node": nodes[-1].name,
+                                           "closed_loop_step_time": latency})
     except RuntimeError as exc:
         print(f"[avp demo] {exc}", file=sys.stderr)
         return 1, ()

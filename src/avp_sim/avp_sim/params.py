@@ -45,10 +45,11 @@ SIM_PARAMS: list[ParamSpec] = [
               min=0.01, max=5.0, default=0.1),
     ParamSpec("scenario.n_dynamic_min", int, "Fewest dynamic vehicles.", "", "§VI-A", min=0, max=10, default=1),
     ParamSpec("scenario.n_dynamic_max", int, "Most dynamic vehicles.", "", "§VI-A", min=0, max=10, default=2),
-    ParamSpec("scenario.outer_row_min", int, "Lowest row (0 = bottom) of the outer columns from which the 2 vacant "
-              "fallback spots are drawn (docs/world.md; 0..9 = anywhere).", "", "§VI-A", min=0, max=9, default=0),
-    ParamSpec("scenario.outer_row_max", int, "Highest such row (default: the contested spots' rows 0..4).", "",
-              "§VI-A", min=0, max=9, default=4),
+    ParamSpec("scenario.outer_row_min", int, "First row of each fallback group (the lot's, from the far end of the "
+              "ego's road; paper lot: the outer columns, 0 = bottom) from which the 2 vacant fallback spots are drawn "
+              "(docs/world.md; 0..9 = anywhere on the paper lot).", "", "§VI-A", min=0, max=999, default=0),
+    ParamSpec("scenario.outer_row_max", int, "Last such row (default: the contested spots' rows 0..4).", "",
+              "§VI-A", min=0, max=999, default=4),
     ParamSpec("scenario.maneuver_max_speed", float, "Speed bound of the dynamic vehicles' parking maneuvers "
               "(ParkSim's 8); 1.1 m/s gives ParkSim's pace, 1 s per metre (docs/world.md); 2.0 = earlier reading.",
               "", "§VI-A", min=0.1, max=5.0, default=1.1),

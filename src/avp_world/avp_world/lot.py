@@ -6,6 +6,7 @@ problem raises :class:`LotMapError` with one line that names the file and the fi
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -74,6 +75,9 @@ class LotMap:
     roads: tuple[Road, ...]
     source: str = "<memory>"
     _index: dict[int, int] = field(default_factory=dict, repr=False, compare=False)
+    #: the validated ``scenario:`` block (avp_world.lot_scenario; empty: the roles come from the geometry)
+    scenario: dict = field(default_factory=dict, repr=False, compare=False)
+    sha256: str = field(default="", compare=False)  # of the file it was loaded from ("" when not from a file)
 
     def __post_init__(self) -> None:
         self._index.update({s.id: i for i, s in enumerate(self.spots)})
@@ -162,7 +166,7 @@ def lot_from_dict(data: Any, source: str = "<memory>") -> LotMap:
     src = source
     if not isinstance(data, dict):
         raise LotMapError(f"{src}: top level must be a mapping")
-    unknown = set(data) - {"name", "boundary", "entrance", "roads", "spots", "spot_rows", "notes"}
+    unknown = set(data) - {"name", "boundary", "entrance", "roads", "spots", "spot_rows", "notes", "scenario"}
     if unknown:
         raise LotMapError(f"{src}: {sorted(unknown)[0]}: unknown key")
     name = str(data.get("name", Path(source).stem))
@@ -230,6 +234,13 @@ def lot_from_dict(data: Any, source: str = "<memory>") -> LotMap:
 
     lot = LotMap(name=name, boundary=boundary, entrance=entrance, spots=tuple(spots), roads=tuple(roads), source=src)
     _validate_geometry(lot)
+    if data.get("scenario") is not None:
+        from avp_world.lot_scenario import parse_scenario_block
+
+        try:
+            object.__setattr__(lot, "scenario", parse_scenario_block(data["scenario"], lot, f"{src}: scenario"))
+        except ValueError as exc:
+            raise LotMapError(str(exc)) from None
     return lot
 
 
@@ -275,12 +286,15 @@ def load_lot(path: str | Path) -> LotMap:
     if not p.is_file():
         raise LotMapError(f"{p}: no such lot map file")
     try:
-        data = load_bounded(read_bounded(p, MAX_LOT_BYTES), str(p), MAX_LOT_BYTES)
+        raw = read_bounded(p, MAX_LOT_BYTES)
+        data = load_bounded(raw, str(p), MAX_LOT_BYTES)
     except OSError as exc:
         raise LotMapError(f"{p}: cannot read ({exc.strerror})") from None
     except YamlInputError as exc:
         raise LotMapError(str(exc)) from None
-    return lot_from_dict(data, source=str(p))
+    lot = lot_from_dict(data, source=str(p))
+    object.__setattr__(lot, "sha256", hashlib.sha256(raw).hexdigest())
+    return lot
 
 
 def bundled_lot_path(name: str = "paper_lot") -> Path:

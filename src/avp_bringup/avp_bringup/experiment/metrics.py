@@ -80,8 +80,9 @@ def _mean(x: Iterable[float]) -> float | None:
 
 def episode_record(*, method: str, seed: int, reactive: bool, status: str, metrics: Mapping, min_ade: np.ndarray,
                    min_fde: np.ndarray, step_timings: Sequence[Mapping], horizon: float, transport: str,
-                   wall_s: float) -> dict:
-    """One JSON line: identity, the §VI-B metrics, and (under ``timings``) what depends on compute speed."""
+                   wall_s: float, lot: Mapping | None = None) -> dict:
+    """One JSON line: identity (with the lot, :func:`lot_record`), the §VI-B metrics, and (under ``timings``)
+    what depends on compute speed."""
     pt = metrics.get("parking_time")
     pt = None if pt is None or (isinstance(pt, float) and math.isnan(pt)) else float(pt)
     sel = [float(t["spot_selection_time"]) for t in step_timings]
@@ -96,6 +97,7 @@ def episode_record(*, method: str, seed: int, reactive: bool, status: str, metri
         "steps": int(metrics["steps"]),
         "min_ade": _mean(min_ade), "min_fde": _mean(min_fde), "ade_samples": int(len(min_ade)),
         "ade_horizon": float(horizon),
+        "lot": dict(lot) if lot is not None else None,
         "transport": transport,
         "timings": {
             "spot_selection_time": _mean(sel), "path_planning_time": _mean(searched),
@@ -104,6 +106,11 @@ def episode_record(*, method: str, seed: int, reactive: bool, status: str, metri
             "wall_s": round(float(wall_s), 3),
         },
     }
+
+
+def lot_record(lot) -> dict:
+    """How a record names its lot: the lot's name and the SHA-256 of the file it was loaded from."""
+    return {"name": lot.name, "sha256": lot.sha256}
 
 
 def comparable(record: Mapping) -> dict:

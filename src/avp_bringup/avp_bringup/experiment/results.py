@@ -72,8 +72,14 @@ def profile_digest(profile: MethodProfile) -> str:
 
 def run_identity(cfg: RunConfig, profiles: Iterable[MethodProfile]) -> dict:
     """What OUT/run.json must match: the run config, the intent weights, every avp_sim parameter value (so that
-    a change of the shipped scenario defaults is not mixed with earlier episodes) and the method profiles."""
-    return {"config": asdict(cfg), "intent": intent_identity(cfg), "sim": sim_values(cfg),
+    a change of the shipped scenario defaults is not mixed with earlier episodes), the lot (name and file hash)
+    and the method profiles."""
+    from avp_bringup.experiment.metrics import lot_record
+    from avp_sim.core.factory import load_lot_param
+
+    sim = sim_values(cfg)
+    return {"config": asdict(cfg), "intent": intent_identity(cfg), "sim": sim,
+            "lot": lot_record(load_lot_param(sim["lot_file"])),
             "methods": {p.name: profile_digest(p) for p in profiles}}
 
 
@@ -88,7 +94,12 @@ def check_run_file(out: Path, ident: dict) -> dict:
             from avp_sim.params import SIM_PARAMS
 
             old["sim"] = {**{s.name: s.default for s in SIM_PARAMS if s.name not in old["sim"]}, **old["sim"]}
-        for k in ("sim", "intent", "config"):  # sim first: it names the parameters that differ
+        if "lot" not in old:  # results made before records named their lot were made on the bundled paper lot
+            from avp_bringup.experiment.metrics import lot_record
+            from avp_world.lot import load_bundled_lot
+
+            old["lot"] = lot_record(load_bundled_lot())
+        for k in ("sim", "lot", "intent", "config"):  # sim first: it names the parameters that differ
             if old.get(k) != ident[k]:
                 if k == "sim" and isinstance(old.get(k), dict):
                     diff = sorted(n for n in set(old[k]) | set(ident[k]) if old[k].get(n) != ident[k].get(n))

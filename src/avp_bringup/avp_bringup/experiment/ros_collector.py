@@ -28,8 +28,9 @@ STATE_NAMES = {2: "success", 3: "collision", 4: "timeout"}  # EpisodeStatus.STAT
 class EpisodeCollector(Node):
     """Debug-side observer of one episode at a time (never part of the ego)."""
 
-    def __init__(self) -> None:
+    def __init__(self, lot: dict | None = None) -> None:
         super().__init__("avp_experiment", namespace=NAMESPACE)
+        self.lot = lot  # the lot record of every episode (metrics.lot_record)
         self.begin(-1, False)
         # the simulator only waits for the ego: a deep reader history keeps every step even when this process
         # falls behind for a while (with the graph's depth 10 a busy CPU loses messages here)
@@ -117,4 +118,4 @@ class EpisodeCollector(Node):
         return episode_record(method=method, seed=self.seed, reactive=self.reactive,
                               status=STATE_NAMES.get(int(s.state), str(s.state)), metrics=metrics, min_ade=ade,
                               min_fde=fde, step_timings=[self.step_timings(k) for k in range(n)], horizon=horizon,
-                              transport="ros", wall_s=wall_s)
+                              transport="ros", wall_s=wall_s, lot=self.lot)

@@ -34,10 +34,12 @@ def run_ros(keys: list[Key], cfg: RunConfig, on_record: Callable[[dict], None], 
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
+    from avp_bringup.experiment.metrics import lot_record
     from avp_bringup.experiment.ros_collector import EpisodeCollector
     from avp_bringup.graph import Graph, method_graph
     from avp_bringup.services import call_once
     from avp_msgs.srv import ResetEpisode
+    from avp_sim.core.factory import load_lot_param
 
     if not cfg.message_precision:
         raise ValueError("--float64-messages applies to --transport inproc only (the graph's messages are float32)")
@@ -48,7 +50,7 @@ def run_ros(keys: list[Key], cfg: RunConfig, on_record: Callable[[dict], None], 
     for k in keys:
         by_method.setdefault(k[0], []).append(k)
     rclpy.init()
-    collector = EpisodeCollector()
+    collector = EpisodeCollector(lot_record(load_lot_param(sim_p["lot_file"])))
     executor = SingleThreadedExecutor()
     executor.add_node(collector)
     client = collector.create_client(ResetEpisode, "reset_episode")

@@ -75,7 +75,7 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
 
     ``on_step(world, ego_step)``, if given, is called after every step (the failure analysis watches episodes)."""
     from avp_bringup.experiment.ego import MethodEgo
-    from avp_bringup.experiment.metrics import episode_record, prediction_errors
+    from avp_bringup.experiment.metrics import episode_record, lot_record, prediction_errors
     from avp_bringup.experiment.oracle import OracleEgo, ground_truth
     from avp_sim.core.factory import make_world
 
@@ -99,7 +99,8 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
     ade, fde = prediction_errors(preds, world.log_vehicles, world.vehicle_ids, world.dt, cfg.ade_horizon)
     return episode_record(method=profile.name, seed=seed, reactive=reactive, status=world.status,
                           metrics=world.metrics.as_dict(), min_ade=ade, min_fde=fde, step_timings=timings,
-                          horizon=cfg.ade_horizon, transport="inproc", wall_s=time.perf_counter() - t0)
+                          horizon=cfg.ade_horizon, transport="inproc", wall_s=time.perf_counter() - t0,
+                          lot=lot_record(lot))
 
 
 _WORKER: dict[str, Any] = {}
@@ -114,10 +115,11 @@ def _init_worker(cfg: RunConfig, pool_worker: bool = False, sources: dict[str, s
         signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     torch.set_num_threads(1)
-    from avp_world.lot import load_bundled_lot
+    from avp_sim.core.factory import load_lot_param
 
+    sim = sim_values(cfg)
     # sources: profile name -> its file, so a profile given by path (a plugin's) loads in a worker too
-    _WORKER.update(cfg=cfg, lot=load_bundled_lot(), sim=sim_values(cfg), profiles={}, sources=sources or {})
+    _WORKER.update(cfg=cfg, lot=load_lot_param(sim["lot_file"]), sim=sim, profiles={}, sources=sources or {})
 
 
 def _worker_episode(key: Key) -> dict:
@@ -192,9 +194,8 @@ def valid_seeds(n: int, seed_base: int, sim_p: dict, cache: Path | None = None) 
     """The first ``n`` seeds >= ``seed_base`` for which the §VI-A generator builds a scenario, and the seeds
     skipped on the way (no collision-free plans for the dynamic vehicles, e.g. 53, 162, 253, 448 and 476 below 500).
     ``cache`` (a JSON file {seed: valid}) saves the ~40 ms per seed of a re-run."""
-    from avp_sim.core.factory import scenario_params
+    from avp_sim.core.factory import load_lot_param, scenario_params
     from avp_sim.core.scenario import ScenarioError, generate_paper_scenario
-    from avp_world.lot import load_bundled_lot
 
     known: dict[str, bool] = json.loads(cache.read_text()) if cache is not None and cache.is_file() else {}
     lot, params = None, scenario_params(sim_p)
@@ -202,7 +203,7 @@ def valid_seeds(n: int, seed_base: int, sim_p: dict, cache: Path | None = None) 
     s = seed_base
     while len(seeds) < n:
         if str(s) not in known:
-            lot = lot or load_bundled_lot()
+            lot = lot or load_lot_param(sim_p["lot_file"])
             try:
                 generate_paper_scenario(lot, s, False, params)
                 known[str(s)] = True
@@ -252,7 +253,7 @@ def run_experiment(args: argparse.Namespace) -> dict:
     out = Path(args.out)
     cfg = RunConfig(t_final=args.t_final, ade_horizon=args.ade_horizon, intent_weights=args.intent_weights,
                     intent_seed=args.intent_seed, message_precision=not args.float64_messages,
-                    sim_overrides=parse_sim_params(args.sim_param), protocol=args.protocol,
+                    sim_overrides=_with_lot(parse_sim_params(args.sim_param), args.lot), protocol=args.protocol,
                     planner_overrides=parse_planner_params(args.planner_param))
     profiles, skipped = resolve_methods(args.methods, cfg, args.transport)
     for name, why in skipped.items():
@@ -346,6 +347,18 @@ def parse_sim_params(items: list[str] | None) -> dict[str, Any]:
     return _parse_params(items, {s.name: s for s in SIM_PARAMS}, "--sim-param", "avp_sim")
 
 
+def _with_lot(sim_overrides: dict[str, Any], lot: str) -> dict[str, Any]:
+    """``--lot FILE`` as the avp_sim parameter lot_file (an absolute path, so the workers and the graph find it);
+    the file is loaded here once so that a bad lot is one error naming its field before any episode runs."""
+    if not lot:
+        return sim_overrides
+    from avp_world.lot import load_lot
+
+    path = str(Path(lot).resolve())
+    load_lot(path)
+    return {**sim_overrides, "lot_file": path}
+
+
 def parse_planner_params(items: list[str] | None) -> dict[str, Any]:
     """``--planner-param`` items, checked against the avp_planner specs."""
     from avp_bringup.experiment.profiles import _planner_specs
@@ -370,6 +383,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ade-horizon", type=float, default=DEFAULT_HORIZON, help="minADE/minFDE horizon H [s]")
     p.add_argument("--intent-weights", default="", help="intent CNN weights (default: shipped, else random)")
     p.add_argument("--intent-seed", type=int, default=0, help="seed of random intent weights")
+    p.add_argument("--lot", default="", metavar="FILE",
+                   help="lot map YAML to simulate and plan on (default: the bundled paper lot); the scenario roles "
+                   "come from its scenario: block or its geometry (docs/world.md, 'Any lot')")
     p.add_argument("--sim-param", action="append", metavar="KEY=VALUE",
                    help="override an avp_sim parameter for every episode (repeatable), e.g. the earlier scenario "
                    "reading: --sim-param scenario.maneuver_max_speed=2.0 --sim-param scenario.outer_row_max=9")

@@ -10,7 +10,6 @@ from avp_sim.core.scenario import (
     ScenarioParams,
     generate_paper_scenario,
     load_scenario_file,
-    outer_rows,
     scenario_from_dict,
 )
 from avp_sim.core.world import World, WorldConfig
@@ -46,7 +45,7 @@ def scenario_params(p: dict[str, Any]) -> ScenarioParams:
         dt=p["dt"], t_hist=p["t_hist"], t_final=p["t_final"],
         passiveness=(p["scenario.passiveness_min"], p["scenario.passiveness_max"]),
         n_dynamic=(p["scenario.n_dynamic_min"], p["scenario.n_dynamic_max"]),
-        outer_spot_groups=outer_rows(p["scenario.outer_row_min"], p["scenario.outer_row_max"]),
+        fallback_rows=(p["scenario.outer_row_min"], p["scenario.outer_row_max"]),
         maneuver_max_speed=p["scenario.maneuver_max_speed"],
         passiveness_step=p["scenario.passiveness_step"],
         approach_distance=(p["scenario.approach_distance_min"], p["scenario.approach_distance_max"]),

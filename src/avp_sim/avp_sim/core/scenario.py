@@ -19,6 +19,7 @@ from avp_sim.core.maneuvers import ALL_MANEUVERS, ManeuverKey, SceneGeometry, ge
 from avp_world.geometry import polygon_contains_points, rect_corners, rects_overlap
 from avp_world.kinematics import rollout_vehicle
 from avp_world.lot import LotMap
+from avp_world.lot_scenario import lot_scenario
 from avp_world.vehicle import VehicleSpec
 
 
@@ -77,28 +78,18 @@ class Scenario:
         return tuple(v for v in self.vehicles if not v.parked)
 
 
-OUTER_COLUMNS = (0, 30)  # id of row 0 of the paper lot's outer columns c0 and c3 (ids count upwards)
-
-
-def outer_rows(row_min: int, row_max: int, columns: tuple[int, ...] = OUTER_COLUMNS) -> tuple[tuple[int, ...], ...]:
-    """Spot ids of rows ``row_min..row_max`` (0 = bottom) of each outer column: one group per column."""
-    if not 0 <= row_min <= row_max:
-        raise ValueError(f"outer rows: need 0 <= row_min <= row_max, got {row_min}, {row_max}")
-    return tuple(tuple(c + r for r in range(row_min, row_max + 1)) for c in columns)
-
-
-#: the fallback ("2 vacant spots on the sides", §VI-A) is drawn from the bottom 5 rows of each outer column,
-#: the rows of the contested spots (docs/world.md); ``outer_rows(0, 9)`` (anywhere in the outer columns) is the
-#: earlier reading.
-OUTER_ROWS_BOTTOM: tuple[tuple[int, ...], ...] = outer_rows(0, 4)
-
-
 @dataclass(frozen=True)
 class ScenarioParams:
     """Knobs of the §VI-A generator (defaults: our reading of the paper's protocol, see docs/world.md).
 
-    ``outer_spot_groups``: one vacant fallback spot is drawn from each group (default
-    :data:`OUTER_ROWS_BOTTOM`). ``maneuver_max_speed`` / ``maneuver_max_accel``: bounds of the time
+    Where the ego starts, which spots are contested, the groups the fallbacks are drawn from and the aisle width
+    of the maneuvers come from the lot (its ``scenario:`` block or its geometry, :mod:`avp_world.lot_scenario`)
+    where they are None here; :meth:`resolve` fills them in. ``fallback_rows`` (first, last): the positions in
+    each fallback group one vacant spot is drawn from (groups run from the far end of the ego's road; on the paper
+    lot rows 0-4, the rows of the contested spots, docs/world.md; (0, 9) is the earlier reading "anywhere in the
+    outer columns"). ``outer_spot_groups``, if set, replaces the sliced groups.
+
+    ``maneuver_max_speed`` / ``maneuver_max_accel``: bounds of the time
     parameterisation of ParkSim's 8 maneuvers; 1.1 m/s with 2 m/s^2 gives the library a mean speed of
     1.0 m/s, the pace of ParkSim's H-OBCA library (its horizon N is the number of Hybrid A* warm-start
     samples, 0.1 m apart, at dt = 0.1 s, so a maneuver of L metres lasts about L seconds). 2.0 m/s was the
@@ -113,8 +104,9 @@ class ScenarioParams:
     agents were initialized closer to their intended spots").
     """
 
-    contested_spot_ids: tuple[int, ...] = (10, 11, 12, 13, 14, 20, 21, 22, 23, 24)
-    outer_spot_groups: tuple[tuple[int, ...], ...] = OUTER_ROWS_BOTTOM
+    contested_spot_ids: tuple[int, ...] | None = None  # None: the lot's (paper lot: 10-14, 20-24)
+    outer_spot_groups: tuple[tuple[int, ...], ...] | None = None  # None: the lot's groups, rows fallback_rows
+    fallback_rows: tuple[int, int] = (0, 4)
     n_dynamic: tuple[int, int] = (1, 2)
     passiveness: tuple[int, int] = (2, 6)
     cruise_speed: tuple[float, float] = (1.5, 2.5)  # m/s before braking for the maneuver start
@@ -122,9 +114,9 @@ class ScenarioParams:
     braking_decel: float = 1.5  # m/s^2 when stopping at the maneuver start
     maneuver_max_speed: float = 1.1  # m/s, |v| bound of the maneuvers' time parameterisation (mean 1.0 m/s)
     maneuver_max_accel: float = 2.0  # m/s^2, |dv/dt| bound of the maneuvers (ParkSim a_max_parking)
-    ego_start: tuple[float, float, float] = (21.5, 38.0, -math.pi / 2)
+    ego_start: tuple[float, float, float] | None = None  # None: the lot's (paper lot: (21.5, 38.0, -pi/2))
     ego_clearance: float = 1.0  # m between a dynamic vehicle at t = 0 and the ego's start footprint
-    aisle_width: float = 7.0
+    aisle_width: float | None = None  # None: the lot's (its first road's width; paper lot 7.0)
     parked_length: float = 4.6
     parked_width: float = 1.85
     dt: float = 0.1
@@ -133,6 +125,22 @@ class ScenarioParams:
     max_attempts: int = 200
     passiveness_step: float = 0.1  # s per unit of n_pass (0.5 = Nawaz et al.'s timestep)
     spawn_closer_than_ego: bool = False  # §VI-B: agents start nearer their spot than the ego
+
+    def resolve(self, lot: LotMap) -> ScenarioParams:
+        """These parameters with every lot-dependent one that is None taken from ``lot``
+        (:func:`avp_world.lot_scenario.lot_scenario`); ScenarioError for bad fallback rows."""
+        lo, hi = self.fallback_rows
+        if not 0 <= lo <= hi:
+            raise ScenarioError(f"fallback rows: need 0 <= first <= last, got {lo}, {hi}")
+        ls = lot_scenario(lot)
+        groups = self.outer_spot_groups
+        if groups is None:
+            groups = tuple(g[lo:hi + 1] for g in ls.fallback_spot_groups if g[lo:hi + 1])
+        return replace(self, outer_spot_groups=groups,
+                       contested_spot_ids=ls.contested_spot_ids if self.contested_spot_ids is None
+                       else self.contested_spot_ids,
+                       ego_start=ls.ego_start if self.ego_start is None else self.ego_start,
+                       aisle_width=ls.aisle_width if self.aisle_width is None else self.aisle_width)
 
 
 def _cruise_controls(distance: float, v_cruise: float, decel: float, dt: float) -> np.ndarray:
@@ -244,13 +252,18 @@ def generate_paper_scenario(
     """The §VI-A protocol: parked cars everywhere except some contested bottom spots and 2 outer spots;
     1-2 dynamic vehicles each assigned a vacant contested spot and a random maneuver (re-drawn while
     plans collide); passiveness ~ U{2..6} when reactive, else 0; ego at the top of the middle road."""
+    params = params.resolve(lot)
     rng = np.random.default_rng(int(seed))
     for cid in (*params.contested_spot_ids, *[s for g in params.outer_spot_groups for s in g]):
         lot.spot_index(cid)  # KeyError names an unknown id
     n_dyn = int(rng.integers(params.n_dynamic[0], params.n_dynamic[1] + 1))
     n_vacant = int(rng.integers(n_dyn, len(params.contested_spot_ids) + 1))
     vacant = [int(s) for s in rng.choice(params.contested_spot_ids, size=n_vacant, replace=False)]
-    outer = [int(rng.choice(group)) for group in params.outer_spot_groups]
+    outer: list[int] = []
+    for group in params.outer_spot_groups:  # distinct spots where groups share some (one-sided lots)
+        left = [s for s in group if s not in outer and s not in vacant]
+        if left:
+            outer.append(int(rng.choice(left)))
     ego_start = np.array(params.ego_start, dtype=float)
 
     dynamic: list[VehicleAgent] = []
@@ -337,6 +350,7 @@ def scenario_from_dict(lot: LotMap, data: dict, source: str, seed: int, reactive
     reactive); ``ego_start`` [x, y, theta]. ``seed`` / ``reactive`` default to the request's. Every problem
     raises :class:`ScenarioError` naming ``source`` and the field.
     """
+    params = params.resolve(lot)
     if not isinstance(data, dict):
         raise ScenarioError(f"{source}: top level must be a mapping with keys {sorted(_FILE_KEYS)}")
     unknown = sorted(set(data) - _FILE_KEYS)

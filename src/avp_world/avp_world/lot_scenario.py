@@ -1,0 +1,170 @@
+"""Where the §VI-A scenario generator puts things on a lot: the optional ``scenario:`` block of a lot YAML, and the
+defaults derived from the lot's geometry when the block is absent (ROS-free).
+
+The paper's protocol (§VI-A) on its lot: the ego starts at the entrance ("the ego agent starts at the top of the
+middle road"), the contested spots are the bottom rows of the two middle columns (the far end of the ego's road),
+and "2 vacant spots on the sides" are the fallbacks. On any lot the same roles are read from the geometry:
+
+* **ego start**: the end of the road nearest the entrance (the *first road*), facing along it;
+* **contested spots**: of the spots bordering the first road, the ``CONTESTED_PER_SIDE`` farthest along it on
+  each side (ids ascending);
+* **fallback groups**: the spots bordering other roads, one group per road (ordered farthest along the first road
+  first, so that ``scenario.outer_row_min..max`` of avp_sim picks the rows level with the contested ones), the two
+  largest groups (the one group twice where only one other road has spots); one vacant spot is drawn from each,
+  all distinct;
+* **aisle width**: the first road's width (ParkSim's maneuvers are made for it).
+
+On the paper lot this gives exactly the ids the generator used before lots could say it (tests/test_lots.py).
+A lot's ``scenario:`` block may set any of them::
+
+    scenario:
+      ego_start: [21.5, 38.0, -1.5707963267948966]
+      contested_spot_ids: [10, 11, 12, 13, 14, 20, 21, 22, 23, 24]
+      fallback_spot_groups: [[0, 1, 2, 3, 4, 5, 6, 7, 8, 9], [30, 31, 32, 33, 34, 35, 36, 37, 38, 39]]
+      aisle_width: 7.0
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from avp_world.lot import LotMap
+
+CONTESTED_PER_SIDE = 5  # contested spots on each side of the first road (the paper lot: 5 bottom rows)
+N_FALLBACK_GROUPS = 2  # "2 vacant spots on the sides" (§VI-A)
+BORDER_TOLERANCE = 0.3  # m: a spot's road-side edge may lie this far outside the road rectangle
+SCENARIO_KEYS = ("ego_start", "contested_spot_ids", "fallback_spot_groups", "aisle_width")
+
+
+@dataclass(frozen=True)
+class LotScenario:
+    """The roles of a lot's places in the §VI-A generator (see the module docstring)."""
+
+    ego_start: tuple[float, float, float]
+    contested_spot_ids: tuple[int, ...]
+    fallback_spot_groups: tuple[tuple[int, ...], ...]
+    aisle_width: float
+
+
+def first_road(lot: LotMap) -> tuple[int, np.ndarray, np.ndarray]:
+    """(row of the road nearest the entrance, its end nearer the entrance, unit direction away from it)."""
+    e = np.asarray(lot.entrance, dtype=float)
+    best, best_d = 0, math.inf
+    for i, (a, b) in enumerate(lot.road_segments):
+        ab = b - a
+        t = float(np.clip((e - a) @ ab / (ab @ ab), 0.0, 1.0))
+        d = float(np.hypot(*(a + t * ab - e)))
+        if d < best_d - 1e-9:
+            best, best_d = i, d
+    a, b = lot.road_segments[best]
+    near, far = (a, b) if np.hypot(*(a - e)) <= np.hypot(*(b - e)) else (b, a)
+    u = (far - near) / np.hypot(*(far - near))
+    return best, near.copy(), u
+
+
+def bordering_road(lot: LotMap) -> np.ndarray:
+    """(n_spots,) row of the road each spot opens onto (its edge facing the road lies in the road rectangle, up to
+    ``BORDER_TOLERANCE``; the spot's heading points away from the road, §II-A), -1 for none."""
+    c, s = np.cos(lot.spot_poses[:, 2]), np.sin(lot.spot_poses[:, 2])
+    edge = lot.spot_poses[:, :2] - 0.5 * lot.spot_dims[:, :1] * np.stack([c, s], axis=1)
+    out = np.full(lot.n_spots, -1, dtype=np.int64)
+    for r, (a, b) in enumerate(lot.road_segments):
+        w = lot.roads[r].width
+        ab = b - a
+        length = float(np.hypot(*ab))
+        t = (edge - a) @ ab / length  # along the centre line
+        d = np.abs((edge - a) @ np.array([-ab[1], ab[0]]) / length)  # across it
+        inside = (t >= -0.5 * w - BORDER_TOLERANCE) & (t <= length + 0.5 * w + BORDER_TOLERANCE) & \
+                 (d <= 0.5 * w + BORDER_TOLERANCE)
+        out[(out < 0) & inside] = r
+    return out
+
+
+def derive_lot_scenario(lot: LotMap) -> LotScenario:
+    """The roles read from the geometry (module docstring)."""
+    road, near, u = first_road(lot)
+    border = bordering_road(lot)
+    rel = lot.spot_poses[:, :2] - near
+    along = rel @ u
+    side = np.sign(u[0] * rel[:, 1] - u[1] * rel[:, 0])
+    contested: list[int] = []
+    for sgn in (1.0, -1.0):
+        rows = [i for i in np.flatnonzero((border == road) & (side == sgn))]
+        rows.sort(key=lambda i: (-along[i], int(lot.spot_ids[i])))
+        contested += [int(lot.spot_ids[i]) for i in rows[:CONTESTED_PER_SIDE]]
+    groups: list[tuple[int, list[int]]] = []
+    for r in range(len(lot.roads)):
+        if r == road:
+            continue
+        rows = sorted(np.flatnonzero(border == r), key=lambda i: (-along[i], int(lot.spot_ids[i])))
+        if rows:
+            groups.append((r, [int(lot.spot_ids[i]) for i in rows]))
+    largest = sorted(groups, key=lambda g: (-len(g[1]), g[0]))[:N_FALLBACK_GROUPS]
+    fallback = tuple(tuple(g) for _, g in sorted(largest))
+    if 0 < len(fallback) < N_FALLBACK_GROUPS:  # one other row only: both fallbacks from it (distinct spots)
+        fallback = fallback * N_FALLBACK_GROUPS
+    return LotScenario(ego_start=(float(near[0]), float(near[1]), math.atan2(u[1], u[0])),
+                       contested_spot_ids=tuple(sorted(contested)), fallback_spot_groups=fallback,
+                       aisle_width=float(lot.roads[road].width))
+
+
+def lot_scenario(lot: LotMap) -> LotScenario:
+    """The lot's ``scenario:`` block, its missing keys filled from :func:`derive_lot_scenario`."""
+    block = getattr(lot, "scenario", None) or {}
+    if not block:
+        return derive_lot_scenario(lot)
+    derived = derive_lot_scenario(lot)
+    return LotScenario(**{k: block.get(k, getattr(derived, k)) for k in SCENARIO_KEYS})
+
+
+def parse_scenario_block(raw: Any, lot: LotMap, where: str) -> dict[str, Any]:
+    """Validate a lot's ``scenario:`` block against the lot; ValueError naming ``where`` and the field."""
+    if not isinstance(raw, dict):
+        raise ValueError(f"{where}: expected a mapping with keys {list(SCENARIO_KEYS)}")
+    unknown = sorted(set(raw) - set(SCENARIO_KEYS))
+    if unknown:
+        raise ValueError(f"{where}.{unknown[0]}: unknown key (known: {list(SCENARIO_KEYS)})")
+    out: dict[str, Any] = {}
+    if "ego_start" in raw:
+        v = raw["ego_start"]
+        if not isinstance(v, list) or len(v) != 3 or not all(_finite(x) for x in v):
+            raise ValueError(f"{where}.ego_start: expected [x, y, theta] (finite numbers), got {v!r}")
+        out["ego_start"] = tuple(float(x) for x in v)
+    if "contested_spot_ids" in raw:
+        out["contested_spot_ids"] = _spot_ids(raw["contested_spot_ids"], lot, f"{where}.contested_spot_ids")
+        if not out["contested_spot_ids"]:
+            raise ValueError(f"{where}.contested_spot_ids: at least one spot")
+    if "fallback_spot_groups" in raw:
+        g = raw["fallback_spot_groups"]
+        if not isinstance(g, list):
+            raise ValueError(f"{where}.fallback_spot_groups: expected a list of lists of spot ids, got {g!r}")
+        out["fallback_spot_groups"] = tuple(_spot_ids(x, lot, f"{where}.fallback_spot_groups[{i}]")
+                                            for i, x in enumerate(g))
+    if "aisle_width" in raw:
+        w = raw["aisle_width"]
+        if not _finite(w) or w <= 0:
+            raise ValueError(f"{where}.aisle_width: expected a positive number, got {w!r}")
+        out["aisle_width"] = float(w)
+    return out
+
+
+def _finite(v: Any) -> bool:
+    return not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v)
+
+
+def _spot_ids(v: Any, lot: LotMap, where: str) -> tuple[int, ...]:
+    if not isinstance(v, list):
+        raise ValueError(f"{where}: expected a list of spot ids, got {v!r}")
+    ids: list[int] = []
+    for i, s in enumerate(v):
+        if isinstance(s, bool) or not isinstance(s, int) or not lot.has_spot(s):
+            raise ValueError(f"{where}[{i}]: {s!r} is not a spot id of lot '{lot.name}'")
+        if s in ids:
+            raise ValueError(f"{where}[{i}]: spot {s} listed twice")
+        ids.append(int(s))
+    return tuple(ids)
