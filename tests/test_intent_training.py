@@ -18,7 +18,9 @@ import pytest
 import torch
 
 from avp_perception.core.intent_model import N_FEATURES, IntentPredictor, default_weights_path
+from avp_sim.core.lanes import Path, follow
 from avp_sim.core.observation import classify_world
+from avp_sim.core.traffic import PARK, WANDER, TrafficGenerator, TrafficParams
 from avp_training.dataset import (
     DataSpec,
     Samples,
@@ -27,9 +29,7 @@ from avp_training.dataset import (
     paper_episode,
     traffic_episode,
 )
-from avp_training.lanes import Path, follow
-from avp_training.lots import load_dlp_lot, random_lot, spot_aisles
-from avp_training.traffic import PARK, WANDER, TrafficGenerator, TrafficParams
+from avp_training.lots import load_dlp_lot, random_lot
 from avp_training.train import (
     TrainConfig,
     baseline_scores,
@@ -42,6 +42,7 @@ from avp_training.train import (
 from avp_world.geometry import polygon_contains_points, rect_corners, rects_overlap
 from avp_world.kinematics import rollout_vehicle
 from avp_world.lot import load_bundled_lot
+from avp_world.lot_scenario import spot_aisles
 
 SHORT = DataSpec(t_final=20.0)
 EPISODE_SEED = 10  # a short episode with samples (31 of them labelled with a spot) on a random lot

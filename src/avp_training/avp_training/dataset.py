@@ -36,9 +36,9 @@ from avp_perception.core.intent_model import N_FEATURES, IntentPredictor
 from avp_perception.core.pipeline import PerceptionCore
 from avp_sim.core.observation import SensorConfig
 from avp_sim.core.scenario import ScenarioError, generate_paper_scenario
+from avp_sim.core.traffic import LEAVE, PARK, WANDER, TrafficGenerator, TrafficParams
 from avp_sim.core.world import World, WorldConfig
 from avp_training.lots import load_dlp_lot, random_lot
-from avp_training.traffic import LEAVE, PARK, WANDER, TrafficGenerator, TrafficParams
 from avp_world.geometry import rect_corners, rect_inside_rect, rects_overlap
 from avp_world.lot import LotMap, load_bundled_lot
 

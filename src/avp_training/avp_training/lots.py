@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from avp_world.lot import LotMap, load_lot, lot_from_dict
+from avp_world.lot_scenario import spot_aisles  # noqa: F401 - re-exported
 
 MAPS_DIR = Path(__file__).resolve().parent / "maps"
 DLP_LOT_FILE = MAPS_DIR / "dlp_west.yaml"
@@ -131,30 +132,3 @@ def random_lot(seed: int, params: RandomLotParams = RandomLotParams()) -> LotMap
         "spots": spots,
     }
     return lot_from_dict(data, source=f"<random lot {seed}>")
-
-
-def spot_aisles(lot: LotMap, tol: float = 0.05) -> np.ndarray:
-    """(N_S,) index of the road each spot borders, -1 if none.
-
-    Spot i borders road j when the point p_i - u_i (l_i / 2 + w_j / 2) (u_i: the spot's heading, which points
-    away from its road, §II-A) lies on the centre line C_j (or its extension by w_j / 2, the end of the road's
-    swept square) and C_j is perpendicular to u_i.
-    """
-    out = np.full(lot.n_spots, -1, dtype=np.int64)
-    if not lot.roads:
-        return out
-    poses, dims = lot.spot_poses, lot.spot_dims
-    u = np.stack([np.cos(poses[:, 2]), np.sin(poses[:, 2])], axis=1)
-    best = np.full(lot.n_spots, np.inf)
-    for j, r in enumerate(lot.roads):
-        a, b = np.asarray(r.start, float), np.asarray(r.end, float)
-        d = (b - a) / r.length
-        front = poses[:, :2] - u * (dims[:, :1] / 2.0 + r.width / 2.0)
-        t = (front - a) @ d
-        off = np.abs((front - a) @ np.array([-d[1], d[0]]))
-        perp = np.abs(u @ d) < 1e-3
-        reach = r.width / 2.0 + tol  # the road's swept square reaches w / 2 beyond its end points
-        ok = perp & (off < tol) & (t >= -reach) & (t <= r.length + reach) & (off < best)
-        out[ok] = j
-        best[ok] = off[ok]
-    return out

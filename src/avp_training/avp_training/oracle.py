@@ -26,10 +26,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from avp_sim.core.lanes import A_DEC
 from avp_sim.core.maneuvers import ManeuverKey
+from avp_sim.core.traffic import PARK, AgentPlan, TrafficGenerator, TrafficParams
 from avp_training.dataset import DataSpec, Samples, episode_lot
-from avp_training.lanes import A_DEC
-from avp_training.traffic import PARK, AgentPlan, TrafficGenerator, TrafficParams
 
 GROUPS = ("cruising", "rolling", "maneuvering", "not modelled")
 

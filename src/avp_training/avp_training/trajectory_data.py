@@ -40,6 +40,7 @@ from avp_perception.core.learned_prediction import (
 from avp_perception.core.prediction import BezierPredictor, PredictionConfig
 from avp_sim.core.observation import SensorConfig
 from avp_sim.core.scenario import ScenarioError, generate_paper_scenario
+from avp_sim.core.traffic import PARK, TrafficParams
 from avp_sim.core.world import WorldConfig
 from avp_training.dataset import (
     KIND_CODES,
@@ -54,7 +55,6 @@ from avp_training.dataset import (
     save_arrays,
 )
 from avp_training.lots import load_dlp_lot, random_lot
-from avp_training.traffic import PARK, TrafficParams
 from avp_world.lot import LotMap, load_bundled_lot
 from avp_world.types import ObservedVehicle
 

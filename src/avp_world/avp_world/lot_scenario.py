@@ -37,7 +37,6 @@ if TYPE_CHECKING:
 
 CONTESTED_PER_SIDE = 5  # contested spots on each side of the first road (the paper lot: 5 bottom rows)
 N_FALLBACK_GROUPS = 2  # "2 vacant spots on the sides" (§VI-A)
-BORDER_TOLERANCE = 0.3  # m: a spot's road-side edge may lie this far outside the road rectangle
 SCENARIO_KEYS = ("ego_start", "contested_spot_ids", "fallback_spot_groups", "aisle_width")
 
 
@@ -67,28 +66,37 @@ def first_road(lot: LotMap) -> tuple[int, np.ndarray, np.ndarray]:
     return best, near.copy(), u
 
 
-def bordering_road(lot: LotMap) -> np.ndarray:
-    """(n_spots,) row of the road each spot opens onto (its edge facing the road lies in the road rectangle, up to
-    ``BORDER_TOLERANCE``; the spot's heading points away from the road, §II-A), -1 for none."""
-    c, s = np.cos(lot.spot_poses[:, 2]), np.sin(lot.spot_poses[:, 2])
-    edge = lot.spot_poses[:, :2] - 0.5 * lot.spot_dims[:, :1] * np.stack([c, s], axis=1)
+def spot_aisles(lot: LotMap, tol: float = 0.05) -> np.ndarray:
+    """(N_S,) index of the road each spot borders, -1 if none.
+
+    Spot i borders road j when the point p_i - u_i (l_i / 2 + w_j / 2) (u_i: the spot's heading, which points
+    away from its road, §II-A) lies on the centre line C_j (or its extension by w_j / 2, the end of the road's
+    swept square) and C_j is perpendicular to u_i.
+    """
     out = np.full(lot.n_spots, -1, dtype=np.int64)
-    for r, (a, b) in enumerate(lot.road_segments):
-        w = lot.roads[r].width
-        ab = b - a
-        length = float(np.hypot(*ab))
-        t = (edge - a) @ ab / length  # along the centre line
-        d = np.abs((edge - a) @ np.array([-ab[1], ab[0]]) / length)  # across it
-        inside = (t >= -0.5 * w - BORDER_TOLERANCE) & (t <= length + 0.5 * w + BORDER_TOLERANCE) & \
-                 (d <= 0.5 * w + BORDER_TOLERANCE)
-        out[(out < 0) & inside] = r
+    if not lot.roads:
+        return out
+    poses, dims = lot.spot_poses, lot.spot_dims
+    u = np.stack([np.cos(poses[:, 2]), np.sin(poses[:, 2])], axis=1)
+    best = np.full(lot.n_spots, np.inf)
+    for j, r in enumerate(lot.roads):
+        a, b = np.asarray(r.start, float), np.asarray(r.end, float)
+        d = (b - a) / r.length
+        front = poses[:, :2] - u * (dims[:, :1] / 2.0 + r.width / 2.0)
+        t = (front - a) @ d
+        off = np.abs((front - a) @ np.array([-d[1], d[0]]))
+        perp = np.abs(u @ d) < 1e-3
+        reach = r.width / 2.0 + tol  # the road's swept square reaches w / 2 beyond its end points
+        ok = perp & (off < tol) & (t >= -reach) & (t <= r.length + reach) & (off < best)
+        out[ok] = j
+        best[ok] = off[ok]
     return out
 
 
 def derive_lot_scenario(lot: LotMap) -> LotScenario:
     """The roles read from the geometry (module docstring)."""
     road, near, u = first_road(lot)
-    border = bordering_road(lot)
+    border = spot_aisles(lot)
     rel = lot.spot_poses[:, :2] - near
     along = rel @ u
     side = np.sign(u[0] * rel[:, 1] - u[1] * rel[:, 0])

@@ -250,7 +250,7 @@ class LaneGraph:
 
     @classmethod
     def build(cls, lot: LotMap, spot_road: np.ndarray | None = None) -> LaneGraph:
-        from avp_training.lots import spot_aisles
+        from avp_world.lot_scenario import spot_aisles
 
         roads = lot.roads
         pts: list[np.ndarray] = []

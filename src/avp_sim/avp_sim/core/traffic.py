@@ -40,11 +40,10 @@ from collections import Counter
 import numpy as np
 import shapely
 
+from avp_sim.core.lanes import LaneGraph, Path, follow, rollout
 from avp_sim.core.scenario import Scenario, VehicleAgent
-from avp_training.lanes import LaneGraph, Path, follow, rollout
-from avp_training.lots import spot_aisles
-from avp_training.traffic_agents import AgentPlannersMixin
-from avp_training.traffic_types import (  # noqa: F401 - re-exported: the generator's API
+from avp_sim.core.traffic_agents import AgentPlannersMixin
+from avp_sim.core.traffic_types import (  # noqa: F401 - re-exported: the generator's API
     AGENT_ID0,
     LEAVE,
     PARK,
@@ -58,6 +57,7 @@ from avp_training.traffic_types import (  # noqa: F401 - re-exported: the genera
 )
 from avp_world.geometry import polygon_contains_points, rect_corners, rect_inside_rect, rects_overlap, wrap_angle
 from avp_world.lot import LotMap
+from avp_world.lot_scenario import spot_aisles
 from avp_world.vehicle import VehicleSpec
 
 
