@@ -194,18 +194,18 @@ def valid_seeds(n: int, seed_base: int, sim_p: dict, cache: Path | None = None) 
     """The first ``n`` seeds >= ``seed_base`` for which the §VI-A generator builds a scenario, and the seeds
     skipped on the way (no collision-free plans for the dynamic vehicles, e.g. 53, 162, 253, 448 and 476 below 500).
     ``cache`` (a JSON file {seed: valid}) saves the ~40 ms per seed of a re-run."""
-    from avp_sim.core.factory import load_lot_param, scenario_params
-    from avp_sim.core.scenario import ScenarioError, generate_paper_scenario
+    from avp_sim.core.factory import generate_scenario, load_lot_param
+    from avp_sim.core.scenario import ScenarioError
 
     known: dict[str, bool] = json.loads(cache.read_text()) if cache is not None and cache.is_file() else {}
-    lot, params = None, scenario_params(sim_p)
+    lot = None
     seeds, bad = [], []
     s = seed_base
     while len(seeds) < n:
         if str(s) not in known:
             lot = lot or load_lot_param(sim_p["lot_file"])
             try:
-                generate_paper_scenario(lot, s, False, params)
+                generate_scenario(lot, sim_p, s, False)
                 known[str(s)] = True
             except ScenarioError:
                 known[str(s)] = False

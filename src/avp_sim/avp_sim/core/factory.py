@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Any
 
+from avp_sim.core.busy import BusyParams, generate_busy_scenario
 from avp_sim.core.observation import SensorConfig
 from avp_sim.core.scenario import (
     ScenarioParams,
@@ -68,5 +69,24 @@ def make_world(lot: LotMap, p: dict[str, Any], seed: int, reactive: bool, scenar
     elif scenario_file:
         scenario = load_scenario_file(lot, scenario_file, seed, reactive, scenario_params(p))
     else:
-        scenario = generate_paper_scenario(lot, seed, reactive, scenario_params(p))
+        scenario = generate_scenario(lot, p, seed, reactive)
     return World(lot, scenario, world_config(p))
+
+
+def busy_params(p: dict[str, Any]) -> BusyParams:
+    for lo, hi in (("occupancy_min", "occupancy_max"), ("arrival_gap_min", "arrival_gap_max"),
+                   ("departure_gap_min", "departure_gap_max"), ("n_pedestrians_min", "n_pedestrians_max")):
+        if p[f"busy.{lo}"] > p[f"busy.{hi}"]:
+            raise ValueError(f"parameter 'busy.{lo}' must be <= 'busy.{hi}'")
+    return BusyParams(occupancy=(p["busy.occupancy_min"], p["busy.occupancy_max"]),
+                      arrival_gap=(p["busy.arrival_gap_min"], p["busy.arrival_gap_max"]),
+                      departure_gap=(p["busy.departure_gap_min"], p["busy.departure_gap_max"]),
+                      n_pedestrians=(p["busy.n_pedestrians_min"], p["busy.n_pedestrians_max"]))
+
+
+def generate_scenario(lot: LotMap, p: dict[str, Any], seed: int, reactive: bool):
+    """The seeded scenario of the family ``scenario.family`` (ScenarioError when the seed has none)."""
+    if p.get("scenario.family", "paper") == "busy":
+        return generate_busy_scenario(lot, seed, reactive, dt=p["dt"], t_hist=p["t_hist"], t_final=p["t_final"],
+                                      busy=busy_params(p))
+    return generate_paper_scenario(lot, seed, reactive, scenario_params(p))

@@ -217,8 +217,9 @@ class TrafficGenerator(AgentPlannersMixin):
         raise ValueError(f"no lane beside the pose {pose.tolist()}")
 
     # ------------------------------------------------------------------ episode
-    def generate(self, seed: int, ego_start=None) -> Traffic:
-        """One seeded episode (same seed => same traffic)."""
+    def generate(self, seed: int, ego_start=None, ego_tour: bool = True) -> Traffic:
+        """One seeded episode (same seed => same traffic). ``ego_tour`` False: the ego stands at ``ego_start``
+        (its plan is someone else's business: the busy scenario family, :mod:`.busy`)."""
         p = self.p
         rng = np.random.default_rng(int(seed))
         n_s = self.lot.n_spots
@@ -281,7 +282,10 @@ class TrafficGenerator(AgentPlannersMixin):
                 stats["dropped"] += 1
             t += max(p.min_arrival_gap, float(rng.exponential(gap)))
 
-        ego_u, ego_x = self.plan_ego(rng, accepted, ego_start)
+        if ego_tour or ego_start is None:
+            ego_u, ego_x = self.plan_ego(rng, accepted, ego_start)
+        else:
+            ego_u, ego_x = np.zeros((0, 2)), np.asarray(ego_start, dtype=float).reshape(1, 3)
         return self._assemble(seed, rng, occ, accepted, ego_u, ego_x, stats)
 
     def _assemble(self, seed: int, rng: np.random.Generator, occ: np.ndarray, accepted: list[AgentPlan],
