@@ -175,3 +175,38 @@ def test_reactive_brakes_skip_only_agents_that_cannot_reach_the_ego(paper_lot):
             if w.done:
                 break
     assert n_braking > 0  # the comparison covered steps where agents do brake
+
+
+def _walker(ped_id, start, heading, speed, n_steps, hist=40):
+    from avp_sim.core.scenario import PedestrianAgent
+
+    d = np.array([math.cos(heading), math.sin(heading)])
+    init = np.asarray(start, float) - d * speed * hist * 0.1
+    return PedestrianAgent(id=ped_id, radius=0.3, initial_position=init,
+                           controls=np.tile([speed, heading], (hist + n_steps, 1)))
+
+
+@pytest.mark.parametrize("ego_moves", [False, True])
+def test_pedestrian_collisions_are_counted_with_who_was_at_fault(paper_lot, ego_moves):
+    """Issue #18: a pedestrian walking into a standing ego is a collision the ego is not at fault for; the ego
+    driving into a standing pedestrian is. The recomputation from the logged ground truth agrees."""
+    from avp_sim.core.metrics import metrics_from_log
+
+    if ego_moves:  # the pedestrian stands 4 m ahead of the ego in the middle road; the ego drives at it
+        ped = _walker(20000, (21.5, 26.0), 0.0, 0.0, 200)
+    else:  # the pedestrian crosses the road through the standing ego
+        ped = _walker(20000, (17.0, 30.0), 0.0, 1.0, 200)
+    sc = Scenario(seed=0, reactive=False, ego_start=np.array([21.5, 30.0, -math.pi / 2]), ego=EGO, vehicles=(),
+                  pedestrians=(ped,))
+    w = World(paper_lot, sc, WorldConfig(t_final=30.0, sensor=SensorConfig()))
+    peds = [w.ped_pos.copy()]
+    while not w.done:
+        w.step(1.0 if ego_moves else 0.0, 0.0)
+        peds.append(w.ped_pos.copy())
+    assert w.status == COLLISION and w.metrics.collision_with == "pedestrian:20000"
+    assert w.metrics.collision_at_fault == ego_moves
+    z = np.zeros((len(w.log_ego), 0, 3))
+    state, m = metrics_from_log(paper_lot, 0.1, 30.0, (EGO.length, EGO.width), np.array(w.log_ego), z,
+                                np.zeros((0, 2)), np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int64),
+                                np.zeros((len(w.log_ego), 0), bool), (np.array(peds), w.ped_radii, w.ped_ids))
+    assert state == COLLISION and m.as_dict() == w.metrics.as_dict()

@@ -211,13 +211,18 @@ def metrics_from_bag(bag: Path) -> tuple[dict, dict]:
         len(gts), len(first), 3)
     brk = np.array([[a.braking for a in g.agents if a.kind == 1] for g in gts], dtype=bool).reshape(len(gts), -1)
     ego_agent = next(a for a in gts[0].agents if a.kind == 0)
+    first_peds = [a for a in gts[0].agents if a.kind == 2]
+    peds = (np.array([[[a.pose.x, a.pose.y] for a in g.agents if a.kind == 2] for g in gts]).reshape(
+                len(gts), len(first_peds), 2),
+            np.array([a.radius for a in first_peds]), np.array([a.id for a in first_peds], dtype=np.int64))
     state, m = metrics_from_log(lot, float(status.dt), float(status.t_final), (ego_agent.length, ego_agent.width),
-                                ego, veh, dims, ids, dynamic, targets, brk)
+                                ego, veh, dims, ids, dynamic, targets, brk, peds)
     names = {0: "idle", 1: "running", 2: "success", 3: "collision", 4: "timeout"}
     recomputed = {"state": state, **{k: nan_to_none(v) for k, v in m.as_dict().items()}}
     lm = status.metrics
     live = {"state": names[int(status.state)], "success": bool(lm.success), "collision": bool(lm.collision),
-            "collision_with": lm.collision_with, "spot_stolen": bool(lm.spot_stolen),
+            "collision_with": lm.collision_with, "collision_at_fault": bool(lm.collision_at_fault),
+            "spot_stolen": bool(lm.spot_stolen),
             "parked_spot_id": int(lm.parked_spot_id), "interrupted_steps": int(lm.interrupted_steps),
             "interrupted_agent_steps": int(lm.interrupted_agent_steps),
             "parking_time": nan_to_none(float(lm.parking_time)), "steps": int(lm.steps)}

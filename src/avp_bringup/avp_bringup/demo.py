@@ -27,6 +27,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--t-final", type=float, default=None)
     p.add_argument("--out", default=str(avp_root() / "out" / "demo"))
     p.add_argument("--params")
+    p.add_argument("--scenario", choices=("paper", "busy"), default=None,
+                   help="scenario family (the simulator's scenario.family): paper (§VI-A, default) or busy (20+ "
+                   "parking and exiting cars, 10+ pedestrians; docs/world.md)")
     p.add_argument("--lot", help="lot map YAML to simulate and plan on (default: the bundled paper lot; the scenario "
                    "comes from its scenario: block or its geometry)")
     p.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit [s]")
@@ -98,6 +101,8 @@ def _demo_nodes(args: argparse.Namespace) -> list:
         extra["t_final"] = args.t_final
     if args.lot:
         extra["lot_file"] = str(Path(args.lot).resolve())
+    if args.scenario:
+        extra["scenario.family"] = args.scenario
     nodes[0] = with_params(sim, **extra)
     return nodes
 

@@ -30,7 +30,7 @@ from avp_common.conversions import observation_from_msg, time_to_ns
 from avp_common.drain import draining_subscription
 from avp_common.msg_auth import load_key, verify
 from avp_common.qos import RESEND_ANSWER_INTERVAL, STATUS
-from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation
+from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation, PredictedTrajectoryArray, SpotBeliefs
 
 #: reader side of the metric streams: a whole episode (t_f = 100 s at dt = 0.1 s, 1000 steps) may queue while the
 #: monitor is busy (the writer of debug/ground_truth keeps 300: avp_common.qos.GROUND_TRUTH; compatible QoS)
@@ -60,6 +60,16 @@ class EpisodeMonitor(Node):
                               GROUND_TRUTH_QOS, with_info=True)
         draining_subscription(self, TwistStamped, "cmd", self._tagged(TwistStamped, self._on_cmd), GROUND_TRUTH_QOS,
                               with_info=True)
+        # per-node stage times: when each node's output of step k left it (DDS source timestamps)
+        self.stage_sent: dict[str, dict[int, int]] = {"beliefs": {}, "predictions": {}}
+        for name, msg_type in (("beliefs", SpotBeliefs), ("predictions", PredictedTrajectoryArray)):
+            draining_subscription(self, msg_type, name, self._tagged(msg_type, self._stage_cb(name)), GROUND_TRUTH_QOS,
+                                  with_info=True)
+
+    def _stage_cb(self, name: str):
+        def cb(msg, info) -> None:
+            self.stage_sent[name].setdefault(time_to_ns(msg.header.stamp), int(info["source_timestamp"]))
+        return cb
 
     def _tagged(self, msg_type, callback):
         def cb(raw: bytes, info) -> None:
@@ -78,7 +88,7 @@ class EpisodeMonitor(Node):
         if self._last_stamp is not None and 0 < stamp < self._last_stamp:
             return  # an older step (a stale copy): not a new episode
         if self._last_stamp is not None and stamp < self._last_stamp:  # a new episode: time restarts at 0
-            for d in (self.obs_sent, self.next_sent, self.cmd_received):
+            for d in (self.obs_sent, self.next_sent, self.cmd_received, *self.stage_sent.values()):
                 d.clear()
             self._last_stamp = None
         sent = int(info["source_timestamp"])
@@ -118,7 +128,23 @@ class EpisodeMonitor(Node):
                        min_ms=round(float(ms.min()), 2))
         if mode == "realtime":
             out["late_steps"] = int(late)  # answered after observation k+1 was sent: not used, the ego held still
+        stages = self.stage_times()
+        if stages:
+            out["stages_ms"] = stages
         return out
+
+    def stage_times(self) -> dict[str, dict[str, float]]:
+        """Per node, median and p95 [ms] over the steps of: belief node (observation k sent -> beliefs k sent),
+        prediction node (beliefs k sent -> predictions k sent), planner (predictions k sent -> command k received);
+        each includes one DDS hop. Steps where a node's output is missing (a method without it) are left out."""
+        b, pr = self.stage_sent["beliefs"], self.stage_sent["predictions"]
+        first = {k: v[0] for k, v in self.obs_sent.items()}
+        spans = {"belief_node": [(b[k] - first[k]) for k in first if k in b],
+                 "prediction_node": [(pr[k] - b[k]) for k in b if k in pr],
+                 "planner": [(self.cmd_received[k] - pr[k]) for k in pr if k in self.cmd_received]}
+        return {name: {"median_ms": round(float(np.median(v)) * 1e-6, 2),
+                       "p95_ms": round(float(np.percentile(v, 95)) * 1e-6, 2), "steps": len(v)}
+                for name, v in spans.items() if v}
 
     @property
     def finished(self) -> bool:
@@ -151,6 +177,7 @@ class EpisodeMonitor(Node):
         return {
             "seed": int(s.seed), "reactive": bool(s.reactive), "state": STATE_NAMES.get(s.state, str(s.state)),
             "success": bool(m.success), "collision": bool(m.collision), "collision_with": m.collision_with,
+            "collision_at_fault": bool(m.collision_at_fault),
             "spot_stolen": bool(m.spot_stolen), "parked_spot_id": int(m.parked_spot_id),
             "interrupted_steps": int(m.interrupted_steps), "interrupted_agent_steps": int(m.interrupted_agent_steps),
             "parking_time": None if math.isnan(m.parking_time) else float(m.parking_time),

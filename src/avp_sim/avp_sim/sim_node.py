@@ -238,6 +238,7 @@ class SimNode(Node):
         msg.lock_step = self.lockstep
         mm = msg.metrics
         mm.success, mm.collision, mm.collision_with = m.success, m.collision, m.collision_with
+        mm.collision_at_fault = bool(m.collision_at_fault)
         mm.spot_stolen, mm.parked_spot_id = m.spot_stolen, int(m.parked_spot_id)
         mm.interrupted_steps, mm.interrupted_agent_steps = int(m.interrupted_steps), int(m.interrupted_agent_steps)
         mm.parking_time, mm.steps = float(m.parking_time), int(m.steps)

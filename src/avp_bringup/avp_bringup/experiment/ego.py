@@ -122,6 +122,7 @@ class MethodEgo:
         if self.message_precision:
             intentions = [float32_intention(i) for i in intentions]
             ego = float32_intention(ego) if ego is not None else None
+        t_belief = time.perf_counter() - t0
         b, predictions = self.predict(obs, b, intentions)
         if self.message_precision:
             predictions = [replace(p, probability=float(np.float32(p.probability))) for p in predictions]
@@ -132,7 +133,8 @@ class MethodEgo:
         preds = predictions if self.use_predictions else []
         dec = self.planner.decide(obs, beliefs, preds, priority)
         tm = dec.timings or {}
-        timings = {"perception_time": t_perception,
+        timings = {"perception_time": t_perception, "belief_time": t_belief, "prediction_time": t_perception - t_belief,
+                   "planner_time": float(tm.get("total", 0.0)),
                    "spot_selection_time": t_perception + float(tm.get("spot_selection_time", 0.0)),
                    "path_planning_time": float(tm.get("path_planning_time", 0.0))}
         self.last = EgoStep(int(obs.step), (float(dec.command[0]), float(dec.command[1])), dec, beliefs,

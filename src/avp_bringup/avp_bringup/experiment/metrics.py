@@ -91,7 +91,9 @@ def episode_record(*, method: str, seed: int, reactive: bool, status: str, metri
     return {
         "method": method, "seed": int(seed), "mode": "reactive" if reactive else "non_reactive",
         "status": status, "success": bool(metrics["success"]), "collision": bool(metrics["collision"]),
-        "collision_with": str(metrics.get("collision_with", "")), "spot_stolen": bool(metrics["spot_stolen"]),
+        "collision_with": str(metrics.get("collision_with", "")),
+        "collision_at_fault": bool(metrics.get("collision_at_fault", False)),
+        "spot_stolen": bool(metrics["spot_stolen"]),
         "parked_spot_id": int(metrics["parked_spot_id"]), "interrupted_steps": int(metrics["interrupted_steps"]),
         "interrupted_agent_steps": int(metrics["interrupted_agent_steps"]), "parking_time": pt,
         "steps": int(metrics["steps"]),

@@ -111,7 +111,8 @@ class EpisodeCollector(Node):
         gt = np.stack([self.gt[k][1] for k in range(n + 1)])
         ade, fde = prediction_errors({k: self.preds[k] for k in range(n)}, gt, ids, float(s.dt), horizon)
         metrics = {"success": bool(m.success), "collision": bool(m.collision),
-                   "collision_with": m.collision_with, "spot_stolen": bool(m.spot_stolen),
+                   "collision_with": m.collision_with, "collision_at_fault": bool(m.collision_at_fault),
+                   "spot_stolen": bool(m.spot_stolen),
                    "parked_spot_id": int(m.parked_spot_id), "interrupted_steps": int(m.interrupted_steps),
                    "interrupted_agent_steps": int(m.interrupted_agent_steps),
                    "parking_time": float(m.parking_time), "steps": n}

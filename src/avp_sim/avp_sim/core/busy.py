@@ -8,10 +8,13 @@ A busy episode has all three, on any lot (the whole DLP lot, ``dlp_lot.yaml``, i
   a share explores), and **leavers** that unpark (a maneuver backwards) and drive to the exit; arrivals and
   departures are Poisson processes, so spots free and fill during the episode. Occupancy at the start, the
   arrival and departure rates are :class:`BusyParams` (defaults: 20+ cars moving in a 60 s DLP episode);
-* **pedestrians** (eq. 2): each walks along the aisles, 0.5 m inside the road's edge, between the entrance and a
+* **pedestrians** (eq. 2): each walks along the aisles, along the parked cars (``ped_edge_offset`` inside the
+  road's edge), between the entrance and a
   parked car — from the gate to the car (and stays there: gets in) or from the car out through the gate —
   at U[``ped_speed``], starting at a random time;
-* **the ego** starts where the lot's scenario roles put it (:mod:`avp_world.lot_scenario`: at the entrance).
+* **the ego** starts where the lot's scenario roles put it (:mod:`avp_world.lot_scenario`: at the entrance), in
+  the right-hand lane (``ego_in_lane``; the paper's ego starts on the centre line, "at the top of the middle
+  road" — in a busy lot cars enter and leave past it, and on the centre line it blocks both lanes).
   Traffic and walks whose footprints come within ``ego_clearance`` of the ego's start footprint between
   t = -t_hist and t = ``clear_time`` are left out (the ego must be able to start), others drive past it later
   (reactive agents brake for it, §III-B).
@@ -47,7 +50,8 @@ class BusyParams:
     n_pedestrians: tuple[int, int] = (10, 16)
     ped_speed: tuple[float, float] = (0.8, 1.4)
     ped_radius: float = 0.3
-    ped_edge_offset: float = 0.5  # pedestrians walk this far inside the road's edge
+    ped_edge_offset: float = 0.1  # pedestrians' centres walk this far inside the road's edge (along the parked cars)
+    ego_in_lane: bool = True  # the ego starts in the right-hand lane of its road, not on the centre line (§VI-A)
     ped_to_gate_share: float = 0.5  # share walking from a car out through the gate (the rest walk to a car)
     clear_time: float = 3.0  # the ego's start stays clear of traffic and walkers until then
     ego_clearance: float = 0.5
@@ -74,7 +78,11 @@ def generate_busy_scenario(lot: LotMap, seed: int, reactive: bool, dt: float = 0
                        arrival_gap=busy.arrival_gap, departure_gap=busy.departure_gap)
     try:
         gen = _generator(lot, tp, vehicle)
-        ego_start = np.asarray(lot_scenario(lot).ego_start, dtype=float)
+        roles = lot_scenario(lot)
+        ego_start = np.asarray(roles.ego_start, dtype=float)
+        if busy.ego_in_lane:  # two-way traffic passes the ego's start: it waits in its lane like the other cars
+            right = np.array([math.sin(ego_start[2]), -math.cos(ego_start[2])])
+            ego_start[:2] += right * roles.aisle_width / 4.0
         traffic = gen.generate(int(seed), ego_start=ego_start, ego_tour=False)
     except (ValueError, RuntimeError) as exc:
         raise ScenarioError(f"busy scenario on lot '{lot.name}', seed {seed}: {exc}") from None

@@ -24,6 +24,7 @@ class EpisodeMetrics:
     success: bool = False
     collision: bool = False
     collision_with: str = ""
+    collision_at_fault: bool = False  # the ego moved in the step it collided (docs/metrics.md)
     spot_stolen: bool = False
     parked_spot_id: int = -1
     interrupted_steps: int = 0
@@ -55,8 +56,9 @@ def step_event(lot: LotMap, ego_corners: np.ndarray, vehicle_corners: np.ndarray
 
 
 def apply_event(m: EpisodeMetrics, status: str, collision_with: str, parked: int, step: int, dt: float,
-                t_final: float, dynamic_targets: np.ndarray) -> str:
-    """Fold one instant's event into the metrics; returns the episode status (timeout at t_f)."""
+                t_final: float, dynamic_targets: np.ndarray, ego_moved: bool = True) -> str:
+    """Fold one instant's event into the metrics; returns the episode status (timeout at t_f). ``ego_moved``: the
+    ego's pose changed in the step that led to this instant (a collision is the ego's fault only then)."""
     m.steps = step
     if status == SUCCESS:
         m.parked_spot_id = parked
@@ -67,14 +69,19 @@ def apply_event(m: EpisodeMetrics, status: str, collision_with: str, parked: int
     m.success = status == SUCCESS
     m.collision = status == COLLISION
     m.collision_with = collision_with
+    m.collision_at_fault = m.collision and bool(ego_moved)
     return status
 
 
 def metrics_from_log(lot: LotMap, dt: float, t_final: float, ego_dims: tuple[float, float],
                      ego: np.ndarray, vehicles: np.ndarray, dims: np.ndarray, ids: np.ndarray,
-                     dynamic: np.ndarray, targets: np.ndarray, braking: np.ndarray) -> tuple[str, EpisodeMetrics]:
+                     dynamic: np.ndarray, targets: np.ndarray, braking: np.ndarray,
+                     peds: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> tuple[str, EpisodeMetrics]:
     """Recompute an episode from ground truth: ego (T, 3), vehicles (T, N, 3), braking (T, N) (step k's
-    braking flag is the decision taken while moving from k - 1 to k; row 0 is ignored)."""
+    braking flag is the decision taken while moving from k - 1 to k; row 0 is ignored), pedestrians
+    (positions (T, P, 2), radii (P,), ids (P,)) if any."""
+    ped_pos, ped_r, ped_ids = peds if peds is not None else (np.zeros((len(ego), 0, 2)), np.zeros(0),
+                                                            np.zeros(0, np.int64))
     m = EpisodeMetrics()
     status = RUNNING
     dyn_targets = targets[dynamic]
@@ -84,8 +91,9 @@ def metrics_from_log(lot: LotMap, dt: float, t_final: float, ego_dims: tuple[flo
             m.interrupted_agent_steps += n
             m.interrupted_steps += int(n > 0)
         ev, who, parked = step_event(lot, rect_corners(ego[k], *ego_dims), rect_corners(vehicles[k], dims[:, 0],
-                                     dims[:, 1]), ids, np.zeros((0, 2)), np.zeros(0), np.zeros(0, np.int64))
-        status = apply_event(m, ev, who, parked, k, dt, t_final, dyn_targets)
+                                     dims[:, 1]), ids, ped_pos[k], ped_r, ped_ids)
+        moved = k > 0 and not np.array_equal(ego[k], ego[k - 1])
+        status = apply_event(m, ev, who, parked, k, dt, t_final, dyn_targets, moved)
         if status != RUNNING:
             break
     return status, m

@@ -188,7 +188,8 @@ class World:
         status, who, parked = step_event(self.lot, self.ego_corners(), self.vehicle_corners(), self.vehicle_ids,
                                          self.ped_pos, self.ped_radii, self.ped_ids)
         self.status = apply_event(self.metrics, status, who, parked, self.step_index, self.dt,
-                                  self.config.t_final, self.target_spot[self.is_dynamic])
+                                  self.config.t_final, self.target_spot[self.is_dynamic],
+                                  ego_moved=self.step_index > 0 and self.ego_speed != 0.0)
 
     @property
     def done(self) -> bool:
