@@ -119,3 +119,44 @@ def test_a_bad_lot_is_one_error_before_any_episode(tmp_path):
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 2
     assert f"{bad}: scenario.contested_spot_ids[1]: 500 is not a spot id of lot 'side_lot'" in r.stderr, r.stderr
+
+
+def test_the_busy_family_on_the_dlp_lot():
+    """Issue #18 item 3: the whole DLP lot (364 spots); a busy episode has 20+ moving cars, parking and leaving,
+    10+ pedestrians on the lot's roads, spots that free and fill; same seed => same episode; the ego's start is
+    clear at t = 0; non-reactive zeroes every passiveness."""
+    from avp_sim.core.busy import BusyParams, generate_busy_scenario
+    from avp_sim.core.world import World, WorldConfig
+
+    lot = load_bundled_lot("dlp_lot")
+    assert lot.n_spots == 364 and lot.bounds() == (0.0, 0.0, 140.0, 80.0)
+    a = generate_busy_scenario(lot, 3, True, t_final=60.0)
+    b = generate_busy_scenario(lot, 3, True, t_final=60.0)
+    assert [(v.id, v.target_spot_id) for v in a.vehicles] == [(v.id, v.target_spot_id) for v in b.vehicles]
+    assert all(np.array_equal(x.controls, y.controls) for x, y in zip(a.pedestrians, b.pedestrians, strict=True))
+    moving = [v for v in a.vehicles if not v.parked]
+    parkers = [v for v in moving if v.target_spot_id >= 0]
+    from avp_sim.core.observation import classify_world
+
+    _, in_spot = classify_world(lot, np.array([rect_corners(v.initial_state, v.length, v.width) for v in moving]))
+    leavers = [v for v, s in zip(moving, in_spot, strict=True) if v.target_spot_id < 0 and s >= 0]
+    assert len(moving) >= 20 and len(parkers) >= 5 and leavers, (len(moving), len(parkers), len(leavers))
+    lo, hi = BusyParams().n_pedestrians
+    assert lo <= len(a.pedestrians) <= hi
+    assert all(v.passiveness >= 2 for v in moving)
+    nr = generate_busy_scenario(lot, 3, False, t_final=60.0)
+    assert all(v.passiveness == 0 for v in nr.vehicles) and all(p.passiveness == 0 for p in nr.pedestrians)
+    w = World(lot, a, WorldConfig(t_final=60.0))
+    assert w.status == "running"  # nothing on the ego's start
+    occupied0, _ = w.occupancy()
+    walked = 0.0
+    for _ in range(599):  # the ego stands at the gate: arrivals queue behind it, cars inside park and leave
+        w.step(0.0, 0.0)
+        walked = max(walked, float(np.hypot(*(w.ped_pos - np.array([q.initial_position for q in a.pedestrians])).T)
+                                   .max()))
+        if w.done:
+            break
+    occupied1, _ = w.occupancy()
+    assert (occupied1 & ~occupied0).any() and (occupied0 & ~occupied1).any(), (  # spots filled and freed
+        int((occupied1 & ~occupied0).sum()), int((occupied0 & ~occupied1).sum()))
+    assert walked > 5.0

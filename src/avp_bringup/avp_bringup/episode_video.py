@@ -33,6 +33,7 @@ from avp_world.lot import LotMap
 
 MIN_ETA = 0.1  # intentions drawn from this probability on
 FREE, TAKEN, UNSEEN = np.array([70, 170, 70]), np.array([60, 60, 210]), (85, 85, 85)  # BGR
+PEDESTRIAN = (30, 105, 255)  # BGR orange-red
 PARK, EXPLORE, EGO_RANK, GHOST, WHITE = (60, 220, 60), (255, 150, 40), (230, 60, 230), (235, 235, 235), (255, 255,
                                                                                                           255)
 PRED_COLOURS = [(0, 220, 255), (255, 200, 0), (0, 140, 255), (200, 120, 255), (120, 255, 120)]
@@ -154,6 +155,14 @@ def _draw_vehicles(c: Canvas, rec: EpisodeRecording, k: int, obs) -> dict[int, t
             if a.kind == 1 and int(a.id) not in seen_ids:
                 c.poly(rect_corners(np.array([a.pose.x, a.pose.y, a.pose.theta]), a.length, a.width), GHOST,
                        filled=False, thickness=1)
+        seen_peds = {int(q.id) for q in obs.pedestrians} if obs is not None else set()
+        for a in gt.agents:  # pedestrians (eq. 2): a ring where unseen, a filled disc where the ego sees them
+            if a.kind == 2 and int(a.id) not in seen_peds:
+                cv2.circle(c.img, tuple(int(x) for x in c.px(np.array([a.pose.x, a.pose.y]))),
+                           max(2, int(a.radius * c.s)), GHOST, 1, cv2.LINE_AA)
+    for q in (obs.pedestrians if obs is not None else ()):
+        cv2.circle(c.img, tuple(int(x) for x in c.px(np.asarray(q.position)[:2])), max(3, int(q.radius * c.s) + 1),
+                   PEDESTRIAN, -1, cv2.LINE_AA)
     colour_of: dict[int, tuple] = {}
     if obs is not None:
         for v in obs.vehicles:
@@ -234,7 +243,7 @@ def _legend(c: Canvas) -> np.ndarray:
     x = 6
     for name, col in (("b=0", tuple(int(v) for v in FREE)), ("b=1", tuple(int(v) for v in TAKEN)),
                       ("unseen", UNSEEN), ("ego", EGO), ("plan", PARK), ("explore", EXPLORE), ("seen car", DYNAMIC),
-                      ("parked", PARKED), ("not seen", GHOST), ("ego #rank", EGO_RANK)):
+                      ("parked", PARKED), ("pedestrian", PEDESTRIAN), ("not seen", GHOST), ("ego #rank", EGO_RANK)):
         cv2.rectangle(legend, (x, 5), (x + 8, 13), col, -1)
         cv2.putText(legend, name, (x + 11, 13), cv2.FONT_HERSHEY_SIMPLEX, 0.32, WHITE, 1, cv2.LINE_AA)
         x += 16 + 6 * len(name)
@@ -277,11 +286,15 @@ def write_gif(frames: list[np.ndarray], path: Path, frame_ms: int) -> Path:
     return path
 
 
-def episode_gif(bag: Path, path: Path, *, max_frames: int = 150, speed: float = 2.0, px_per_m: float = 12.0,
+def episode_gif(bag: Path, path: Path, *, max_frames: int = 150, speed: float = 2.0, px_per_m: float | None = None,
                 title: str = "") -> dict:
     """Read ``bag``, draw at most about ``max_frames`` frames and write them to ``path`` playing at ``speed`` times
-    sim time. Returns {"frames", "stride", "bytes", "steps"}."""
+    sim time; ``px_per_m`` None: 12, or less so that the lot's larger side fits 960 px (the DLP lot: 6.9).
+    Returns {"frames", "stride", "bytes", "steps"}."""
     rec = read_recording(bag)
+    if px_per_m is None:
+        xmin, ymin, xmax, ymax = rec.lot.bounds()
+        px_per_m = min(12.0, 960.0 / max(xmax - xmin, ymax - ymin, 1e-9))
     steps = rec.steps
     stride = max(1, math.ceil(len(steps) / max(1, max_frames)))
     frames = render_frames(rec, stride, px_per_m, title)
