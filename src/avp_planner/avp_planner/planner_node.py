@@ -142,6 +142,8 @@ class PlannerNode(LifecycleNode):
         self.inputs = (self.obs, self.beliefs, self.preds, self.ego_int)
         self.reject = RateLimitedLog(self.get_logger().error)  # bad inputs: one line a second per reason
         self.reject_warn = RateLimitedLog(self.get_logger().warning)
+        self.skip_log = RateLimitedLog(self.get_logger().info, period=5.0)  # real time: steps skipped when behind
+        self.skipped = 0
         self.auth = Authenticator(self, p["auth_inputs"])  # inputs from holders of the key only, cmd tagged
         self.pub_cmd = self.auth.publisher(TwistStamped, "cmd", STEP)
         self.pub_plan = self.create_publisher(Path, "plan", STEP)
@@ -262,6 +264,15 @@ class PlannerNode(LifecycleNode):
             return
         if ((self.use_beliefs and k not in self.beliefs) or (self.use_predictions and k not in self.preds)
                 or (self.use_ego_intention and k not in self.ego_int)):
+            return
+        if self.realtime and k < max(self.obs):
+            # real time: a newer observation is already waiting, so deciding this one would only answer a step the
+            # simulator has left (its command would be ignored) and put the next answer further behind; skip it
+            for d in (self.obs, *self.inputs[1:]):
+                d.pop(k, None)
+            self.skipped += 1
+            self.skip_log(f"{self.sub_obs.topic_name}: step {k} skipped, a newer observation is waiting (real time, "
+                          f"the planner is behind); {self.skipped} skipped so far")
             return
         msg = self.obs.pop(k)
         if self.stale_since is not None:
