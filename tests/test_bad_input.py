@@ -425,3 +425,63 @@ def test_bad_command_line_inputs(ros_env, tmp_path):
     bad.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"control": {"v_maxx": 1.0}}}}))
     rc, err = avp("swap-planner", str(bad))
     assert rc == 2 and err == f"[avp swap-planner] {bad.resolve()}: parameter 'control.v_maxx': unknown key"
+
+
+def test_a_planner_behind_in_real_time_skips_to_the_newest_step(ros_env, tmp_path, monkeypatch, paper_lot):
+    """Issue #18 (found by the busy DLP benchmark): in real time, a step whose newer observation is already waiting
+    is skipped (its command would be ignored by the simulator) and logged; the newer step is answered. In lock-step
+    the same arrival order is answered step by step."""
+    from dataclasses import replace
+
+    from avp_common.conversions import step_to_ns
+    from avp_common.qos import STATUS
+    from avp_msgs.msg import EpisodeStatus
+    from avp_sim.core.scenario import generate_paper_scenario
+    from avp_sim.core.world import World, WorldConfig
+
+    for k, v in ros_env.items():
+        monkeypatch.setenv(k, v)
+    ns = "/behind"
+    base = World(paper_lot, generate_paper_scenario(paper_lot, 3, True), WorldConfig(t_final=100.0)).observe()
+    rclpy.init()
+    feeder = _Feeder(paper_lot, ns)
+    pub_status = feeder.node.create_publisher(EpisodeStatus, "episode_status", STATUS)
+    spec = NodeSpec("planner_under_test", "avp_planner", "planner", "config/planner.param.yaml",
+                    {"use_beliefs": True, "use_predictions": True})
+    graph = Graph([spec], tmp_path, env=ros_env)
+    cmd = graph.command(spec)
+    cmd[cmd.index("__ns:=/avp")] = f"__ns:={ns}"
+    graph.command = lambda s: cmd
+    graph.start()
+    log = tmp_path / "planner_under_test.log"
+    try:
+        assert feeder.spin(30, lambda: all(feeder.node.count_subscribers(f"{ns}/{t}") > 0
+                                           for t in ("observation", "beliefs", "predictions", "episode_status"))
+                           and feeder.node.count_publishers(f"{ns}/cmd") > 0), "planner not up"
+
+        def behind(first: int) -> set[int]:
+            """Observations of steps first and first + 1 arrive before step first's beliefs and predictions."""
+            msgs = [feeder.messages(replace(base, step=s)) for s in (first, first + 1)]
+            for o, _, _ in msgs:
+                feeder.pub_obs.publish(o)
+            feeder.spin(0.5)
+            for _, b, p in msgs:
+                feeder.pub_bel.publish(b)
+                feeder.pub_pred.publish(p)
+            want = step_to_ns(first + 1, base.dt)
+            assert feeder.spin(30, lambda: any(c[0] == want for c in feeder.cmds)), "no command for the newer step"
+            feeder.spin(0.5)
+            return {c[0] for c in feeder.cmds}
+
+        answered = behind(1)  # lock-step (no episode_status yet): both steps decided
+        assert step_to_ns(1, base.dt) in answered
+        status = EpisodeStatus(lock_step=False, state=EpisodeStatus.STATE_RUNNING)
+        pub_status.publish(status)
+        feeder.spin(1.0)
+        answered = behind(10)  # real time: step 10 skipped, step 11 answered
+        assert step_to_ns(10, base.dt) not in answered and step_to_ns(11, base.dt) in answered
+        assert "step 10 skipped, a newer observation is waiting (real time" in log.read_text()
+    finally:
+        graph.stop()
+        feeder.node.destroy_node()
+        rclpy.try_shutdown()

@@ -14,7 +14,7 @@
   avp experiment [--scenarios N] [--seed-base S] [--mode reactive|non-reactive|both] [--methods M,...|all]
                  [--workers W] [--out DIR] [--transport inproc|ros] [--lot FILE]
                                                    the Table I runner (docs/experiment.md); resumable
-  avp bench sensing|planner|perception|soak|live_latency|learned [ARGS...]
+  avp bench sensing|planner|perception|soak|live_latency|learned|closed_loop [ARGS...]
                                                    run a benchmark script of bench/ (figures in docs/benchmarks.md)
   avp params [NODE]                                print the parameter tables (Markdown)
   avp train-intent [--scale full|quick|tiny] [--out DIR] [--workers W] [--threads T]
@@ -318,7 +318,8 @@ def _add_offline_commands(sub) -> None:
     add_arguments(p)
     p.set_defaults(func=cmd_experiment)
     p = sub.add_parser("bench", help="run a benchmark script of bench/")
-    p.add_argument("which", choices=("sensing", "planner", "perception", "soak", "live_latency", "learned"))
+    p.add_argument("which", choices=("sensing", "planner", "perception", "soak", "live_latency", "learned",
+                                     "closed_loop"))
     p.add_argument("rest", nargs=argparse.REMAINDER)
     p.set_defaults(func=cmd_bench)
     p = sub.add_parser("params", help="print parameter tables")
