@@ -52,7 +52,8 @@ def main(argv: list[str]) -> int:
 
         pt = [r["parking_time"] for r in rs if r["success"] and r["parking_time"] is not None]
         print(f"| {m} | {n} | {100 * k / n:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] | "
-              f"{sum(r['status'] == 'timeout' for r in rs)} | {_collisions(rs, 'vehicle')} | {_collisions(rs, 'pedestrian')} | "
+              f"{sum(r['status'] == 'timeout' for r in rs)} | {_collisions(rs, 'vehicle')} | "
+              f"{_collisions(rs, 'pedestrian')} | "
               f"{sum(r['collision_with'] == 'boundary' for r in rs)} | {sum(r['spot_stolen'] for r in rs)} | "
               f"{statistics.median(pt) if pt else float('nan'):.1f} |")
     return 0
