@@ -194,6 +194,18 @@ class _Feeder:
                 predictions_to_msg(obs.step, obs.dt, []))
 
 
+def planner_alone(ros_env: dict, tmp_path: Path, ns: str) -> Graph:
+    """A graph of one planner node (beliefs and predictions on) in namespace ``ns``, logging to
+    ``tmp_path/planner_under_test.log``; not started."""
+    spec = NodeSpec("planner_under_test", "avp_planner", "planner", "config/planner.param.yaml",
+                    {"use_beliefs": True, "use_predictions": True})
+    graph = Graph([spec], tmp_path, env=ros_env)
+    cmd = graph.command(spec)
+    cmd[cmd.index("__ns:=/avp")] = f"__ns:={ns}"
+    graph.command = lambda s: cmd
+    return graph
+
+
 def _bad_obs(field):
     def mutate(o, b, p):
         if field == "nan_pose":
@@ -250,12 +262,7 @@ def test_bad_messages_into_a_running_planner(ros_env, tmp_path, monkeypatch, pap
     base = world.observe()
     rclpy.init()
     feeder = _Feeder(paper_lot, ns)
-    spec = NodeSpec("planner_under_test", "avp_planner", "planner", "config/planner.param.yaml",
-                    {"use_beliefs": True, "use_predictions": True})
-    graph = Graph([spec], tmp_path, env=ros_env)
-    cmd = graph.command(spec)
-    cmd[cmd.index("__ns:=/avp")] = f"__ns:={ns}"
-    graph.command = lambda s: cmd  # the planner in this test's namespace
+    graph = planner_alone(ros_env, tmp_path, ns)
     graph.start()
     log = tmp_path / "planner_under_test.log"
     try:
@@ -446,12 +453,7 @@ def test_a_planner_behind_in_real_time_skips_to_the_newest_step(ros_env, tmp_pat
     rclpy.init()
     feeder = _Feeder(paper_lot, ns)
     pub_status = feeder.node.create_publisher(EpisodeStatus, "episode_status", STATUS)
-    spec = NodeSpec("planner_under_test", "avp_planner", "planner", "config/planner.param.yaml",
-                    {"use_beliefs": True, "use_predictions": True})
-    graph = Graph([spec], tmp_path, env=ros_env)
-    cmd = graph.command(spec)
-    cmd[cmd.index("__ns:=/avp")] = f"__ns:={ns}"
-    graph.command = lambda s: cmd
+    graph = planner_alone(ros_env, tmp_path, ns)
     graph.start()
     log = tmp_path / "planner_under_test.log"
     try:

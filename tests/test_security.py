@@ -284,7 +284,7 @@ def test_foreign_inputs_are_dropped_by_the_planner(paper_lot, ros_env, tmp_path,
     configured publishers (the feeder playing the simulator and the perception nodes) are answered."""
     from dataclasses import replace
 
-    from test_bad_input import _Feeder
+    from test_bad_input import _Feeder, planner_alone
 
     from avp_common.conversions import step_to_ns
     from avp_msgs.msg import PredictedTrajectoryArray, SpotBeliefs
@@ -301,12 +301,7 @@ def test_foreign_inputs_are_dropped_by_the_planner(paper_lot, ros_env, tmp_path,
         intruder = rclpy.create_node("intruder", namespace=ns)
         bad = {t: intruder.create_publisher(m, t, STEP) for t, m in (
             ("observation", Observation), ("beliefs", SpotBeliefs), ("predictions", PredictedTrajectoryArray))}
-        spec = NodeSpec("planner_under_test", "avp_planner", "planner", "config/planner.param.yaml",
-                        {"use_beliefs": True, "use_predictions": True})
-        graph = Graph([spec], tmp_path, env=ros_env)
-        cmd = graph.command(spec)
-        cmd[cmd.index("__ns:=/avp")] = f"__ns:={ns}"
-        graph.command = lambda s: cmd
+        graph = planner_alone(ros_env, tmp_path, ns)
         with graph:
             assert feeder.spin(30, lambda: all(feeder.node.count_subscribers(f"{ns}/{t}") > 0
                                                for t in ("observation", "beliefs", "predictions"))
