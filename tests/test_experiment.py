@@ -354,3 +354,26 @@ def test_intent_identity_names_the_weights_without_machine_paths(tmp_path):
     assert intent_identity(RunConfig(intent_weights=given)).endswith(f" ({given})")
     with pytest.raises(ValueError, match="no such file"):
         intent_identity(RunConfig(intent_weights=str(tmp_path / "missing.pt")))
+
+
+def test_a_second_invocation_on_a_folder_being_written_is_refused(tmp_path):
+    """Two invocations on one folder would each run the episodes the other runs and record them twice (seen when a
+    run was restarted while the interrupted one finished its episodes): the second one is refused."""
+    import subprocess
+    import sys
+
+    from avp_bringup.experiment.results import lock_folder
+
+    held = lock_folder(tmp_path)
+    try:
+        r = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "experiment", "--methods", "blind",
+                            "--scenarios", "1", "--no-progress", "--out", str(tmp_path)],
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 2 and "another avp experiment is writing this folder" in r.stderr, r.stderr
+        assert not (tmp_path / "episodes.jsonl").exists()
+    finally:
+        held.close()
+    r = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "experiment", "--methods", "blind", "--scenarios",
+                        "1", "--mode", "non-reactive", "--t-final", "5", "--no-progress", "--out", str(tmp_path)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr

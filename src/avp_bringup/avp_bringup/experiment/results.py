@@ -16,6 +16,7 @@ from pathlib import Path
 from avp_bringup.experiment.profiles import MethodProfile, load_profile
 from avp_bringup.experiment.run_config import Key, RunConfig, sim_values
 
+LOCK_FILE = ".lock"
 RESULTS_FILE = "episodes.jsonl"
 RUN_FILE = "run.json"
 RUNS_LOG = "runs.jsonl"
@@ -177,3 +178,20 @@ def log_invocation(out: Path, args: argparse.Namespace, started: str, wall_s: fl
             "options": {k: v for k, v in sorted(vars(args).items()) if isinstance(v, (str, int, float, bool, list))}}
     with open(out / RUNS_LOG, "a") as f:
         f.write(json.dumps(line) + "\n")
+
+
+def lock_folder(out: Path):
+    """Hold an exclusive lock on the results folder while this invocation writes it (released when the returned
+    file is closed or the process ends); ValueError when another ``avp experiment`` holds it. Two invocations on one
+    folder would each run the episodes the other is running and record them twice."""
+    import fcntl
+
+    out.mkdir(parents=True, exist_ok=True)
+    f = open(out / LOCK_FILE, "a")  # noqa: SIM115 - held open: the lock lives as long as the file
+    try:
+        fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        f.close()
+        raise ValueError(f"{out}: another avp experiment is writing this folder; wait for it or use another --out") \
+            from None
+    return f

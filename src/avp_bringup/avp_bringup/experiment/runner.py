@@ -46,6 +46,7 @@ from avp_bringup.experiment.results import (  # noqa: F401 - re-exported: the ru
     check_run_file,
     code_commit,
     intent_identity,
+    lock_folder,
     log_invocation,
     mode_name,
     profile_digest,
@@ -267,6 +268,7 @@ def run_experiment(args: argparse.Namespace) -> dict:
         from avp_world.lot import load_bundled_lot
 
         make_intent_predictor(load_bundled_lot(), BEVConfig(), cfg.intent_weights, cfg.intent_seed)
+    lock = lock_folder(out)  # noqa: F841 - held until this function returns
     check_run_file(out, ident)
     path = out / RESULTS_FILE
     records = read_results(path)
