@@ -76,6 +76,34 @@ def test_demo_parks_on_a_lot_without_a_scenario_block(ros_env, tmp_path):
     assert len(lots) == 1 and lots[0].name == "side_lot" and len(lots[0].spots) == 27
 
 
+def test_busy_demo_on_the_dlp_lot_records_pedestrians_and_recomputes(ros_env, tmp_path):
+    """Issue #18: the whole graph over DDS on the DLP lot with the busy family: pedestrians and 20+ moving cars in
+    the ground truth, the planner answering every step, and `avp metrics` recomputing the live metrics (pedestrian
+    collisions included) from the bag."""
+    from avp_bringup.bagread import BagReader
+    from avp_world.lot import bundled_lot_path
+
+    out, bag = tmp_path / "demo", tmp_path / "bag"
+    r = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "demo", "--lot", str(bundled_lot_path("dlp_lot")),
+                        "--scenario", "busy", "--seed", "0", "--t-final", "5", "--no-gif", "--out", str(out), "--bag",
+                        str(bag), "--timeout", "300"], env=ros_env, capture_output=True, text=True, timeout=360)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["lot"]["name"] == "dlp_lot" and metrics["steps"] == 50 or metrics["state"] != "timeout"
+    reader = BagReader(bag)
+    gts = [reader.deserialize(raw, mt) for _, mt, _, raw in reader.messages(["/avp/debug/ground_truth"])]
+    kinds = [a.kind for a in gts[0].agents]
+    assert kinds.count(2) >= 10  # pedestrians
+    # moving cars (arrivals stop 10 s before t_f, so a 5 s episode has only the cars already on their way; a 60 s
+    # one has 20+: tests/test_lots.py::test_the_busy_family_on_the_dlp_lot)
+    assert sum(1 for a in gts[0].agents if a.kind == 1 and not a.is_static) >= 10
+    decisions = [reader.deserialize(raw, mt) for _, mt, _, raw in reader.messages(["/avp/decision"])]
+    assert [d.step for d in decisions] == list(range(metrics["steps"]))
+    m = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "metrics", str(bag)], env=ros_env,
+                       capture_output=True, text=True, timeout=120)
+    assert m.returncode == 0 and "equal the live ones" in m.stdout, m.stdout + m.stderr
+
+
 def check_step_time(metrics: dict, mode: str, steps: int) -> None:
     """The closed-loop step time is in metrics.json: one value per answered step, positive, ordered figures."""
     lat = metrics["closed_loop_step_time"]
