@@ -241,8 +241,6 @@ def resolve_methods(spec: str, cfg: RunConfig = RunConfig(), transport: str = "i
 
 def run_experiment(args: argparse.Namespace) -> dict:
     """The ``avp experiment`` command (see :func:`add_arguments`); returns a small report."""
-    from avp_bringup.experiment.summary import write_summary
-
     if args.scenarios < 1:
         raise ValueError(f"--scenarios must be >= 1, got {args.scenarios}")
     if getattr(args, "sweep", None) or getattr(args, "ablation", False):
@@ -268,7 +266,18 @@ def run_experiment(args: argparse.Namespace) -> dict:
         from avp_world.lot import load_bundled_lot
 
         make_intent_predictor(load_bundled_lot(), BEVConfig(), cfg.intent_weights, cfg.intent_seed)
-    lock = lock_folder(out)  # noqa: F841 - held until this function returns
+    lock = lock_folder(out)
+    try:
+        return _run_locked(args, out, cfg, profiles, skipped, ident)
+    finally:
+        lock.close()
+
+
+def _run_locked(args: argparse.Namespace, out: Path, cfg: RunConfig, profiles: list[MethodProfile],
+                skipped: dict[str, str], ident: dict) -> dict:
+    """The part of :func:`run_experiment` that writes the results folder (which it holds locked)."""
+    from avp_bringup.experiment.summary import write_summary
+
     check_run_file(out, ident)
     path = out / RESULTS_FILE
     records = read_results(path)
