@@ -27,7 +27,6 @@ step * dt) is dropped with one error naming the topic; the node keeps running.
 from __future__ import annotations
 
 import sys
-import time
 from dataclasses import replace
 
 import numpy as np
@@ -45,8 +44,9 @@ from avp_common.conversions import (
 from avp_common.msg_auth import Authenticator
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
-from avp_common.qos import DEBUG, LATCHED, RESEND_ANSWER_INTERVAL, STEP, STEP_INPUT
+from avp_common.qos import DEBUG, LATCHED, STEP, STEP_INPUT
 from avp_common.ratelog import RateLimitedLog
+from avp_common.step_answers import StepAnswers
 from avp_msgs.msg import IntentionArray, LotMap, Observation, SpotBeliefs
 from avp_perception.conversions import intentions_to_msg
 from avp_perception.core.debug_views import belief_grid, grid_layout, tile_bevs
@@ -84,13 +84,11 @@ class BeliefNode(Node):
         self.layout = None
         self.seen: np.ndarray | None = None
         self.pending: dict[int, Observation] = {}  # observations that arrived before the lot map
-        self.last_step = -1
         self.nawaz: NawazOccupancy | None = None
-        # (step, beliefs msg, intentions msg, ego_intention msg or None, observation msg, core output)
-        self.cache: tuple | None = None
+        # the last answer: (beliefs msg, intentions msg, ego_intention msg or None, observation msg, core output)
+        self.answers = StepAnswers()
         self.reject = RateLimitedLog(self.get_logger().error)  # bad inputs: one line a second per reason
         self.reject_warn = RateLimitedLog(self.get_logger().warning)
-        self.answered_at = -float("inf")  # wall time of the last answer (re-sends are answered at most 1/s)
         self.auth = Authenticator(self, p["auth_inputs"])  # tagged outputs, inputs from key holders only
         self.pub_beliefs = self.auth.publisher(SpotBeliefs, "beliefs", STEP)
         self.pub_intentions = self.auth.publisher(IntentionArray, "intentions", STEP)
@@ -114,7 +112,7 @@ class BeliefNode(Node):
         self.nawaz = NawazOccupancy(lot, self.nawaz_config)
         self.layout = grid_layout(lot, self.p["debug.occupancy_resolution"])
         self.seen = np.zeros(lot.n_spots, dtype=bool)
-        self.last_step, self.cache = -1, None
+        self.answers.reset()
         self.get_logger().info(f"lot '{lot.name}' ({lot.n_spots} spots)")
         for k in sorted(self.pending):
             self._on_obs(self.pending.pop(k))
@@ -127,17 +125,10 @@ class BeliefNode(Node):
             return
         topic = self.sub_obs.topic_name
         step = int(msg.step)
-        if step == self.last_step and self.cache is not None and self.cache[0] == step:
-            if time.monotonic() - self.answered_at < RESEND_ANSWER_INTERVAL:
-                return  # a copy of it again: answered already (a flood of copies must not make one of answers)
-            _, beliefs, intentions, ego, obs_msg, out = self.cache  # re-sent observation: the same answer again
-            self._publish(beliefs, intentions, ego)
-            self._publish_debug(obs_msg, out)
-            self.answered_at = time.monotonic()
+        if self.answers.is_copy(step, self._republish):
             return
-        if 0 < step < self.last_step:
-            self.reject_warn(f"{topic}: step {step} is older than step {self.last_step} (out of order or a stale "
-                             "copy); dropped")
+        if why := self.answers.stale(step):
+            self.reject_warn(f"{topic}: {why}")
             return
         try:
             obs = observation_from_msg(msg)
@@ -146,8 +137,8 @@ class BeliefNode(Node):
         except (MessageError, ValueError) as exc:
             self.reject(f"{topic} step {step}: {exc}; dropped")
             return
-        if step < self.last_step:
-            self.get_logger().warning(f"{topic}: step {step} after step {self.last_step}: time went back, new "
+        if step < self.answers.last_step:
+            self.get_logger().warning(f"{topic}: step {step} after step {self.answers.last_step}: time went back, new "
                                       "episode; beliefs and intent state reset")
             self.core.reset()
             self.seen[:] = False
@@ -159,9 +150,14 @@ class BeliefNode(Node):
         if out.ego_intention is not None:
             ego = intentions_to_msg(step, obs.dt, [replace(out.ego_intention, vehicle_id=EGO_VEHICLE_ID)])
         self._publish(beliefs, intentions, ego)
-        self.last_step, self.cache = step, (step, beliefs, intentions, ego, msg, out)
-        self.answered_at = time.monotonic()
+        self.answers.store(step, (beliefs, intentions, ego, msg, out))
         self._publish_debug(msg, out)
+
+    def _republish(self, answer: tuple) -> None:
+        """A re-sent observation of the step answered last: the same answer again."""
+        beliefs, intentions, ego, obs_msg, out = answer
+        self._publish(beliefs, intentions, ego)
+        self._publish_debug(obs_msg, out)
 
     def _publish(self, beliefs: SpotBeliefs, intentions: IntentionArray, ego: IntentionArray | None) -> None:
         if ego is not None:  # first: the planner's last input in lock-step is the prediction node's answer

@@ -21,7 +21,6 @@ naming the topic; the node keeps running.
 from __future__ import annotations
 
 import sys
-import time
 
 from rclpy.node import Node
 
@@ -36,8 +35,9 @@ from avp_common.conversions import (
 from avp_common.msg_auth import Authenticator
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
-from avp_common.qos import LATCHED, RESEND_ANSWER_INTERVAL, STEP, STEP_INPUT
+from avp_common.qos import LATCHED, STEP, STEP_INPUT
 from avp_common.ratelog import RateLimitedLog
+from avp_common.step_answers import StepAnswers
 from avp_msgs.msg import IntentionArray, LotMap, Observation, PredictedTrajectoryArray
 from avp_perception.conversions import intentions_from_msg
 from avp_perception.core.prediction import make_predictor
@@ -54,11 +54,9 @@ class PredictionNode(Node):
         self.predictor = None
         self.obs: dict[int, Observation] = {}
         self.intentions: dict[int, IntentionArray] = {}
-        self.last_step = -1
-        self.cache: tuple[int, PredictedTrajectoryArray] | None = None
+        self.answers = StepAnswers()  # the last step answered and its predictions message
         self.reject = RateLimitedLog(self.get_logger().error)  # bad inputs: one line a second per reason
         self.reject_warn = RateLimitedLog(self.get_logger().warning)
-        self.answered_at = -float("inf")  # wall time of the last answer (re-sends are answered at most 1/s)
         self.auth = Authenticator(self, p["auth_inputs"])  # tagged outputs, inputs from key holders only
         self.pub = self.auth.publisher(PredictedTrajectoryArray, "predictions", STEP)
         self.auth.subscription(LotMap, "lot_map", self._on_lot, LATCHED)
@@ -79,25 +77,21 @@ class PredictionNode(Node):
             return
         if getattr(self.predictor, "info", ""):
             self.get_logger().info(self.predictor.info)  # which weights the learned predictor runs
-        self.last_step, self.cache = -1, None
+        self.answers.reset()
         for k in sorted(self.obs):
             self._try(k)
 
     def _on_obs(self, msg: Observation) -> None:
         k = int(msg.step)
-        if k == self.last_step and self.cache is not None and self.cache[0] == k:
-            if time.monotonic() - self.answered_at >= RESEND_ANSWER_INTERVAL:  # not for every copy of a flood
-                self.pub.publish(self.cache[1])  # re-sent observation: the same answer again
-                self.answered_at = time.monotonic()
+        if self.answers.is_copy(k, self.pub.publish):  # re-sent observation: the same answer again
             return
-        if 0 < k < self.last_step:
-            self.reject_warn(f"{self.sub_obs.topic_name}: step {k} is older than step {self.last_step} (out of "
-                             "order or a stale copy); dropped")
+        if why := self.answers.stale(k):
+            self.reject_warn(f"{self.sub_obs.topic_name}: {why}")
             return
-        if k == 0 and self.last_step > 0:
-            self.get_logger().warning(f"{self.sub_obs.topic_name}: step {k} after step {self.last_step}: time went "
-                                      "back, new episode")
-            self.last_step, self.cache = -1, None
+        if k == 0 and self.answers.last_step > 0:
+            self.get_logger().warning(f"{self.sub_obs.topic_name}: step {k} after step {self.answers.last_step}: "
+                                      "time went back, new episode")
+            self.answers.reset()
             for d in (self.obs, self.intentions):  # what is buffered beyond k belongs to the old episode
                 for s in [s for s in d if s > k]:
                     del d[s]
@@ -112,7 +106,7 @@ class PredictionNode(Node):
 
     def _on_intentions(self, msg: IntentionArray) -> None:
         k = int(msg.step)
-        if k == self.last_step:
+        if k == self.answers.last_step:
             return  # already answered (re-sent with a re-sent observation)
         self.intentions[k] = msg
         self._trim(self.intentions)
@@ -149,8 +143,7 @@ class PredictionNode(Node):
         trajectories = self.predictor.predict(obs, intentions)
         out = predictions_to_msg(k, obs.dt, trajectories)
         self.pub.publish(out)
-        self.last_step, self.cache = k, (k, out)
-        self.answered_at = time.monotonic()
+        self.answers.store(k, out)
 
 
 def main(args=None) -> int:

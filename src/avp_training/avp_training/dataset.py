@@ -64,26 +64,32 @@ class DataSpec:
     bev: BEVConfig = field(default_factory=BEVConfig)
 
 
-def save_arrays(obj, path: str | Path) -> None:
-    """A dataclass of numpy arrays as one compressed .npz, a member per field."""
-    np.savez_compressed(Path(path), **{f.name: getattr(obj, f.name) for f in fields(obj)})
+class ArrayFile:
+    """Mixin for a dataclass of numpy arrays: one compressed .npz, a member per field. ``FILE_KIND`` names what a
+    file must be (in the error for a file that is not)."""
 
+    FILE_KIND = "a sample file"
 
-def load_arrays(cls, path: str | Path, what: str):
-    """The inverse of :func:`save_arrays`; a file missing a field is a ValueError naming it and ``what`` it is not."""
-    with np.load(Path(path)) as z:
-        missing = [f.name for f in fields(cls) if f.name not in z.files]
-        if missing:
-            raise ValueError(f"{path}: not {what} (missing {', '.join(missing)})")
-        return cls(**{f.name: z[f.name] for f in fields(cls)})
+    def save(self, path: str | Path) -> None:
+        np.savez_compressed(Path(path), **{f.name: getattr(self, f.name) for f in fields(self)})
+
+    @classmethod
+    def load(cls, path: str | Path):
+        """The inverse of :meth:`save`; a file missing a field is a ValueError naming it and what it is not."""
+        with np.load(Path(path)) as z:
+            missing = [f.name for f in fields(cls) if f.name not in z.files]
+            if missing:
+                raise ValueError(f"{path}: not {cls.FILE_KIND} (missing {', '.join(missing)})")
+            return cls(**{f.name: z[f.name] for f in fields(cls)})
 
 
 @dataclass
-class Samples:
+class Samples(ArrayFile):
     """Samples of one split. Instance i owns candidates ``cand_offsets[i]:cand_offsets[i + 1]`` and feature rows
     ``cand_offsets[i] + i : cand_offsets[i + 1] + i + 1`` (its "none" row first); candidate c's marked pixels are
     ``patch_data[patch_offsets[c]:patch_offsets[c + 1]]`` shaped by ``candidate_boxes[c]``."""
 
+    FILE_KIND = "an intent sample file"
     images: np.ndarray  # (N, H, W, 3) uint8, I_k,0
     cand_offsets: np.ndarray  # (N + 1,) int64
     candidate_boxes: np.ndarray  # (C, 4) int64 inclusive (row0, row1, col0, col1)
@@ -122,13 +128,6 @@ class Samples:
                 out[j, r0:r1 + 1, q0:q1 + 1] = self.patch_data[self.patch_offsets[c]:self.patch_offsets[c + 1]].reshape(
                     r1 - r0 + 1, q1 - q0 + 1, 3)
         return out
-
-    def save(self, path: str | Path) -> None:
-        save_arrays(self, path)
-
-    @classmethod
-    def load(cls, path: str | Path) -> Samples:
-        return load_arrays(cls, path, "an intent sample file")
 
     @classmethod
     def concat(cls, parts: Sequence[Samples], size_px: int = 100) -> Samples:

@@ -31,18 +31,20 @@ SCALES = {
 }
 
 
-def add_train_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--scale", choices=sorted(SCALES), default="full",
-                   help="data and epoch budget (full: the shipped weights; quick/tiny: smoke runs)")
-    p.add_argument("--out", default="out/intent", help="work folder: data, weights copy, metrics")
-    p.add_argument("--weights", default=None,
-                   help="where to write the weights (default: the package's models/intent_cnn.pt for --scale full, "
-                        "else OUT/intent_cnn.pt)")
+def add_train_arguments(p: argparse.ArgumentParser, scales: dict = SCALES, out: str = "out/intent",
+                        weights_file: str = "intent_cnn.pt", small: str = "quick/tiny: smoke runs") -> None:
+    """The arguments every ``avp train-*`` command takes: data and epoch budget (``scales``, whose ``full`` makes
+    the shipped weights ``weights_file``), work folder, threads, seed, data reuse."""
+    p.add_argument("--scale", choices=sorted(scales), default="full",
+                   help=f"data and epoch budget (full: the shipped weights; {small})")
+    p.add_argument("--out", default=out, help="work folder: data, weights copy, metrics")
+    p.add_argument("--weights", default=None, help=f"where to write the weights (default: the package's "
+                   f"models/{weights_file} for --scale full, else OUT/{weights_file})")
     p.add_argument("--workers", type=int, default=2, help="processes generating episodes")
     p.add_argument("--threads", type=int, default=2, help="torch threads for training")
     p.add_argument("--seed", type=int, default=0, help="training seed (data seeds are fixed per split)")
     p.add_argument("--epochs", type=int, default=None, help="override the scale's maximum number of epochs")
-    p.add_argument("--reuse-data", action="store_true", help="reuse OUT/data/*.npz made with the same scale")
+    p.add_argument("--reuse-data", action="store_true", help="reuse OUT/data/*.npz made with the same settings")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
 
 

@@ -21,17 +21,9 @@ SCALES = {
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--scale", choices=sorted(SCALES), default="full",
-                   help="data and epoch budget (full: the shipped weights; dev/tiny: development runs)")
-    p.add_argument("--out", default="out/trajectory", help="work folder: data, weights copy, metrics")
-    p.add_argument("--weights", default=None, help="where to write the weights (default: the package's "
-                   "models/trajectory_transformer.pt for --scale full, else OUT/trajectory_transformer.pt)")
-    p.add_argument("--workers", type=int, default=2, help="processes generating episodes")
-    p.add_argument("--threads", type=int, default=2, help="torch threads for training")
-    p.add_argument("--seed", type=int, default=0, help="training seed (data seeds are fixed per split)")
-    p.add_argument("--epochs", type=int, default=None, help="override the scale's number of epochs")
-    p.add_argument("--reuse-data", action="store_true", help="reuse OUT/data/*.npz made with the same settings")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    from avp_training.run import add_train_arguments
+
+    add_train_arguments(p, SCALES, "out/trajectory", "trajectory_transformer.pt", "dev/tiny: development runs")
 
 
 def cmd_train_trajectory(args: argparse.Namespace) -> int:

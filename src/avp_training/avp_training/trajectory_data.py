@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import multiprocessing as mp
 from dataclasses import dataclass, field, fields
-from pathlib import Path
 
 import numpy as np
 
@@ -47,12 +46,11 @@ from avp_training.dataset import (
     LOT_DLP,
     LOT_PAPER,
     LOT_RANDOM,
+    ArrayFile,
     DataSpec,
     TrainingWorld,
     _generator,
-    load_arrays,
     run_episode,
-    save_arrays,
 )
 from avp_training.lots import load_dlp_lot, random_lot
 from avp_world.lot import LotMap, load_bundled_lot
@@ -73,9 +71,10 @@ class TrajDataSpec:
 
 
 @dataclass
-class TrajSamples:
+class TrajSamples(ArrayFile):
     """One split: per sample i the BEV, the observed history, the ground-truth future and goal (world frame)."""
 
+    FILE_KIND = "a trajectory sample file"
     images: np.ndarray  # (N, H, W, 3) uint8, I_k,0
     history: np.ndarray  # (N, Hh, 3) observed history at dt (world), oldest first
     future: np.ndarray  # (N, 40, 3) ground-truth states at t + dt ... t + 4 s (world)
@@ -94,13 +93,6 @@ class TrajSamples:
 
     def __len__(self) -> int:
         return len(self.episode)
-
-    def save(self, path: str | Path) -> None:
-        save_arrays(self, path)
-
-    @classmethod
-    def load(cls, path: str | Path) -> TrajSamples:
-        return load_arrays(cls, path, "a trajectory sample file")
 
     @classmethod
     def concat(cls, parts: list[TrajSamples]) -> TrajSamples:
