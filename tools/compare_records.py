@@ -1,9 +1,11 @@
 """Compare two experiment folders' episode records, timing fields aside (the equal-records check of issue #17).
 
-    python tools/compare_records.py OUT_BEFORE OUT_AFTER
+    python tools/compare_records.py OUT_BEFORE OUT_AFTER [--new-fields]
 
 Prints how many (method, seed, mode) episodes both hold, how many are equal, and the first differences; exits 1
-if any record differs or the after folder lacks an episode the before folder has.
+if any record differs or the after folder lacks an episode the before folder has. ``--new-fields``: a field that
+no record of OUT_BEFORE has (added to the records since, e.g. ``lot`` and ``collision_at_fault`` of issue #18)
+is left out of the comparison, and its values in OUT_AFTER are counted.
 """
 
 from __future__ import annotations
@@ -25,8 +27,19 @@ def _records(folder: str) -> dict[tuple, dict]:
 
 
 def main(argv: list[str]) -> int:
+    new_fields = "--new-fields" in argv
+    argv = [a for a in argv if a != "--new-fields"]
     before, after = _records(argv[0]), _records(argv[1])
     common = sorted(set(before) & set(after))
+    if new_fields:
+        old = set().union(*(r.keys() for r in before.values()))
+        added = sorted(set().union(*(r.keys() for r in after.values())) - old)
+        for f in added:
+            values: dict[str, int] = {}
+            for r in after.values():
+                values[json.dumps(r.get(f), sort_keys=True)] = values.get(json.dumps(r.get(f), sort_keys=True), 0) + 1
+            print(f"new field {f!r} (not compared): {values}")
+        after = {k: {f: v for f, v in r.items() if f in old} for k, r in after.items()}
     diffs = [k for k in common if before[k] != after[k]]
     missing = sorted(set(before) - set(after))
     print(f"{len(common)} episodes in both, {len(common) - len(diffs)} equal, {len(diffs)} differ, "
