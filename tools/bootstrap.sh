@@ -22,6 +22,15 @@ if [ "$(cat "$VENV/.requirements.sha1" 2>/dev/null || true)" != "$REQ_HASH" ]; t
   "$VENV/bin/python" "$ROOT/tools/fix_cmake_paths.py" "$VENV"
   echo "$REQ_HASH" > "$VENV/.requirements.sha1"
 fi
+# 1b. the optional Ray backend (requirements-ray.txt; AVP_WITH_RAY=0 leaves it out)
+if [ "${AVP_WITH_RAY:-1}" != "0" ]; then
+  RAY_HASH="$(sha1sum "$ROOT/requirements-ray.txt" | cut -d' ' -f1)"
+  if [ "$(cat "$VENV/.requirements-ray.sha1" 2>/dev/null || true)" != "$RAY_HASH" ]; then
+    log "installing the Ray backend (requirements-ray.txt; AVP_WITH_RAY=0 skips it)"
+    "$VENV/bin/python" -m pip install -q -r "$ROOT/requirements-ray.txt"
+    echo "$RAY_HASH" > "$VENV/.requirements-ray.sha1"
+  fi
+fi
 touch "$VENV/COLCON_IGNORE"
 
 # 2. the `avp` command (wraps the workspace environment)

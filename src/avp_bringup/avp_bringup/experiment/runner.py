@@ -243,6 +243,14 @@ def run_experiment(args: argparse.Namespace) -> dict:
     """The ``avp experiment`` command (see :func:`add_arguments`); returns a small report."""
     if args.scenarios < 1:
         raise ValueError(f"--scenarios must be >= 1, got {args.scenarios}")
+    if getattr(args, "backend", "local") == "ray":
+        if args.transport != "inproc":
+            raise ValueError("--backend ray runs in-process episodes: it takes --transport inproc")
+        from avp_bringup.experiment.ray_backend import import_ray
+
+        import_ray()  # one line saying how to install it, before anything is written
+    elif getattr(args, "address", None):
+        raise ValueError("--address is for --backend ray")
     if getattr(args, "sweep", None) or getattr(args, "ablation", False):
         from avp_bringup.experiment.sweep import run_ablation, run_sweep
 
@@ -308,8 +316,13 @@ def _run_locked(args: argparse.Namespace, out: Path, cfg: RunConfig, profiles: l
             bar.update(1)
 
         try:
-            if args.transport == "inproc":
-                errors = run_inproc(todo, cfg, args.workers, on_record, {p.name: p.source for p in profiles})
+            sources = {p.name: p.source for p in profiles}
+            if args.transport == "inproc" and getattr(args, "backend", "local") == "ray":
+                from avp_bringup.experiment.ray_backend import run_ray
+
+                errors = run_ray(todo, cfg, on_record, getattr(args, "address", None), args.workers, sources)
+            elif args.transport == "inproc":
+                errors = run_inproc(todo, cfg, args.workers, on_record, sources)
             else:
                 from avp_bringup.experiment.ros_transport import run_ros
 
@@ -387,6 +400,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="comma-separated method profiles (names of config/methods/ or files), or 'all'")
     p.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 1)),
                    help="worker processes for --transport inproc (0: run in this process)")
+    p.add_argument("--backend", choices=("local", "ray"), default="local",
+                   help="where --transport inproc runs its episodes: local worker processes, or one Ray task each "
+                   "(docs/experiment.md 'On a Ray cluster')")
+    p.add_argument("--address", default=None, metavar="auto|HOST:PORT",
+                   help="--backend ray: the cluster to join (default: a private Ray instance with --workers CPUs)")
     p.add_argument("--out", default=str(Path.cwd() / "out" / "experiment"), help="output folder")
     p.add_argument("--transport", choices=("inproc", "ros"), default="inproc",
                    help="inproc: simulator and ego cores in worker processes; ros: the live DDS graph")
