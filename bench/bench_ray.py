@@ -56,7 +56,7 @@ def main() -> int:
     p.add_argument("--json", default="")
     args = p.parse_args()
     from avp_bringup.experiment.ray_backend import LocalRayCluster
-    from avp_common.provenance import git_commit
+    from avp_bringup.experiment.results import code_commit
 
     out = Path(args.out)
     runs: dict[str, dict] = {}
@@ -69,7 +69,7 @@ def main() -> int:
         shutil.rmtree(tmp, ignore_errors=True)
     first = next(iter(runs.values()))["records"]
     equal = all(r["records"] == first for r in runs.values())
-    print(f"commit {git_commit()}, {platform.node()}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.2f}; "
+    print(f"commit {code_commit()}, {platform.node()}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.2f}; "
           f"{len(first)} episodes ({args.methods}, {args.scenarios} scenarios, mode {args.mode}); "
           f"records equal across the four runs: {equal}")
     print("| run | wall s | episodes/s | median episode s | overhead per episode s | overhead / median episode |")
