@@ -53,6 +53,42 @@ def test_demo_writes_results_and_a_readable_bag(ros_env, tmp_path):
                        capture_output=True, text=True, timeout=60)
     assert m.returncode == 0, m.stdout + m.stderr
     assert "equal the live ones" in m.stdout
+    check_viewer_topics(bag, metrics["steps"])
+
+
+def check_viewer_topics(bag: Path, steps: int) -> None:
+    """What Foxglove's 3-D panel needs (issue #21), read with the independent `mcap` + `mcap-ros2-support` reader
+    from every split: the transform tree (REP-105), the scene markers and the scan, stamped with simulated time."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    want = {"/tf": "tf2_msgs/msg/TFMessage", "/tf_static": "tf2_msgs/msg/TFMessage",
+            "/avp/viz/scene": "visualization_msgs/msg/MarkerArray", "/avp/debug/scan": "sensor_msgs/msg/LaserScan"}
+    got: dict[str, list] = {t: [] for t in want}
+    files = sorted(Path(bag).glob("*.mcap"))
+    assert files, bag
+    for f in files:
+        with open(f, "rb") as fh:
+            for schema, channel, _msg, dec in make_reader(fh, decoder_factories=[DecoderFactory()]) \
+                    .iter_decoded_messages(topics=list(want)):
+                assert schema.name == want[channel.topic], (channel.topic, schema.name)
+                got[channel.topic].append(dec)
+    assert [len(got[t]) > 0 for t in want] == [True] * 4, {t: len(v) for t, v in got.items()}
+    static = got["/tf_static"][0].transforms[0]
+    assert (static.header.frame_id, static.child_frame_id) == ("map", "odom")
+    ego_tf = [[t for t in m.transforms if t.child_frame_id == "base_link"] for m in got["/tf"]]
+    assert all(len(e) == 1 and e[0].header.frame_id == "odom" for e in ego_tf)
+    # one transform and one scene per step, stamped t_k = k * dt (simulated time)
+    stamps = [e[0].header.stamp.sec * 10 + e[0].header.stamp.nanosec // 100_000_000 for e in ego_tf]
+    assert stamps == list(range(len(stamps))) and len(stamps) >= steps
+    scenes = got["/avp/viz/scene"]
+    assert len(scenes) >= steps
+    layers = set().union(*({m.ns for m in s.markers} for s in scenes))
+    assert {"lot", "spots", "vehicles", "ego", "plan"} <= layers, layers
+    spots = next(m for m in scenes[-1].markers if m.ns == "spots")
+    assert len(spots.points) == 6 * 40 and len(spots.colors) == len(spots.points)  # every spot, coloured
+    assert all(m.header.frame_id == "map" for s in scenes for m in s.markers if m.ns)
+    assert got["/avp/debug/scan"][0].header.frame_id == "base_link" and len(got["/avp/debug/scan"][0].ranges) > 0
 
 
 def test_demo_parks_on_a_lot_without_a_scenario_block(ros_env, tmp_path):

@@ -42,7 +42,7 @@ WRAP
 chmod +x "$VENV/bin/avp"
 
 # 3. colcon build (skipped when no source file changed since the last successful build)
-SRC_HASH="$(cd "$ROOT" && find src -type f -not -path '*/__pycache__/*' -not -name '*.pyc' -not -path '*.egg-info*' -print0 | sort -z | xargs -0 sha1sum | sha1sum | cut -d' ' -f1)"
+SRC_HASH="$(cd "$ROOT" && find src vendor -type f -not -path '*/__pycache__/*' -not -name '*.pyc' -not -path '*.egg-info*' -print0 | sort -z | xargs -0 sha1sum | sha1sum | cut -d' ' -f1)"
 if [ "$(cat "$ROOT/ros2_ws/.build.sha1" 2>/dev/null || true)" != "$SRC_HASH" ] || [ ! -f "$ROOT/ros2_ws/install/setup.bash" ]; then
   log "colcon build in ros2_ws/"
   (
@@ -54,7 +54,10 @@ if [ "$(cat "$ROOT/ros2_ws/.build.sha1" 2>/dev/null || true)" != "$SRC_HASH" ] |
     # data_files glob, and a stale entry-point script in install/: drop both
     [ -d build ] && find build -xtype l -delete
     [ -d install ] && find install -xtype l -delete
-    python -m colcon --log-base log build --base-paths ../src --symlink-install \
+    # vendor/: interface packages the wheels lack, built only where they are not installed (vendor/README.md)
+    BASES=(../src)
+    env -u PYTHONPATH "$VENV/bin/python" -c "import tf2_msgs.msg" 2>/dev/null || BASES+=(../vendor/tf2_msgs)
+    python -m colcon --log-base log build --base-paths "${BASES[@]}" --symlink-install \
       --event-handlers console_cohesion- summary+ \
       --cmake-args -DPython3_EXECUTABLE="$VENV/bin/python" -DBUILD_TESTING=OFF
   )

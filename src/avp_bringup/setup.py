@@ -23,5 +23,5 @@ setup(
     maintainer_email="maintainers@avp-stack.org",
     description="Launch files, parameter files, the avp command line (launch, demo) and rendering.",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={"console_scripts": ["scene_node = avp_bringup.scene_node:main"]},
 )

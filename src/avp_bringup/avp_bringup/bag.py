@@ -26,7 +26,8 @@ from avp_common.conversions import time_to_ns
 from avp_common.drain import draining_subscription
 from avp_common.qos import GROUND_TRUTH
 
-#: topic -> (type, latched). The default recording set of the graph (markers/scan are left out: derivable).
+#: topic -> (type, latched). The default recording set of the graph (the simulator's ground-truth markers, the
+#: belief grid and the BEVs are left out: derivable or large).
 GRAPH_TOPICS: dict[str, tuple[str, bool]] = {
     "/clock": ("rosgraph_msgs/msg/Clock", False),
     "/avp/lot_map": ("avp_msgs/msg/LotMap", True),
@@ -40,10 +41,14 @@ GRAPH_TOPICS: dict[str, tuple[str, bool]] = {
     "/avp/predictions": ("avp_msgs/msg/PredictedTrajectoryArray", False),
     "/avp/decision": ("avp_msgs/msg/PlannerDecision", False),
     "/avp/plan": ("nav_msgs/msg/Path", False),
+    # what a viewer needs (issue #21): transforms, the scene node's markers, the ray scan
+    "/tf": ("tf2_msgs/msg/TFMessage", False),
+    "/tf_static": ("tf2_msgs/msg/TFMessage", True),
+    "/avp/viz/scene": ("visualization_msgs/msg/MarkerArray", False),
+    "/avp/debug/scan": ("sensor_msgs/msg/LaserScan", False),
 }
 OPTIONAL_TOPICS = {
-    "/avp/debug/markers": ("visualization_msgs/msg/MarkerArray", False),
-    "/avp/debug/scan": ("sensor_msgs/msg/LaserScan", False),
+    "/avp/debug/markers": ("visualization_msgs/msg/MarkerArray", False),  # the simulator's ground-truth view
     "/avp/debug/occupancy": ("nav_msgs/msg/OccupancyGrid", False),  # belief map b_t (derivable from beliefs)
     "/avp/debug/bev": ("sensor_msgs/msg/Image", False),  # the belief node's BEVs (large)
 }

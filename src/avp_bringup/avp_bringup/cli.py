@@ -43,11 +43,13 @@ def cmd_experiment(args: argparse.Namespace) -> int:
 
 
 def cmd_launch(args: argparse.Namespace) -> int:
-    from avp_bringup.graph import Graph, default_log_dir, ego_graph, with_params
+    from avp_bringup.graph import Graph, default_log_dir, ego_graph, with_params, with_scene
 
     log_dir = default_log_dir(args.log_dir)
     try:
         nodes = ego_graph(args.method, args.ego)
+        if not args.no_scene:
+            nodes = with_scene(nodes)
         if args.lot:
             from avp_world.lot import load_lot
 
@@ -211,6 +213,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_params(args: argparse.Namespace) -> int:
+    from avp_bringup.scene_node import SCENE_PARAMS
     from avp_common.params import markdown_table
     from avp_perception.params import BELIEF_PARAMS, PREDICTION_PARAMS
     from avp_planner.examples.minimal_planner import MINIMAL_PARAMS
@@ -219,7 +222,8 @@ def cmd_params(args: argparse.Namespace) -> int:
     from avp_sim.params import SIM_PARAMS
 
     tables = {"avp_sim": SIM_PARAMS, "avp_belief": BELIEF_PARAMS, "avp_prediction": PREDICTION_PARAMS,
-              "avp_planner": PLANNER_PARAMS, "scripted_driver": DRIVER_PARAMS, "minimal_planner": MINIMAL_PARAMS}
+              "avp_planner": PLANNER_PARAMS, "scripted_driver": DRIVER_PARAMS, "minimal_planner": MINIMAL_PARAMS,
+              "avp_scene": SCENE_PARAMS}
     for name, specs in tables.items():
         if args.node and args.node != name:
             continue
@@ -263,6 +267,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--method", help="a Table I method profile (bezier, constant_velocity, hybrid_astar, learned, "
                    "implicit, nawaz or a profile file): the same 4 nodes with the profile's parameters")
     p.add_argument("--lot", help="lot map YAML to simulate and plan on (default: the bundled paper lot)")
+    p.add_argument("--no-scene", action="store_true", help="leave out the scene node (/tf, /tf_static, viz/scene)")
     p.set_defaults(func=cmd_launch)
     p = sub.add_parser("demo", help="run one seeded episode through the live graph")
     demo.add_arguments(p)

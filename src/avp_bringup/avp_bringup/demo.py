@@ -34,6 +34,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "comes from its scenario: block or its geometry)")
     p.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit [s]")
     p.add_argument("--bag", help="where to record the demo's bag (default bags/demo_seed<N>_<time>)")
+    p.add_argument("--no-scene", action="store_true",
+                   help="leave out the scene node: the bag then has no /tf, /tf_static, viz/scene for viewers")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -84,12 +86,14 @@ def _method(args: argparse.Namespace) -> str:
 def _demo_nodes(args: argparse.Namespace) -> list:
     """The graph of ``--method`` (bezier by default) with the simulator set up for one episode started by
     ``reset_episode`` (ValueError on conflicting options)."""
-    from avp_bringup.graph import ego_graph, with_params
+    from avp_bringup.graph import ego_graph, with_params, with_scene
 
     if args.ego == "planner" and not args.method:
         args.method = "bezier"  # the paper's method
     # lock-step: the wall-clock caps lifted, so the episode is the same whatever the machine's load
     nodes = ego_graph(args.method, args.ego, deterministic=not args.realtime)
+    if not getattr(args, "no_scene", False):
+        nodes = with_scene(nodes)
     sim = nodes[0]
     # the episode is started with reset_episode once the whole graph is up and discovered both ways (a volatile
     # reader that matches after step 0 was sent never gets it: lock-step would re-send after lockstep_timeout, real

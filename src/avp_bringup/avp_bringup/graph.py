@@ -65,6 +65,18 @@ def default_graph(ego: str = "planner") -> list[NodeSpec]:
     return [sim, *nodes]
 
 
+#: the viewers' node (issue #21): /tf, /tf_static and viz/scene from the pipeline's messages; a sink, never an input
+SCENE_NODE = NodeSpec("avp_scene", "avp_bringup", "scene_node", "config/scene.param.yaml")
+
+
+def with_scene(nodes: list[NodeSpec]) -> list[NodeSpec]:
+    """``nodes`` (a graph whose first node is the simulator) plus :data:`SCENE_NODE`; the simulator's step 0 also
+    waits for it (it subscribes to observation), so the scene and transforms of every step are published."""
+    sim = nodes[0]
+    n = sim.extra_params.get("min_subscribers", len(nodes) - 1)
+    return [with_params(sim, min_subscribers=n + 1), *nodes[1:], SCENE_NODE]
+
+
 def with_params(spec: NodeSpec, **extra) -> NodeSpec:
     """``spec`` with ``extra`` parameters added to (or replacing) its ``extra_params``."""
     return NodeSpec(spec.name, spec.package, spec.executable, spec.param_file, {**spec.extra_params, **extra})

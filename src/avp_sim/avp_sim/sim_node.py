@@ -272,7 +272,7 @@ class SimNode(Node):
     def _scan_msg(self, obs, stamp) -> LaserScan:
         scan = LaserScan()
         scan.header.stamp = stamp
-        scan.header.frame_id = "ego"
+        scan.header.frame_id = "base_link"  # REP-105: the ego's body frame (the scene node's /tf)
         scan.angle_min = float(obs.ray_angle_min)
         scan.angle_increment = float(obs.ray_angle_increment)
         scan.angle_max = float(obs.ray_angle_min + obs.ray_angle_increment * (len(obs.ray_ranges) - 1))

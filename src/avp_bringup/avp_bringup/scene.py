@@ -1,0 +1,164 @@
+"""The 3-D scene a viewer (Foxglove, Lichtblick, RViz) shows of one step, built from what the ego knows (issue #21).
+
+Frames (REP-105): ``map`` (the lot), ``odom`` (= ``map``: the simulated ego localises perfectly, so ``map -> odom``
+is a static identity on ``/tf_static``), ``base_link`` (the ego, ``odom -> base_link`` on ``/tf``) and
+``agent_<id>`` (every vehicle the ego observes, ``map -> agent_<id>``). The markers (``visualization_msgs``,
+frame ``map``) show the ego's view, not the ground truth: the lot's boundary and roads, the spots filled by the
+belief b_t (eq. 8: green vacant 0 -> red occupied 1, grey never observed), the observed vehicles' footprints
+(static blue, moving yellow) and pedestrians, each predicted trajectory (§V-C) with its probability as opacity,
+the planned path (§V-D: green parking, blue exploring) and the chosen spot's outline. Everything is stamped with
+the step's simulated time. Pure functions of messages: :mod:`avp_bringup.scene_node` publishes them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from geometry_msgs.msg import Point, TransformStamped
+from std_msgs.msg import ColorRGBA
+from tf2_msgs.msg import TFMessage
+from visualization_msgs.msg import Marker, MarkerArray
+
+MAP, ODOM, BASE = "map", "odom", "base_link"
+#: marker namespaces, one per layer (a viewer can toggle each)
+LAYERS = ("lot", "spots", "vehicles", "pedestrians", "predictions", "plan", "chosen_spot", "ego")
+UNSEEN = (0.55, 0.55, 0.55, 0.35)
+
+
+def agent_frame(agent_id: int) -> str:
+    return f"agent_{int(agent_id)}"
+
+
+def _quat_z(theta: float) -> tuple[float, float]:
+    return math.sin(theta / 2.0), math.cos(theta / 2.0)
+
+
+def _transform(parent: str, child: str, pose, stamp) -> TransformStamped:
+    t = TransformStamped()
+    t.header.stamp, t.header.frame_id, t.child_frame_id = stamp, parent, child
+    t.transform.translation.x, t.transform.translation.y = float(pose[0]), float(pose[1])
+    t.transform.rotation.z, t.transform.rotation.w = _quat_z(float(pose[2]))
+    return t
+
+
+def static_transforms(stamp) -> TFMessage:
+    """``map -> odom``: identity (perfect localisation in the simulator)."""
+    return TFMessage(transforms=[_transform(MAP, ODOM, (0.0, 0.0, 0.0), stamp)])
+
+
+def transforms(obs, stamp) -> TFMessage:
+    """``odom -> base_link`` (the ego) and ``map -> agent_<id>`` for each observed vehicle of observation ``obs``."""
+    tfs = [_transform(ODOM, BASE, obs.ego_pose, stamp)]
+    tfs += [_transform(MAP, agent_frame(v.id), v.pose, stamp) for v in obs.vehicles]
+    return TFMessage(transforms=tfs)
+
+
+def belief_color(b: float) -> tuple[float, float, float, float]:
+    """Green (vacant, b = 0) to red (occupied, b = 1); NaN (never observed) grey."""
+    if not np.isfinite(b):
+        return UNSEEN
+    b = float(min(max(b, 0.0), 1.0))
+    return (0.15 + 0.75 * b, 0.8 - 0.6 * b, 0.2, 0.55)
+
+
+def _marker(ns: str, mid: int, kind: int, stamp, rgba, width: float = 0.0) -> Marker:
+    m = Marker()
+    m.header.frame_id, m.header.stamp = MAP, stamp
+    m.ns, m.id, m.type, m.action = ns, int(mid), kind, Marker.ADD
+    m.pose.orientation.w = 1.0
+    m.scale.x = m.scale.y = m.scale.z = 1.0
+    if width:
+        m.scale.x = float(width)
+    m.color = ColorRGBA(r=float(rgba[0]), g=float(rgba[1]), b=float(rgba[2]), a=float(rgba[3]))
+    return m
+
+
+def _pts(xy, z: float = 0.0) -> list[Point]:
+    return [Point(x=float(x), y=float(y), z=z) for x, y in xy]
+
+
+def _corners(x: float, y: float, theta: float, length: float, width: float) -> np.ndarray:
+    c, s = math.cos(theta), math.sin(theta)
+    local = np.array([[0.5, 0.5], [-0.5, 0.5], [-0.5, -0.5], [0.5, -0.5]]) * (length, width)
+    return local @ np.array([[c, s], [-s, c]]) + (x, y)
+
+
+def _box(ns: str, mid: int, pose, length: float, width: float, height: float, rgba, stamp) -> Marker:
+    m = _marker(ns, mid, Marker.CUBE, stamp, rgba)
+    m.pose.position.x, m.pose.position.y, m.pose.position.z = float(pose[0]), float(pose[1]), height / 2
+    m.pose.orientation.z, m.pose.orientation.w = _quat_z(float(pose[2]))
+    m.scale.x, m.scale.y, m.scale.z = float(length), float(width), float(height)
+    return m
+
+
+def lot_markers(lot, stamp) -> list[Marker]:
+    """The lot's boundary and every spot's outline (the static part)."""
+    boundary = _marker("lot", 0, Marker.LINE_STRIP, stamp, (0.85, 0.85, 0.85, 1.0), width=0.15)
+    boundary.points = _pts(np.vstack([lot.boundary, lot.boundary[:1]]))
+    outlines = _marker("lot", 1, Marker.LINE_LIST, stamp, (0.95, 0.95, 0.95, 0.8), width=0.05)
+    for s in lot.spots:
+        c = _corners(s.x, s.y, s.heading, s.length, s.width)
+        outlines.points += _pts(np.repeat(np.vstack([c, c[:1]]), 2, axis=0)[1:-1], 0.01)
+    return [boundary, outlines]
+
+
+def spot_fill(lot, beliefs: np.ndarray | None, stamp) -> Marker:
+    """All spots as one triangle list, each coloured by its belief (``beliefs`` per lot spot, NaN unseen)."""
+    m = _marker("spots", 0, Marker.TRIANGLE_LIST, stamp, (1.0, 1.0, 1.0, 1.0))
+    for k, s in enumerate(lot.spots):
+        c = _corners(s.x, s.y, s.heading, s.length, s.width)
+        b = np.nan if beliefs is None else float(beliefs[k])
+        rgba = ColorRGBA(**dict(zip("rgba", map(float, belief_color(b)), strict=True)))
+        m.points += _pts(c[[0, 1, 2, 0, 2, 3]], 0.02)
+        m.colors += [rgba] * 6
+    return m
+
+
+def scene_markers(lot, obs, beliefs: np.ndarray | None, predictions, decision, stamp) -> MarkerArray:
+    """One step's scene (see the module docstring). ``obs``: the core Observation; ``beliefs``: per lot spot or
+    None; ``predictions``: PredictedTrajectoryArray message or None; ``decision``: PlannerDecision or None."""
+    arr = MarkerArray()
+    clear = Marker()
+    clear.action = Marker.DELETEALL
+    arr.markers.append(clear)
+    arr.markers += lot_markers(lot, stamp)
+    arr.markers.append(spot_fill(lot, beliefs, stamp))
+    for v in obs.vehicles:
+        rgba = (0.3, 0.4, 0.95, 0.9) if v.is_static else (0.95, 0.85, 0.1, 0.95)
+        arr.markers.append(_box("vehicles", v.id, v.pose, v.length, v.width, 1.5, rgba, stamp))
+    for p in obs.pedestrians:
+        m = _marker("pedestrians", p.id, Marker.CYLINDER, stamp, (0.95, 0.45, 0.9, 0.95))
+        m.pose.position.x, m.pose.position.y, m.pose.position.z = float(p.position[0]), float(p.position[1]), 0.9
+        m.scale.x = m.scale.y = 2 * float(p.radius)
+        m.scale.z = 1.8
+        arr.markers.append(m)
+    for i, t in enumerate(predictions.trajectories if predictions is not None else ()):
+        if len(t.poses) < 2:
+            continue
+        alpha = 0.25 + 0.75 * float(min(max(t.probability, 0.0), 1.0))
+        m = _marker("predictions", i, Marker.LINE_STRIP, stamp, (1.0, 0.55, 0.0, alpha), width=0.12)
+        m.points = _pts([(q.x, q.y) for q in t.poses], 0.3)
+        arr.markers.append(m)
+    arr.markers.append(_box("ego", 0, obs.ego_pose, obs.ego_length, obs.ego_width, 1.5, (0.9, 0.1, 0.1, 1.0), stamp))
+    if decision is not None:
+        arr.markers += _plan_markers(lot, decision, stamp)
+    return arr
+
+
+def _plan_markers(lot, decision, stamp) -> list[Marker]:
+    out = []
+    parking = decision.mode == decision.MODE_PARK
+    if len(decision.plan.poses) >= 2:
+        rgba = (0.1, 0.85, 0.3, 1.0) if parking else (0.2, 0.5, 1.0, 1.0)
+        m = _marker("plan", 0, Marker.LINE_STRIP, stamp, rgba, width=0.25)
+        m.points = _pts([(p.pose.position.x, p.pose.position.y) for p in decision.plan.poses], 0.2)
+        out.append(m)
+    idx = {s.id: s for s in lot.spots}
+    if parking and int(decision.spot_id) in idx:
+        s = idx[int(decision.spot_id)]
+        c = _corners(s.x, s.y, s.heading, s.length, s.width)
+        m = _marker("chosen_spot", 0, Marker.LINE_STRIP, stamp, (0.1, 1.0, 0.3, 1.0), width=0.3)
+        m.points = _pts(np.vstack([c, c[:1]]), 0.05)
+        out.append(m)
+    return out
