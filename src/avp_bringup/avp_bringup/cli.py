@@ -66,9 +66,13 @@ def cmd_launch(args: argparse.Namespace) -> int:
     print("[avp] Ctrl-C stops the graph")
     stop = {"flag": False}
     signal.signal(signal.SIGTERM, lambda *_: stop.update(flag=True))
+    viewer = _foxglove(args)  # (bridge, executor) or None
     try:
         while not stop["flag"]:
-            time.sleep(0.5)
+            if viewer:
+                viewer[1].spin_once(timeout_sec=0.5)
+            else:
+                time.sleep(0.5)
             dead = {n: rc for n, rc in graph.poll().items() if rc is not None}
             if dead and len(dead) == len(graph.procs):
                 print(f"[avp] all nodes exited: {dead}")
@@ -79,8 +83,39 @@ def cmd_launch(args: argparse.Namespace) -> int:
         from avp_bringup.lifecycle import shutdown_lifecycle_nodes
 
         others = shutdown_lifecycle_nodes()  # planners swapped in by `avp swap-planner` (own processes)
+        if viewer:
+            viewer[0].close()
         graph.stop()
         print(f"[avp] graph stopped{'; shut down ' + ', '.join(others) if others else ''}")
+    return 0
+
+
+def _foxglove(args: argparse.Namespace):
+    """``--foxglove``: the Foxglove bridge node and an executor spinning it in this process, or None."""
+    if not args.foxglove:
+        return None
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    from avp_bringup import foxglove_cli
+
+    if not rclpy.ok():
+        rclpy.init()
+    executor = SingleThreadedExecutor()
+    bridge = foxglove_cli.start(args)
+    executor.add_node(bridge)
+    return bridge, executor
+
+
+def cmd_merge_bag(args: argparse.Namespace) -> int:
+    from avp_bringup.bagmerge import merge_bag
+
+    try:
+        n = merge_bag(args.bag, args.out)
+    except (ValueError, OSError) as exc:  # a damaged or foreign bag, an existing OUT: one line naming the file
+        print(f"[avp merge-bag] {exc}", file=sys.stderr)
+        return 2
+    print(f"[avp merge-bag] {n} messages of {args.bag} -> {args.out}")
     return 0
 
 
@@ -256,7 +291,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``avp`` argument parser: one sub-command per tool (see the module docstring)."""
-    from avp_bringup import demo
+    from avp_bringup import demo, foxglove_cli
 
     parser = argparse.ArgumentParser(prog="avp", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -268,6 +303,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "implicit, nawaz or a profile file): the same 4 nodes with the profile's parameters")
     p.add_argument("--lot", help="lot map YAML to simulate and plan on (default: the bundled paper lot)")
     p.add_argument("--no-scene", action="store_true", help="leave out the scene node (/tf, /tf_static, viz/scene)")
+    foxglove_cli.add_arguments(p)
     p.set_defaults(func=cmd_launch)
     p = sub.add_parser("demo", help="run one seeded episode through the live graph")
     demo.add_arguments(p)
@@ -298,6 +334,10 @@ def _add_bag_commands(sub) -> None:
     p.add_argument("--wait-subscribers", action="store_true",
                    help="after --delay, also wait (up to 30 s) until every replayed topic has a subscriber")
     p.set_defaults(func=cmd_replay)
+    p = sub.add_parser("merge-bag", help="one MCAP file of a (split) bag, for viewers that open one file")
+    p.add_argument("bag")
+    p.add_argument("out", help="the new .mcap file (never overwritten)")
+    p.set_defaults(func=cmd_merge_bag)
     p = sub.add_parser("metrics", help="recompute an episode's metrics from a bag")
     p.add_argument("bag")
     p.set_defaults(func=cmd_metrics)

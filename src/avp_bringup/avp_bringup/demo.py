@@ -12,6 +12,7 @@ import sys
 import time
 from pathlib import Path
 
+from avp_bringup import foxglove_cli
 from avp_bringup.graph import avp_root
 
 
@@ -34,6 +35,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "comes from its scenario: block or its geometry)")
     p.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit [s]")
     p.add_argument("--bag", help="where to record the demo's bag (default bags/demo_seed<N>_<time>)")
+    foxglove_cli.add_arguments(p)
     p.add_argument("--no-scene", action="store_true",
                    help="leave out the scene node: the bag then has no /tf, /tf_static, viz/scene for viewers")
 
@@ -128,6 +130,9 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
     executor = SingleThreadedExecutor()
     executor.add_node(monitor)
     executor.add_node(recorder)
+    bridge = foxglove_cli.start(args)  # --foxglove: the live view
+    if bridge is not None:
+        executor.add_node(bridge)
     graph = Graph(nodes, log_dir, args.params)
     t0 = time.monotonic()
     graph.start()
@@ -159,6 +164,9 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
     finally:
         graph.stop()
         recorder.close()
+        if bridge is not None:
+            bridge.close()
+            bridge.destroy_node()
         monitor.destroy_node()
         recorder.destroy_node()
         rclpy.try_shutdown()

@@ -3,11 +3,12 @@
 Frames (REP-105): ``map`` (the lot), ``odom`` (= ``map``: the simulated ego localises perfectly, so ``map -> odom``
 is a static identity on ``/tf_static``), ``base_link`` (the ego, ``odom -> base_link`` on ``/tf``) and
 ``agent_<id>`` (every vehicle the ego observes, ``map -> agent_<id>``). The markers (``visualization_msgs``,
-frame ``map``) show the ego's view, not the ground truth: the lot's boundary and roads, the spots filled by the
-belief b_t (eq. 8: green vacant 0 -> red occupied 1, grey never observed), the observed vehicles' footprints
-(static blue, moving yellow) and pedestrians, each predicted trajectory (§V-C) with its probability as opacity,
-the planned path (§V-D: green parking, blue exploring) and the chosen spot's outline. Everything is stamped with
-the step's simulated time. Pure functions of messages: :mod:`avp_bringup.scene_node` publishes them.
+frame ``map``) show the ego's view, not the ground truth: the lot's boundary and spot outlines, the spots filled
+by the belief b_t (eq. 8: green vacant 0 -> red occupied 1, grey never observed), the observed vehicles'
+footprints (static blue, moving yellow) and pedestrians (white), each predicted trajectory (§V-C, magenta) with
+its probability as opacity, the planned path (§V-D: green parking, blue exploring) and the chosen spot's outline.
+Everything is stamped with the step's simulated time. Pure functions of messages: :mod:`avp_bringup.scene_node`
+publishes them.
 """
 
 from __future__ import annotations
@@ -128,7 +129,7 @@ def scene_markers(lot, obs, beliefs: np.ndarray | None, predictions, decision, s
         rgba = (0.3, 0.4, 0.95, 0.9) if v.is_static else (0.95, 0.85, 0.1, 0.95)
         arr.markers.append(_box("vehicles", v.id, v.pose, v.length, v.width, 1.5, rgba, stamp))
     for p in obs.pedestrians:
-        m = _marker("pedestrians", p.id, Marker.CYLINDER, stamp, (0.95, 0.45, 0.9, 0.95))
+        m = _marker("pedestrians", p.id, Marker.CYLINDER, stamp, (0.95, 0.95, 0.95, 0.95))
         m.pose.position.x, m.pose.position.y, m.pose.position.z = float(p.position[0]), float(p.position[1]), 0.9
         m.scale.x = m.scale.y = 2 * float(p.radius)
         m.scale.z = 1.8
@@ -137,7 +138,7 @@ def scene_markers(lot, obs, beliefs: np.ndarray | None, predictions, decision, s
         if len(t.poses) < 2:
             continue
         alpha = 0.25 + 0.75 * float(min(max(t.probability, 0.0), 1.0))
-        m = _marker("predictions", i, Marker.LINE_STRIP, stamp, (1.0, 0.55, 0.0, alpha), width=0.12)
+        m = _marker("predictions", i, Marker.LINE_STRIP, stamp, (1.0, 0.2, 0.85, alpha), width=0.15)
         m.points = _pts([(q.x, q.y) for q in t.poses], 0.3)
         arr.markers.append(m)
     arr.markers.append(_box("ego", 0, obs.ego_pose, obs.ego_length, obs.ego_width, 1.5, (0.9, 0.1, 0.1, 1.0), stamp))

@@ -6,11 +6,12 @@ Topics (relative names in namespace /avp, except the two TF topics, which are gl
              (visualization_msgs/MarkerArray: :mod:`avp_bringup.scene`)
 
 A sink: nothing in the ego's pipeline reads what it publishes, so it never changes an episode. It publishes the
-transforms of step k when observation k arrives, and the scene of step k when the planner's decision k arrives
-(the last message of a step) or, for a graph without a planner, when observation k + 1 does; each stamped with
-the step's simulated time. lot_map, observation, beliefs and predictions are taken only when tagged with the
-user's key (``auth_inputs``); the decision is not tagged by the planner and only draws the plan, so it is
-taken from any publisher (a forged one changes the picture, never the ego). Bad messages are dropped with one
+transforms of step k when observation k arrives, and the scene of step k once observation, beliefs, predictions
+and decision k have all arrived (in any order), or else when observation k + 1 does, with what came (a graph
+without perception or planner); each stamped with the step's simulated time. lot_map, observation, beliefs and
+predictions are taken only when tagged with the user's key (``auth_inputs``); the decision is not tagged by the
+planner and only draws the plan, so it is taken from any publisher (a forged one changes the picture, never the
+ego). Bad messages are dropped with one
 rate-limited log line naming the topic; the node keeps running.
 """
 
@@ -53,6 +54,7 @@ class SceneNode(Node):
         self.lot = None
         self.obs: dict[int, object] = {}  # step -> (core Observation, stamp)
         self.beliefs: dict[int, np.ndarray] = {}
+        self.decisions: dict[int, PlannerDecision] = {}
         self.seen: np.ndarray | None = None  # spots the ego has observed this episode (unseen ones are drawn grey)
         self.preds: dict[int, PredictedTrajectoryArray] = {}
         self.published = -1  # the last step whose scene went out
@@ -95,8 +97,8 @@ class SceneNode(Node):
                     self.seen[self.lot.spot_index(int(sid))] = True
         if self.publish_tf:
             self.pub_tf.publish(scene.transforms(obs, msg.header.stamp))
-        if k - 1 in self.obs and k - 1 > self.published:  # no decision came for the step before: draw it now
-            self._publish(k - 1, None)
+        if k - 1 in self.obs and k - 1 > self.published:  # step k - 1 is over: draw it with what came
+            self._publish(k - 1, self.decisions.get(k - 1))
         self._trim()
 
     def _on_beliefs(self, msg: SpotBeliefs) -> None:
@@ -106,14 +108,21 @@ class SceneNode(Node):
             self.beliefs[int(msg.step)] = beliefs_from_msg(msg, self.lot)
         except MessageError as exc:
             self.reject(f"beliefs step {int(msg.step)}: {exc}; dropped")
+            return
+        self._try(int(msg.step))
 
     def _on_preds(self, msg: PredictedTrajectoryArray) -> None:
         self.preds[int(msg.step)] = msg
+        self._try(int(msg.step))
 
     def _on_decision(self, msg: PlannerDecision) -> None:
-        k = int(msg.step)
-        if k in self.obs and k > self.published:
-            self._publish(k, msg)
+        self.decisions[int(msg.step)] = msg
+        self._try(int(msg.step))
+
+    def _try(self, k: int) -> None:
+        """Step k's scene once all its messages are here (they travel on different topics: any order)."""
+        if k > self.published and all(k in d for d in (self.obs, self.beliefs, self.preds, self.decisions)):
+            self._publish(k, self.decisions[k])
 
     def _publish(self, k: int, decision: PlannerDecision | None) -> None:
         if self.lot is None:
@@ -126,12 +135,12 @@ class SceneNode(Node):
         self.published = k
 
     def _forget(self) -> None:
-        for d in (self.obs, self.beliefs, self.preds):
+        for d in (self.obs, self.beliefs, self.preds, self.decisions):
             d.clear()
         self.published, self.seen = -1, None
 
     def _trim(self) -> None:
-        for d in (self.obs, self.beliefs, self.preds):
+        for d in (self.obs, self.beliefs, self.preds, self.decisions):
             for s in sorted(d)[:-KEEP_STEPS]:
                 del d[s]
 

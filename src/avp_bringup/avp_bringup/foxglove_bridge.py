@@ -1,0 +1,82 @@
+"""Serve the running graph to Foxglove (or Lichtblick) live over the Foxglove WebSocket protocol (issue #21 item 2).
+
+``avp demo --foxglove`` / ``avp launch --foxglove`` add a :class:`FoxgloveBridge` node to the ``avp`` process: it
+subscribes to the viewer's topics raw (the CDR bytes as they travel on DDS) and logs each message unchanged to a
+``foxglove-sdk`` channel of the same name, with the message's ``ros2msg`` definition as its schema (the same
+definition the bags embed) and ``cdr`` encoding, stamped with the graph's simulated time (``/clock``). Connect
+Foxglove to ``ws://HOST:PORT`` (default ``ws://127.0.0.1:8765``) and open docs/foxglove_layout.json.
+
+Latched topics (``/tf_static``, the lot map) are sent again once a second, so a client that connects after the
+graph started still gets them (the WebSocket protocol has no latching). The server binds to loopback unless
+``--foxglove-host`` says otherwise: anyone who reaches the port sees the graph's data (read-only: the bridge
+offers no client publishing, services or parameters).
+"""
+
+from __future__ import annotations
+
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from avp_bringup.bag import make_typestore, message_class
+
+#: topic -> (type, latched): what the 3-D panel and the plots need
+VIEW_TOPICS: dict[str, tuple[str, bool]] = {
+    "/tf": ("tf2_msgs/msg/TFMessage", False),
+    "/tf_static": ("tf2_msgs/msg/TFMessage", True),
+    "/avp/viz/scene": ("visualization_msgs/msg/MarkerArray", False),
+    "/avp/debug/scan": ("sensor_msgs/msg/LaserScan", False),
+    "/avp/plan": ("nav_msgs/msg/Path", False),
+    "/avp/cmd": ("geometry_msgs/msg/TwistStamped", False),
+    "/avp/episode_status": ("avp_msgs/msg/EpisodeStatus", True),
+}
+LATCH_RESEND = 1.0  # s between re-sends of a latched topic's last message
+
+
+class FoxgloveBridge(Node):
+    """A foxglove-sdk WebSocket server fed with the graph's topics (see the module docstring)."""
+
+    def __init__(self, port: int = 8765, host: str = "127.0.0.1",
+                 topics: dict[str, tuple[str, bool]] | None = None) -> None:
+        import foxglove
+
+        super().__init__("avp_foxglove")
+        topics = dict(VIEW_TOPICS if topics is None else topics)
+        self.server = foxglove.start_server(name="avp", host=host, port=port)
+        self.port = self.server.port
+        self.clock_ns = 0
+        self.latched: dict[str, bytes] = {}
+        self.channels = {}
+        self.counts: dict[str, int] = {}
+        ts = make_typestore()
+        for topic, (typename, latched) in topics.items():
+            msgdef, _ = ts.generate_msgdef(typename, ros_version=2)
+            schema = foxglove.Schema(name=typename, encoding="ros2msg", data=msgdef.encode())
+            self.channels[topic] = foxglove.Channel(topic, schema=schema, message_encoding="cdr")
+            qos = QoSProfile(depth=1 if latched else 10, history=HistoryPolicy.KEEP_LAST,
+                             reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+            self.create_subscription(message_class(typename), topic, self._forward(topic, latched), qos, raw=True)
+        self.create_subscription(message_class("rosgraph_msgs/msg/Clock"), "/clock", self._on_clock, 10)
+        self._resend = self.create_timer(LATCH_RESEND, self._resend_latched)
+
+    def _on_clock(self, msg) -> None:
+        self.clock_ns = int(msg.clock.sec) * 1_000_000_000 + int(msg.clock.nanosec)
+
+    def _forward(self, topic: str, latched: bool):
+        channel = self.channels[topic]
+
+        def cb(raw: bytes) -> None:
+            channel.log(bytes(raw), log_time=self.clock_ns)
+            self.counts[topic] = self.counts.get(topic, 0) + 1
+            if latched:
+                self.latched[topic] = bytes(raw)
+
+        return cb
+
+    def _resend_latched(self) -> None:
+        for topic, raw in self.latched.items():
+            self.channels[topic].log(raw, log_time=self.clock_ns)
+
+    def close(self) -> None:
+        self.server.stop()
+
