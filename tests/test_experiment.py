@@ -158,6 +158,48 @@ def test_min_ade_and_min_fde_by_hand():
     assert ade.tolist() == [0.0] and fde.tolist() == [0.0]
 
 
+def test_motion_counts_by_hand():
+    """Reversals and U-turns (issue #21) on hand-made ego paths."""
+    from avp_bringup.experiment.metrics import motion_counts
+
+    straight = np.array([[0.2 * k, 0.0, 0.0] for k in range(50)])
+    assert motion_counts(straight) == {"reversals": 0, "u_turns": 0}
+    # a three-point turn: forward left 90 deg, back 0 -> (turning on), forward on: heading 0 -> pi
+    pts, x, y, th = [], 0.0, 0.0, 0.0
+    for v, w, n in ((1.0, 0.9, 20), (-1.0, -0.9, 15), (1.0, 0.9, 30), (1.0, 0.0, 10)):
+        for _ in range(n):
+            pts.append((x, y, th))
+            x, y, th = x + 0.1 * v * math.cos(th), y + 0.1 * v * math.sin(th), th + 0.1 * w * abs(v)
+    pts.append((x, y, th))
+    turn = np.array(pts)
+    assert abs(math.remainder(turn[-1, 2], 2 * math.pi)) > math.radians(150)  # it did turn round
+    assert motion_counts(turn) == {"reversals": 2, "u_turns": 1}
+    # forward, then reversing 90 deg into a spot: one reversal, no U-turn; standing still in between changes nothing
+    park = np.array([[0.2 * k, 0.0, 0.0] for k in range(10)] + [[1.8, 0.0, 0.0]] * 5
+                    + [[1.8 - 0.1 * k, -0.1 * k, 0.157 * k] for k in range(1, 11)])
+    assert motion_counts(park) == {"reversals": 1, "u_turns": 0}
+
+
+def test_the_demo_seed_no_longer_backs_away_while_a_stopped_car_blocks_the_road_ahead():
+    """Issue #21: `make demo`'s scenario (seed 1, bezier, reactive). A car stops in the aisle ahead of the ego; the
+    detour round (stopped agents as static obstacles) used to back away at once and explore the long way round
+    (6 reversals of direction, parked after 38.9 s). With ``decision.detour_waits_to_turn_back`` the road ahead must
+    stay blocked for 3 s first (§V-D-2), the car moves on and the ego parks ahead of it, sooner."""
+    from avp_bringup.experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_bringup.experiment.runner import run_episode_inproc
+    from avp_sim.core.factory import load_lot_param
+
+    out = {}
+    for waits in (False, True):
+        cfg = RunConfig(planner_overrides={"decision.detour_waits_to_turn_back": waits})
+        sim = sim_values(cfg)
+        out[waits] = run_episode_inproc(load_lot_param(sim["lot_file"]), sim, run_profile("bezier", cfg), 1, True,
+                                        cfg)
+    before, after = out[False], out[True]
+    assert before["success"] and before["parking_time"] == pytest.approx(38.9) and before["reversals"] == 6
+    assert after["success"] and after["parking_time"] < 30.0 and after["reversals"] == 2  # the parking manoeuvre's
+
+
 def test_wilson_interval_known_values():
     lo, hi = wilson(0, 10)
     assert lo == 0.0 and hi == pytest.approx(1.959964**2 / (10 + 1.959964**2), rel=1e-6)  # 0.2775

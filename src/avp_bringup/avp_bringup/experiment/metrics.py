@@ -80,9 +80,10 @@ def _mean(x: Iterable[float]) -> float | None:
 
 def episode_record(*, method: str, seed: int, reactive: bool, status: str, metrics: Mapping, min_ade: np.ndarray,
                    min_fde: np.ndarray, step_timings: Sequence[Mapping], horizon: float, transport: str,
-                   wall_s: float, lot: Mapping | None = None) -> dict:
-    """One JSON line: identity (with the lot, :func:`lot_record`), the §VI-B metrics, and (under ``timings``)
-    what depends on compute speed."""
+                   wall_s: float, lot: Mapping | None = None, ego_poses: np.ndarray | None = None) -> dict:
+    """One JSON line: identity (with the lot, :func:`lot_record`), the §VI-B metrics, the ego's reversals and
+    U-turns (:func:`motion_counts` of ``ego_poses``, its pose per step), and (under ``timings``) what depends on
+    compute speed."""
     pt = metrics.get("parking_time")
     pt = None if pt is None or (isinstance(pt, float) and math.isnan(pt)) else float(pt)
     sel = [float(t["spot_selection_time"]) for t in step_timings]
@@ -100,6 +101,7 @@ def episode_record(*, method: str, seed: int, reactive: bool, status: str, metri
         "min_ade": _mean(min_ade), "min_fde": _mean(min_fde), "ade_samples": int(len(min_ade)),
         "ade_horizon": float(horizon),
         "lot": dict(lot) if lot is not None else None,
+        **(motion_counts(ego_poses) if ego_poses is not None else {}),
         "transport": transport,
         "timings": {
             "spot_selection_time": _mean(sel), "path_planning_time": _mean(searched),
@@ -108,6 +110,33 @@ def episode_record(*, method: str, seed: int, reactive: bool, status: str, metri
             "wall_s": round(float(wall_s), 3),
         },
     }
+
+
+U_TURN_DEG = 150.0  # the ego's heading turned this far from its reference: it turned round
+MOVING = 0.01  # m per step: slower is standing (no travel direction)
+
+
+def motion_counts(ego_poses: np.ndarray) -> dict:
+    """Direction reversals and U-turns of the ego over an episode (issue #21), from its poses (N, 3) per step.
+
+    ``reversals``: changes of gear between consecutive moving steps (forward <-> backward, the sign of the step's
+    displacement along the heading; steps moving less than ``MOVING`` m are skipped). ``u_turns``: how often the
+    heading turned at least ``U_TURN_DEG`` degrees from its reference, which is the start heading and, after each
+    U-turn, the heading then (a three-point turn or a loop round a block: one each; parking 90 degrees into a spot:
+    none)."""
+    p = np.asarray(ego_poses, dtype=float).reshape(-1, 3)
+    reversals, u_turns, gear, ref = 0, 0, 0, (float(p[0, 2]) if len(p) else 0.0)
+    for k in range(len(p) - 1):
+        d = p[k + 1, :2] - p[k, :2]
+        if float(np.hypot(*d)) >= MOVING:
+            g = 1 if float(d @ (math.cos(p[k, 2]), math.sin(p[k, 2]))) >= 0 else -1
+            reversals += int(gear != 0 and g != gear)
+            gear = g
+        turned = abs(math.remainder(float(p[k + 1, 2]) - ref, 2 * math.pi))
+        if turned >= math.radians(U_TURN_DEG):
+            u_turns += 1
+            ref = float(p[k + 1, 2])
+    return {"reversals": reversals, "u_turns": u_turns}
 
 
 def lot_record(lot) -> dict:

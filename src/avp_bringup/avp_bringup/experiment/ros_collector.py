@@ -49,12 +49,16 @@ class EpisodeCollector(Node):
         self.seed, self.reactive = seed, reactive
         self.status = None
         self.gt: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self.ego: dict[int, tuple[float, float, float]] = {}  # step -> the ego's pose (ground truth)
         self.preds: dict[int, list] = {}
         self.timings: dict[int, dict] = {}
         self.t_obs: dict[int, int] = {}  # step -> DDS source timestamp [ns] of the observation (first sent)
         self.t_preds: dict[int, int] = {}  # ... of the predictions
 
     def _on_gt(self, msg) -> None:
+        ego = [a.pose for a in msg.agents if a.kind == AgentState.KIND_EGO]
+        if ego:
+            self.ego[int(msg.step)] = (ego[0].x, ego[0].y, ego[0].theta)
         veh = [a for a in msg.agents if a.kind == self.kind_vehicle]
         self.gt[int(msg.step)] = (np.array([a.id for a in veh], dtype=np.int64),
                                   np.array([[a.pose.x, a.pose.y, a.pose.theta] for a in veh]).reshape(-1, 3))
@@ -119,4 +123,5 @@ class EpisodeCollector(Node):
         return episode_record(method=method, seed=self.seed, reactive=self.reactive,
                               status=STATE_NAMES.get(int(s.state), str(s.state)), metrics=metrics, min_ade=ade,
                               min_fde=fde, step_timings=[self.step_timings(k) for k in range(n)], horizon=horizon,
-                              transport="ros", wall_s=wall_s, lot=self.lot)
+                              transport="ros", wall_s=wall_s, lot=self.lot,
+                              ego_poses=np.array([self.ego[k] for k in range(n + 1)]))

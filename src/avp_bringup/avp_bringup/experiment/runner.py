@@ -31,6 +31,8 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from avp_bringup.experiment.arguments import MODES, add_arguments  # noqa: E402 F401 - re-exported: the runner's API
 from avp_bringup.experiment.profiles import (
     MethodProfile,
@@ -100,7 +102,7 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
     return episode_record(method=profile.name, seed=seed, reactive=reactive, status=world.status,
                           metrics=world.metrics.as_dict(), min_ade=ade, min_fde=fde, step_timings=timings,
                           horizon=cfg.ade_horizon, transport="inproc", wall_s=time.perf_counter() - t0,
-                          lot=lot_record(lot))
+                          lot=lot_record(lot), ego_poses=np.asarray(world.log_ego))
 
 
 _WORKER: dict[str, Any] = {}

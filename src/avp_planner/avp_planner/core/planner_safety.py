@@ -77,7 +77,8 @@ class SafetyMixin:
                 plan = self._adopt(found, world, dyn, obs, timing)
             if plan is None:
                 plan, _, _ = self._explore(ego, world, dyn, heur2, astar2, obs, t_fb, stats, timing,
-                                           blocked_plans, it_fb, back_ok)
+                                           blocked_plans, it_fb, back_ok,
+                                           behind=back_ok or not d.detour_waits_to_turn_back)
             if plan is not None:
                 stats["around_agents"] = True
         return plan

@@ -126,9 +126,11 @@ class SearchMixin:
         return heur, HybridAStar(world, ego, self.settings, heur)
 
     def _explore(self, ego, world, dyn, heur, astar, obs, t_end, stats, timing, blocked_out,
-                 max_iterations: int | None = None, back_allowed: bool = True):
+                 max_iterations: int | None = None, back_allowed: bool = True, behind: bool = True):
         """Front exploration points, then (if allowed) those behind. Returns (plan or None, some path blocked by
-        predicted agents, the front had paths but all were blocked by predicted agents)."""
+        predicted agents, the front had paths but all were blocked by predicted agents). ``behind=False``: front
+        points only (the detour round, whose static world holds the standing agents: a front blocked by them is
+        blocked by agents, so turning back waits as long as for moving ones)."""
         pts = []
         for pose, front, rid in self.exploration_points(ego):
             g = self._explore_goal(pose, world)
@@ -137,7 +139,7 @@ class SearchMixin:
         blocked_any = front_waits = False
         for group in (True, False):  # front points first; behind only if the front stays blocked
             items = [p for p in pts if p[1] == group]
-            if group is False and front_waits and not back_allowed:
+            if group is False and ((front_waits and not back_allowed) or not behind):
                 break  # the road ahead is blocked by agents only: wait before turning back
             if not items:
                 continue

@@ -59,6 +59,9 @@ class DecisionSettings:
     fallback_prediction: str = "constant_velocity"  # for observed agents without a prediction: | "static" | "none"
     fallback_horizon: float = 3.0  # seconds of the fallback constant-velocity prediction
     dynamic_as_static_fallback: bool = True  # replan around current agent footprints if all plans are blocked
+    # in that round a road ahead blocked by standing agents counts as blocked by agents (§V-D-2 "only ... if the road
+    # ahead of it stays blocked"): exploring behind waits as in the first round; false: at once (before issue #21)
+    detour_waits_to_turn_back: bool = True  # that round turns back only after the front stayed blocked 3 s (§V-D-2)
     fallback_time_cap: float = 0.05  # seconds for that second round of searches
     fallback_max_iterations: int = 300  # node pops per search in that round
     evasive: bool = True  # if standing still is predicted to be hit, drive the plan that is hit latest
