@@ -27,7 +27,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "(docs/experiment.md 'On a Ray cluster')")
     p.add_argument("--address", default=None, metavar="auto|HOST:PORT",
                    help="--backend ray: the cluster to join (default: a private Ray instance with --workers CPUs)")
-    p.add_argument("--out", default=str(Path.cwd() / "out" / "experiment"), help="output folder")
+    p.add_argument("--out", default=str(Path("out") / "experiment"), help="output folder [out/experiment]")
     p.add_argument("--transport", choices=("inproc", "ros"), default="inproc",
                    help="inproc: simulator and ego cores in worker processes; ros: the live DDS graph")
     p.add_argument("--t-final", type=float, default=100.0, help="episode time limit t_f [s] (§VI-A: 100)")

@@ -71,6 +71,20 @@ def profile_digest(profile: MethodProfile) -> str:
     return h.hexdigest()[:16]
 
 
+def portable_path(path: str) -> str:
+    """A lot file as run.json and the summary name it: relative to the clone when it lies in one (a results folder
+    moves with the repository and must not name this machine's paths), else as given."""
+    if not path or not Path(path).is_absolute():
+        return path
+    marker = "/src/avp_"  # a file of the clone's packages, wherever the clone was (also for run.json written before)
+    i = path.rfind(marker)
+    return path[i + 1:] if i >= 0 else path
+
+
+def _portable_sim(d: dict) -> dict:
+    return {**d, "lot_file": portable_path(d["lot_file"])} if isinstance(d, dict) and d.get("lot_file") else d
+
+
 def run_identity(cfg: RunConfig, profiles: Iterable[MethodProfile]) -> dict:
     """What OUT/run.json must match: the run config, the intent weights, every avp_sim parameter value (so that
     a change of the shipped scenario defaults is not mixed with earlier episodes), the lot (name and file hash)
@@ -79,7 +93,9 @@ def run_identity(cfg: RunConfig, profiles: Iterable[MethodProfile]) -> dict:
     from avp_sim.core.factory import load_lot_param
 
     sim = sim_values(cfg)
-    return {"config": asdict(cfg), "intent": intent_identity(cfg), "sim": sim,
+    config = asdict(cfg)
+    config["sim_overrides"] = _portable_sim(config["sim_overrides"])
+    return {"config": config, "intent": intent_identity(cfg), "sim": _portable_sim(sim),
             "lot": lot_record(load_lot_param(sim["lot_file"])),
             "methods": {p.name: profile_digest(p) for p in profiles}}
 
@@ -91,6 +107,8 @@ def check_run_file(out: Path, ident: dict) -> dict:
         old = json.loads(path.read_text())
         if isinstance(old.get("config"), dict):  # fields added since (protocol, ...) read as their defaults
             old["config"] = {**asdict(RunConfig()), **old["config"]}
+            old["config"]["sim_overrides"] = _portable_sim(old["config"]["sim_overrides"])
+        old["sim"] = _portable_sim(old.get("sim"))
         if isinstance(old.get("sim"), dict):  # avp_sim parameters added since read as their defaults
             from avp_sim.params import SIM_PARAMS
 
@@ -175,7 +193,8 @@ def log_invocation(out: Path, args: argparse.Namespace, started: str, wall_s: fl
             "workers": args.workers, "transport": args.transport, "cpu_count": os.cpu_count(),
             "loadavg_end": [round(x, 2) for x in os.getloadavg()],
             "commit": commit,
-            "options": {k: v for k, v in sorted(vars(args).items()) if isinstance(v, (str, int, float, bool, list))}}
+            "options": {k: portable_path(v) if k == "lot" else v for k, v in sorted(vars(args).items())
+                        if isinstance(v, (str, int, float, bool, list))}}
     with open(out / RUNS_LOG, "a") as f:
         f.write(json.dumps(line) + "\n")
 

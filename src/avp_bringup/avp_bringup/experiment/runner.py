@@ -335,7 +335,7 @@ def _run_locked(args: argparse.Namespace, out: Path, cfg: RunConfig, profiles: l
     wanted = set(keys)
     summary = write_summary(out, [r for r in records if record_key(r) in wanted], skipped,
                             {"ade_horizon": cfg.ade_horizon, "t_final": cfg.t_final, "intent": ident["intent"],
-                             "seeds_without_scenario": bad_seeds, "sim_overrides": cfg.sim_overrides,
+                             "seeds_without_scenario": bad_seeds, "sim_overrides": ident["config"]["sim_overrides"],
                              "protocol": cfg.protocol, "planner_overrides": cfg.planner_overrides},
                             {p.name: (p.group, p.label) for p in profiles})
     print(f"[avp experiment] ran {n_run} episodes; summary: {out / 'summary.md'}, plots in {out / 'plots'}/")

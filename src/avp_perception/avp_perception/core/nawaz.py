@@ -4,8 +4,7 @@ Nawaz et al., "Occupancy-aware Trajectory Planning for Autonomous Valet Parking 
 Environments" (arXiv 2509.09206), infer how likely each observed vacant spot is to be taken from the
 *predicted future positions* of the other agents instead of from their intentions. Chung et al. (§VI-B-2)
 compare against it with the oracle trajectories of Nawaz's code replaced by constant-velocity predictions.
-The update rule follows the reference code (farhad-hri/ParkSim ``belief_pred_utils.py``; facts in
-``shared/reference/nawaz-occupancy-and-hybrid-astar-facts.md`` §4c):
+The update rule follows the authors' public code (their ParkSim fork, ``belief_pred_utils.py``):
 
 For every agent a (observed dynamic vehicle or pedestrian) take its predicted mean positions mu_a,k at
 t + k h, k = 0..T (h = 0.5 s, T = 5: 2.5 s; k = 0 is the observed position), and a covariance
