@@ -17,18 +17,11 @@ from __future__ import annotations
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from avp_bringup.bag import make_typestore, message_class
+from avp_bringup.bag import GRAPH_TOPICS, make_typestore, message_class
 
-#: topic -> (type, latched): what the 3-D panel and the plots need
-VIEW_TOPICS: dict[str, tuple[str, bool]] = {
-    "/tf": ("tf2_msgs/msg/TFMessage", False),
-    "/tf_static": ("tf2_msgs/msg/TFMessage", True),
-    "/avp/viz/scene": ("visualization_msgs/msg/MarkerArray", False),
-    "/avp/debug/scan": ("sensor_msgs/msg/LaserScan", False),
-    "/avp/plan": ("nav_msgs/msg/Path", False),
-    "/avp/cmd": ("geometry_msgs/msg/TwistStamped", False),
-    "/avp/episode_status": ("avp_msgs/msg/EpisodeStatus", True),
-}
+#: topic -> (type, latched): what the 3-D panel and the plots need (types and latching as the bags record them)
+VIEW_TOPICS: dict[str, tuple[str, bool]] = {t: GRAPH_TOPICS[t] for t in (
+    "/tf", "/tf_static", "/avp/viz/scene", "/avp/debug/scan", "/avp/plan", "/avp/cmd", "/avp/episode_status")}
 LATCH_RESEND = 1.0  # s between re-sends of a latched topic's last message
 
 
