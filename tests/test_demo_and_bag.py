@@ -77,8 +77,9 @@ def check_viewer_topics(bag: Path, steps: int) -> None:
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
-    want = {"/tf": "tf2_msgs/msg/TFMessage", "/tf_static": "tf2_msgs/msg/TFMessage",
-            "/avp/viz/scene": "visualization_msgs/msg/MarkerArray", "/avp/debug/scan": "sensor_msgs/msg/LaserScan"}
+    markers = "visualization_msgs/msg/MarkerArray"
+    want = {"/tf": "tf2_msgs/msg/TFMessage", "/tf_static": "tf2_msgs/msg/TFMessage", "/avp/viz/lot": markers,
+            "/avp/viz/spots": markers, "/avp/viz/scene": markers, "/avp/debug/scan": "sensor_msgs/msg/LaserScan"}
     got: dict[str, list] = {t: [] for t in want}
     files = sorted(Path(bag).glob("*.mcap"))
     assert files, bag
@@ -88,7 +89,7 @@ def check_viewer_topics(bag: Path, steps: int) -> None:
                     .iter_decoded_messages(topics=list(want)):
                 assert schema.name == want[channel.topic], (channel.topic, schema.name)
                 got[channel.topic].append(dec)
-    assert [len(got[t]) > 0 for t in want] == [True] * 4, {t: len(v) for t, v in got.items()}
+    assert all(len(got[t]) > 0 for t in want), {t: len(v) for t, v in got.items()}
     static = got["/tf_static"][0].transforms[0]
     assert (static.header.frame_id, static.child_frame_id) == ("map", "odom")
     ego_tf = [[t for t in m.transforms if t.child_frame_id == "base_link"] for m in got["/tf"]]
@@ -99,10 +100,14 @@ def check_viewer_topics(bag: Path, steps: int) -> None:
     scenes = got["/avp/viz/scene"]
     assert len(scenes) >= steps
     layers = set().union(*({m.ns for m in s.markers} for s in scenes))
-    assert {"lot", "spots", "vehicles", "ego", "plan"} <= layers, layers
-    spots = next(m for m in scenes[-1].markers if m.ns == "spots")
-    assert len(spots.points) == 6 * 40 and len(spots.colors) == len(spots.points)  # every spot, coloured
-    assert all(m.header.frame_id == "map" for s in scenes for m in s.markers if m.ns)
+    assert {"vehicles", "ego", "plan"} <= layers, layers
+    assert {m.ns for m in got["/avp/viz/lot"][0].markers} == {"lot"} and len(got["/avp/viz/lot"]) == 1
+    # the spot fill: every spot coloured, sent again only when a colour changed
+    fills = [next(m for m in a.markers if m.ns == "spots") for a in got["/avp/viz/spots"]]
+    assert all(len(f.points) == 6 * 40 and len(f.colors) == len(f.points) for f in fills)
+    assert 1 <= len(fills) <= len(scenes)
+    assert all(m.header.frame_id == "map" for t in ("/avp/viz/scene", "/avp/viz/lot", "/avp/viz/spots")
+               for a in got[t] for m in a.markers if m.ns)
     assert got["/avp/debug/scan"][0].header.frame_id == "base_link" and len(got["/avp/debug/scan"][0].ranges) > 0
 
 

@@ -5,7 +5,8 @@
 
 Reads the bag with the independent ``mcap`` + ``mcap-ros2-support`` reader (every split) and draws, in a
 perspective view with matplotlib's 3-D axes, the markers of ``/avp/viz/scene`` (triangle lists, line strips and
-lists, cubes, cylinders: the marker types the scene node uses, with their colours and poses), the ray scan of
+lists, cubes, cylinders: the marker types the scene node uses, with their colours and poses) with the lot of
+``/avp/viz/lot`` and the latest spot fill of ``/avp/viz/spots`` at that step, the ray scan of
 ``/avp/debug/scan`` placed by ``/tf`` (odom -> base_link) and the frame axes of ``map`` and ``base_link``.
 ``--step auto``: a step whose scene has predictions and a plan and, among those, the most layers and the longest
 predicted trajectories.
@@ -29,12 +30,16 @@ def read(bag: Path) -> tuple[dict[int, object], dict[int, object], dict[int, obj
     def step(stamp) -> int:
         return round((stamp.sec * 1_000_000_000 + stamp.nanosec) / 100_000_000)
 
-    scenes, scans, tfs = {}, {}, {}
+    scenes, scans, tfs, static, fills = {}, {}, {}, [], {}
     for f in sorted(Path(bag).glob("*.mcap")):
         with open(f, "rb") as fh:
             for _s, ch, _m, dec in make_reader(fh, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
-                    topics=["/avp/viz/scene", "/avp/debug/scan", "/tf"]):
-                if ch.topic == "/avp/viz/scene":
+                    topics=["/avp/viz/scene", "/avp/viz/lot", "/avp/viz/spots", "/avp/debug/scan", "/tf"]):
+                if ch.topic == "/avp/viz/lot":
+                    static = list(dec.markers)
+                elif ch.topic == "/avp/viz/spots":
+                    fills[step(dec.markers[0].header.stamp)] = list(dec.markers)
+                elif ch.topic == "/avp/viz/scene":
                     stamped = [m for m in dec.markers if m.ns]
                     if stamped:
                         scenes[step(stamped[0].header.stamp)] = dec
@@ -44,6 +49,9 @@ def read(bag: Path) -> tuple[dict[int, object], dict[int, object], dict[int, obj
                     for t in dec.transforms:
                         if t.child_frame_id == "base_link":
                             tfs[step(t.header.stamp)] = t
+    for k, sc in scenes.items():  # what a viewer shows at step k: the lot, the latest spot fill, the step's scene
+        fill = fills[max((s for s in fills if s <= k), default=min(fills))] if fills else []
+        sc.markers = [*sc.markers[:1], *static, *fill, *sc.markers[1:]]
     return scenes, scans, tfs
 
 

@@ -44,6 +44,8 @@ GRAPH_TOPICS: dict[str, tuple[str, bool]] = {
     # what a viewer needs (issue #21): transforms, the scene node's markers, the ray scan
     "/tf": ("tf2_msgs/msg/TFMessage", False),
     "/tf_static": ("tf2_msgs/msg/TFMessage", True),
+    "/avp/viz/lot": ("visualization_msgs/msg/MarkerArray", True),
+    "/avp/viz/spots": ("visualization_msgs/msg/MarkerArray", True),
     "/avp/viz/scene": ("visualization_msgs/msg/MarkerArray", False),
     "/avp/debug/scan": ("sensor_msgs/msg/LaserScan", False),
 }

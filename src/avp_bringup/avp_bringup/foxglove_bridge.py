@@ -21,7 +21,8 @@ from avp_bringup.bag import GRAPH_TOPICS, make_typestore, message_class
 
 #: topic -> (type, latched): what the 3-D panel and the plots need (types and latching as the bags record them)
 VIEW_TOPICS: dict[str, tuple[str, bool]] = {t: GRAPH_TOPICS[t] for t in (
-    "/tf", "/tf_static", "/avp/viz/scene", "/avp/debug/scan", "/avp/plan", "/avp/cmd", "/avp/episode_status")}
+    "/tf", "/tf_static", "/avp/viz/lot", "/avp/viz/spots", "/avp/viz/scene", "/avp/debug/scan", "/avp/plan",
+    "/avp/cmd", "/avp/episode_status")}
 LATCH_RESEND = 1.0  # s between re-sends of a latched topic's last message
 
 

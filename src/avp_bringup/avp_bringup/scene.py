@@ -3,11 +3,13 @@
 Frames (REP-105): ``map`` (the lot), ``odom`` (= ``map``: the simulated ego localises perfectly, so ``map -> odom``
 is a static identity on ``/tf_static``), ``base_link`` (the ego, ``odom -> base_link`` on ``/tf``) and
 ``agent_<id>`` (every vehicle the ego observes, ``map -> agent_<id>``). The markers (``visualization_msgs``,
-frame ``map``) show the ego's view, not the ground truth: the lot's boundary and spot outlines, the spots filled
-by the belief b_t (eq. 8: green vacant 0 -> red occupied 1, grey never observed), the observed vehicles'
-footprints (static blue, moving yellow) and pedestrians (white), each predicted trajectory (§V-C, magenta) with
-its probability as opacity, the planned path (§V-D: green parking, blue exploring) and the chosen spot's outline.
-Everything is stamped with the step's simulated time. Pure functions of messages: :mod:`avp_bringup.scene_node`
+frame ``map``) show the ego's view, not the ground truth, on three topics so that what does not change is not
+sent again every step: ``viz/lot`` (latched, once per lot: boundary and spot outlines), ``viz/spots`` (latched,
+whenever a spot's colour changes: the spots filled by the belief b_t of eq. 8, green vacant 0 -> red occupied 1,
+grey never observed) and ``viz/scene`` (every step: the observed vehicles' footprints, static blue, moving
+yellow, pedestrians white, each predicted trajectory of §V-C in magenta with its probability as opacity, the
+ego, its planned path of §V-D, green parking, blue exploring, and the chosen spot's outline). Everything is
+stamped with the simulated time of the step it shows. Pure functions of messages: :mod:`avp_bringup.scene_node`
 publishes them.
 """
 
@@ -93,38 +95,55 @@ def _box(ns: str, mid: int, pose, length: float, width: float, height: float, rg
     return m
 
 
-def lot_markers(lot, stamp) -> list[Marker]:
-    """The lot's boundary and every spot's outline (the static part)."""
+def lot_markers(lot, stamp) -> MarkerArray:
+    """``viz/lot`` (latched, once per lot): the lot's boundary and every spot's outline."""
     boundary = _marker("lot", 0, Marker.LINE_STRIP, stamp, (0.85, 0.85, 0.85, 1.0), width=0.15)
     boundary.points = _pts(np.vstack([lot.boundary, lot.boundary[:1]]))
     outlines = _marker("lot", 1, Marker.LINE_LIST, stamp, (0.95, 0.95, 0.95, 0.8), width=0.05)
     for s in lot.spots:
         c = _corners(s.x, s.y, s.heading, s.length, s.width)
         outlines.points += _pts(np.repeat(np.vstack([c, c[:1]]), 2, axis=0)[1:-1], 0.01)
-    return [boundary, outlines]
+    return MarkerArray(markers=[boundary, outlines])
 
 
-def spot_fill(lot, beliefs: np.ndarray | None, stamp) -> Marker:
-    """All spots as one triangle list, each coloured by its belief (``beliefs`` per lot spot, NaN unseen)."""
-    m = _marker("spots", 0, Marker.TRIANGLE_LIST, stamp, (1.0, 1.0, 1.0, 1.0))
-    for k, s in enumerate(lot.spots):
-        c = _corners(s.x, s.y, s.heading, s.length, s.width)
-        b = np.nan if beliefs is None else float(beliefs[k])
-        rgba = ColorRGBA(**dict(zip("rgba", map(float, belief_color(b)), strict=True)))
-        m.points += _pts(c[[0, 1, 2, 0, 2, 3]], 0.02)
-        m.colors += [rgba] * 6
-    return m
+BELIEF_LEVELS = 20  # the spot fill's colours are the belief rounded to 1/20 (what a viewer can tell apart)
 
 
-def scene_markers(lot, obs, beliefs: np.ndarray | None, predictions, decision, stamp) -> MarkerArray:
-    """One step's scene (see the module docstring). ``obs``: the core Observation; ``beliefs``: per lot spot or
-    None; ``predictions``: PredictedTrajectoryArray message or None; ``decision``: PlannerDecision or None."""
+def belief_levels(beliefs: np.ndarray | None, n: int) -> np.ndarray:
+    """Per spot: its colour level, round(20 b) in 0..20, or -1 for never observed (NaN) or no beliefs yet."""
+    if beliefs is None:
+        return np.full(n, -1, dtype=np.int64)
+    b = np.asarray(beliefs, dtype=float)
+    return np.where(np.isfinite(b), np.rint(np.clip(np.nan_to_num(b), 0.0, 1.0) * BELIEF_LEVELS), -1).astype(np.int64)
+
+
+class SpotFill:
+    """``viz/spots``: all spots of a lot as one triangle list coloured by belief level (:func:`belief_levels`).
+    The geometry and the colours are built once; a node publishes a new fill only when a level changed."""
+
+    def __init__(self, lot) -> None:
+        self.points = []
+        for s in lot.spots:
+            c = _corners(s.x, s.y, s.heading, s.length, s.width)
+            self.points += _pts(c[[0, 1, 2, 0, 2, 3]], 0.02)
+        self.palette = {lvl: ColorRGBA(**dict(zip("rgba", map(float, belief_color(
+            lvl / BELIEF_LEVELS if lvl >= 0 else np.nan)), strict=True))) for lvl in range(-1, BELIEF_LEVELS + 1)}
+
+    def marker(self, levels: np.ndarray, stamp) -> MarkerArray:
+        m = _marker("spots", 0, Marker.TRIANGLE_LIST, stamp, (1.0, 1.0, 1.0, 1.0))
+        m.points = self.points
+        m.colors = [self.palette[int(lvl)] for lvl in levels for _ in range(6)]
+        return MarkerArray(markers=[m])
+
+
+def scene_markers(lot, obs, predictions, decision, stamp) -> MarkerArray:
+    """``viz/scene``, one step's moving part (see the module docstring): observed vehicles and pedestrians,
+    predictions, the ego, its plan and chosen spot. ``obs``: the core Observation; ``predictions``:
+    PredictedTrajectoryArray message or None; ``decision``: PlannerDecision or None."""
     arr = MarkerArray()
     clear = Marker()
     clear.action = Marker.DELETEALL
     arr.markers.append(clear)
-    arr.markers += lot_markers(lot, stamp)
-    arr.markers.append(spot_fill(lot, beliefs, stamp))
     for v in obs.vehicles:
         rgba = (0.3, 0.4, 0.95, 0.9) if v.is_static else (0.95, 0.85, 0.1, 0.95)
         arr.markers.append(_box("vehicles", v.id, v.pose, v.length, v.width, 1.5, rgba, stamp))

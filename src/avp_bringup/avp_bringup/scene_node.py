@@ -2,13 +2,15 @@
 
 Topics (relative names in namespace /avp, except the two TF topics, which are global as REP-105 wants them):
   subscribes lot_map (latched), observation, beliefs, predictions, decision
-  publishes  /tf_static (map -> odom, latched), /tf (odom -> base_link, map -> agent_<id>), viz/scene
-             (visualization_msgs/MarkerArray: :mod:`avp_bringup.scene`)
+  publishes  /tf_static (map -> odom, latched), /tf (odom -> base_link, map -> agent_<id>), and as
+             visualization_msgs/MarkerArray (:mod:`avp_bringup.scene`) viz/lot (latched, once per lot),
+             viz/spots (latched, when a spot's colour changes), viz/scene (every step)
 
 A sink: nothing in the ego's pipeline reads what it publishes, so it never changes an episode. It publishes the
-transforms of step k when observation k arrives, and the scene of step k once observation, beliefs, predictions
-and decision k have all arrived (in any order), or else when observation k + 1 does, with what came (a graph
-without perception or planner); each stamped with the step's simulated time. lot_map, observation, beliefs and
+transforms of step k when observation k arrives, and the scene of step k (with the spot fill, if a colour
+changed) once observation, beliefs, predictions and decision k have all arrived (in any order), or else when
+observation k + 1 does, with what came (a graph without perception or planner); each stamped with the step's
+simulated time. lot_map, observation, beliefs and
 predictions are taken only when tagged with the user's key (``auth_inputs``); the decision is not tagged by the
 planner and only draws the plan, so it is taken from any publisher (a forged one changes the picture, never the
 ego). Bad messages are dropped with one
@@ -61,6 +63,10 @@ class SceneNode(Node):
         self.reject = RateLimitedLog(self.get_logger().error)
         self.auth = Authenticator(self, p["auth_inputs"])
         self.pub_scene = self.create_publisher(MarkerArray, "viz/scene", DEBUG)
+        self.pub_lot = self.create_publisher(MarkerArray, "viz/lot", LATCHED)
+        self.pub_spots = self.create_publisher(MarkerArray, "viz/spots", LATCHED)
+        self.fill: scene.SpotFill | None = None
+        self.levels: np.ndarray | None = None  # the spot colour levels last published
         if self.publish_tf:
             self.pub_tf = self.create_publisher(TFMessage, "/tf", TF)
             self.pub_tf_static = self.create_publisher(TFMessage, "/tf_static", TF_STATIC)
@@ -76,6 +82,8 @@ class SceneNode(Node):
             return
         self.lot = lot
         self._forget()
+        self.fill = scene.SpotFill(lot)
+        self.pub_lot.publish(scene.lot_markers(lot, msg.header.stamp))
         if self.publish_tf:
             self.pub_tf_static.publish(scene.static_transforms(msg.header.stamp))
 
@@ -131,13 +139,17 @@ class SceneNode(Node):
         beliefs = self.beliefs.get(k)
         if beliefs is not None and self.seen is not None:
             beliefs = np.where(self.seen, beliefs, np.nan)
-        self.pub_scene.publish(scene.scene_markers(self.lot, obs, beliefs, self.preds.get(k), decision, stamp))
+        levels = scene.belief_levels(beliefs, self.lot.n_spots)
+        if self.levels is None or not np.array_equal(levels, self.levels):
+            self.pub_spots.publish(self.fill.marker(levels, stamp))
+            self.levels = levels
+        self.pub_scene.publish(scene.scene_markers(self.lot, obs, self.preds.get(k), decision, stamp))
         self.published = k
 
     def _forget(self) -> None:
         for d in (self.obs, self.beliefs, self.preds, self.decisions):
             d.clear()
-        self.published, self.seen = -1, None
+        self.published, self.seen, self.levels = -1, None, None
 
     def _trim(self) -> None:
         for d in (self.obs, self.beliefs, self.preds, self.decisions):
