@@ -115,6 +115,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         self.beliefs = np.full(self.lot.n_spots, 0.5)
         self._plan: _Plan | None = None
         self._world_cache: dict[tuple, StaticWorld] = {}
+        self._distance_cache: dict[tuple, tuple] = {}  # the heuristic's 2-D distance maps by (world, start cell)
         self._last_park_attempt: tuple | None = None
         self._park_attempt_step = -(10**9)
         self._front_blocked_step: int | None = None  # since when the road ahead is blocked by agents only

@@ -69,7 +69,8 @@ class InputsMixin:
         """The static obstacles: believed-occupied spots (b >= beta), observed static vehicles, and ``extra``.
 
         Built worlds are cached by what they are built from (the last ``WORLD_CACHE_SIZE``: parked cars at the
-        sensor's edge flicker in and out of view). A static vehicle lying inside a believed-occupied spot with
+        sensor's edge flicker in and out of view; the detour round's world with the standing agents as ``extra`` is
+        the same step after step while the ego is held up). A static vehicle lying inside a believed-occupied spot with
         ``CONTAINED_MARGIN`` to spare adds nothing to the union of obstacles, nor to its raster, so it is left
         out of what the world is built from. ``world.key`` still names every input (the parking retry logic
         compares it), so decisions are those of a world built from everything.
@@ -97,13 +98,12 @@ class InputsMixin:
             keep = np.r_[np.ones(len(occ), bool), kept, np.ones(len(poses_a) - len(occ) - len(stat), bool)]
             poses_a, dims_a = poses_a[keep], dims_a[keep]
             build = (key[0], key[1], rp[keep].tobytes(), rd[keep].tobytes())
-        world = self._world_cache.get(build) if extra is None else None
+        world = self._world_cache.get(build)
         if world is None:
             world = StaticWorld(self.lot, poses_a, dims_a, obs.ego_length, obs.ego_width, self.settings.collision)
-            if extra is None:
-                self._world_cache[build] = world
-                while len(self._world_cache) > WORLD_CACHE_SIZE:
-                    self._world_cache.pop(next(iter(self._world_cache)))
+            self._world_cache[build] = world
+            while len(self._world_cache) > WORLD_CACHE_SIZE:
+                self._world_cache.pop(next(iter(self._world_cache)))
         else:
             self._world_cache[build] = self._world_cache.pop(build)  # most recently used last
         world.key = key

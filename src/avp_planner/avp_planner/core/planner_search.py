@@ -121,7 +121,7 @@ class SearchMixin:
 
     def _searcher(self, world: StaticWorld, ego: np.ndarray, timing: dict):
         t0 = time.perf_counter()
-        heur = EgoHeuristic(world, ego, self.settings)
+        heur = EgoHeuristic(world, ego, self.settings, self._distance_cache)  # same world and cell: same map
         timing["path_planning_time"] += time.perf_counter() - t0
         return heur, HybridAStar(world, ego, self.settings, heur)
 
