@@ -180,7 +180,8 @@ def test_avp_launch_starts_graph_and_ctrl_c_stops_it(ros, tmp_path):
     assert proc.returncode == 0
     assert "logs in" in out and "graph stopped" in out
     pids = [int(line.split("pid ")[1].split()[0]) for line in out.splitlines() if " pid " in line]
-    assert len(pids) == 2
+    assert len(pids) == 3  # simulator, scripted driver and the viewers' scene node (issue #21)
+    assert "avp_scene: pid" in out
     for pid in pids:  # every node process is gone
         assert subprocess.run(["kill", "-0", str(pid)], capture_output=True).returncode != 0
 
