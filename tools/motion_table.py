@@ -17,6 +17,8 @@ import math
 import sys
 from pathlib import Path
 
+from avp_bringup.experiment.metrics import wilson
+
 
 def _records(folder: str, method: str) -> dict:
     out = {}
@@ -26,16 +28,6 @@ def _records(folder: str, method: str) -> dict:
             if r["method"] == method:
                 out[(r["seed"], r["mode"])] = r
     return out
-
-
-def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    if n == 0:
-        return (0.0, 1.0)
-    p = k / n
-    d = 1 + z * z / n
-    c = (p + z * z / (2 * n)) / d
-    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
-    return (c - h, c + h)
 
 
 def mcnemar(b: int, c: int) -> float:
