@@ -17,14 +17,13 @@ from pathlib import Path
 import numpy as np
 from ament_index_python.packages import get_package_share_directory
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from avp_bringup.bagwriter import BagStorageError, SplitBagWriter
 from avp_common.conversions import time_to_ns
 from avp_common.drain import draining_subscription
-from avp_common.qos import GROUND_TRUTH
+from avp_common.qos import GROUND_TRUTH, reader_qos
 
 #: topic -> (type, latched). The default recording set of the graph (the simulator's ground-truth markers, the
 #: belief grid and the BEVs are left out: derivable or large).
@@ -117,9 +116,7 @@ class BagRecorder(Node):
             conn = self.writer.add_connection(topic, typename, typestore=self.ts, offered_qos_profiles=[_qos(latched)])
             # reader queue as deep as the ground-truth writer keeps (30 s of steps): a recorder stalled on a split
             # or an fsync drops nothing
-            qos = QoSProfile(depth=1 if latched else GROUND_TRUTH.depth, history=HistoryPolicy.KEEP_LAST,
-                             reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+            qos = reader_qos(latched, GROUND_TRUTH.depth)
             # bursts (a flood) are taken in one executor round (avp_common.drain)
             self._subs.append(draining_subscription(self, message_class(typename), topic, self._callback(topic, conn),
                                                     qos))

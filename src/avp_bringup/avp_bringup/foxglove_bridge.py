@@ -15,9 +15,9 @@ offers no client publishing, services or parameters).
 from __future__ import annotations
 
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from avp_bringup.bag import GRAPH_TOPICS, make_typestore, message_class
+from avp_common.qos import reader_qos
 
 #: topic -> (type, latched): what the 3-D panel and the plots need (types and latching as the bags record them)
 VIEW_TOPICS: dict[str, tuple[str, bool]] = {t: GRAPH_TOPICS[t] for t in (
@@ -46,9 +46,7 @@ class FoxgloveBridge(Node):
             msgdef, _ = ts.generate_msgdef(typename, ros_version=2)
             schema = foxglove.Schema(name=typename, encoding="ros2msg", data=msgdef.encode())
             self.channels[topic] = foxglove.Channel(topic, schema=schema, message_encoding="cdr")
-            qos = QoSProfile(depth=1 if latched else 10, history=HistoryPolicy.KEEP_LAST,
-                             reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+            qos = reader_qos(latched, 10)
             self.create_subscription(message_class(typename), topic, self._forward(topic, latched), qos, raw=True)
         self.create_subscription(message_class("rosgraph_msgs/msg/Clock"), "/clock", self._on_clock, 10)
         self._resend = self.create_timer(LATCH_RESEND, self._resend_latched)

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import numpy as np
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
@@ -30,7 +29,7 @@ from avp_common.conversions import MessageError, beliefs_from_msg, lot_from_msg_
 from avp_common.msg_auth import Authenticator
 from avp_common.node_main import run_node
 from avp_common.params import ParamSpec, declare_and_validate
-from avp_common.qos import DEBUG, LATCHED, STEP_INPUT
+from avp_common.qos import DEBUG, LATCHED, STEP_INPUT, reader_qos
 from avp_common.ratelog import RateLimitedLog
 from avp_msgs.msg import LotMap, Observation, PlannerDecision, PredictedTrajectoryArray, SpotBeliefs
 
@@ -40,11 +39,8 @@ SCENE_PARAMS = [
     ParamSpec("publish_tf", bool, "Publish /tf and /tf_static (REP-105: map -> odom -> base_link, map -> "
               "agent_<id>). Off where another node owns the transform tree.", default=True),
 ]
-#: /tf_static as tf2 wants it: reliable, transient local, one message
-TF_STATIC = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
-TF = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
-                durability=DurabilityPolicy.VOLATILE)
+#: /tf as tf2 wants it: reliable, volatile, deep enough for a burst (/tf_static takes LATCHED: transient local, one)
+TF = reader_qos(False, 100)
 KEEP_STEPS = 20  # steps of inputs kept while waiting for their decision (bounded)
 
 
@@ -69,7 +65,7 @@ class SceneNode(Node):
         self.levels: np.ndarray | None = None  # the spot colour levels last published
         if self.publish_tf:
             self.pub_tf = self.create_publisher(TFMessage, "/tf", TF)
-            self.pub_tf_static = self.create_publisher(TFMessage, "/tf_static", TF_STATIC)
+            self.pub_tf_static = self.create_publisher(TFMessage, "/tf_static", LATCHED)
         self.auth.subscription(LotMap, "lot_map", self._on_lot, LATCHED)
         self.auth.subscription(Observation, "observation", self._on_obs, STEP_INPUT)
         self.auth.subscription(SpotBeliefs, "beliefs", self._on_beliefs, STEP_INPUT)

@@ -28,3 +28,9 @@ GROUND_TRUTH = _reliable(300, DurabilityPolicy.VOLATILE)
 DEBUG = _reliable(2, DurabilityPolicy.VOLATILE)
 #: Episode status: latched so a monitor that joins late sees the last one.
 STATUS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def reader_qos(latched: bool, depth: int) -> QoSProfile:
+    """A sink's reader of a graph topic (recorder, viewers): :data:`LATCHED` for a latched topic, else reliable,
+    volatile, keep-last ``depth``."""
+    return LATCHED if latched else _reliable(depth, DurabilityPolicy.VOLATILE)

@@ -42,15 +42,10 @@ def import_ray():
 
 
 def _episode_task(key: Key, cfg: RunConfig, sources: dict[str, str]) -> dict:
-    """The body of one Ray task: set the worker up once per (cfg, sources), then run the episode."""
-    from avp_bringup.experiment import runner
+    """The body of one Ray task (:func:`~.runner.episode_in_worker`)."""
+    from avp_bringup.experiment.runner import episode_in_worker
 
-    ident = (cfg, tuple(sorted(sources.items())))
-    if runner._WORKER.get("ray_ident") != ident:
-        runner._WORKER.clear()
-        runner._init_worker(cfg, sources=sources)
-        runner._WORKER["ray_ident"] = ident
-    return runner._worker_episode(key)
+    return episode_in_worker(key, cfg, sources)
 
 
 def connect(address: str | None, workers: int) -> tuple[Any, bool]:

@@ -133,6 +133,17 @@ def _worker_episode(key: Key) -> dict:
                               _WORKER["cfg"])
 
 
+def episode_in_worker(key: Key, cfg: RunConfig, sources: dict[str, str]) -> dict:
+    """One episode in a long-lived worker process of another backend (a Ray task): the worker is set up as
+    :func:`run_inproc`'s are, once per (cfg, sources), then runs ``key``."""
+    ident = (cfg, sorted(sources.items()))
+    if _WORKER.get("ident") != ident:
+        _WORKER.clear()
+        _init_worker(cfg, sources=sources)
+        _WORKER["ident"] = ident
+    return _worker_episode(key)
+
+
 def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callable[[dict], None],
                sources: dict[str, str] | None = None) -> list[str]:
     """Run ``keys`` in ``workers`` processes (0: in this process), calling ``on_record`` as each finishes.
