@@ -6,6 +6,7 @@ none are produced by the code under test.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -15,7 +16,8 @@ from shapely import affinity
 from shapely.geometry import LinearRing, Point, Polygon, box
 
 from avp_sim.core.observation import RayCaster, SensorConfig, classify_world
-from avp_world.lot import load_bundled_lot
+from avp_world.geometry import rect_corners, rect_inside_rect
+from avp_world.lot import LotMap, load_bundled_lot
 
 LOT = load_bundled_lot("paper_lot")
 LOT_POLY = Polygon(LOT.boundary)
@@ -346,6 +348,42 @@ def test_classify_world_every_spot_parked():
     occ, vspot = classify_world(LOT, np.concatenate([cars, moving[None]]))
     assert occ.all()
     np.testing.assert_array_equal(vspot, list(range(LOT.n_spots)) + [-1])
+
+
+@pytest.mark.parametrize("lot_name", ["paper_lot", "side_lot", "dlp_lot"])
+def test_classify_world_matches_every_pair_and_shapely(lot_name):
+    """The near-pair filter changes nothing: the all-pairs containment test and shapely agree on random cars."""
+    lot = load_bundled_lot(lot_name)
+    rng = np.random.default_rng(7)
+    rows = rng.integers(0, lot.n_spots, 300)
+    jitter = rng.normal(0.0, 0.35, (300, 3)) * [1.0, 1.0, 0.1]
+    poses = lot.spot_poses[rows] + jitter
+    lo, hi = lot.spot_poses[:, :2].min(0), lot.spot_poses[:, :2].max(0)
+    free = np.column_stack([rng.uniform(lo, hi, (100, 2)), rng.uniform(-np.pi, np.pi, 100)])
+    cars = rect_corners(np.vstack([poses, free]), 4.6, 1.85)
+    occ, vspot = classify_world(lot, cars)
+    every = rect_inside_rect(cars[:, None], lot.spot_corners[None], tol=1e-6)  # (N, S), no filter
+    np.testing.assert_array_equal(occ, every.any(0))
+    np.testing.assert_array_equal(vspot, np.where(every.any(1), every.argmax(1), -1))
+    spots = [Polygon(c) for c in lot.spot_corners]
+    for i, c in enumerate(cars):
+        car = Polygon(c)
+        if vspot[i] >= 0:
+            assert spots[vspot[i]].buffer(1e-3).contains(car)
+        else:
+            assert not any(s.buffer(-1e-3).contains(car) for s in spots)
+    assert 0 < (vspot >= 0).sum() < len(cars)  # both outcomes occur
+
+
+def test_classify_world_overlapping_spots_lowest_row():
+    lot = load_bundled_lot("paper_lot")
+    s = lot.spots[5]
+    twin = LotMap(name="twin", boundary=lot.boundary, entrance=lot.entrance, roads=lot.roads,
+                  spots=(*lot.spots, dataclasses.replace(s, id=9999)))  # spot 5 twice, the copy last
+    car = _corners(_rect(s.x, s.y, s.heading, 4.6, 1.85))
+    occ, vspot = classify_world(twin, car[None])
+    np.testing.assert_array_equal(np.flatnonzero(occ), [5, twin.n_spots - 1])
+    np.testing.assert_array_equal(vspot, [5])
 
 
 # ------------------------------------------------------------------------------- SensorConfig

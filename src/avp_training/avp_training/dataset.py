@@ -39,7 +39,7 @@ from avp_sim.core.scenario import ScenarioError, generate_paper_scenario
 from avp_sim.core.traffic import LEAVE, PARK, WANDER, TrafficGenerator, TrafficParams
 from avp_sim.core.world import World, WorldConfig
 from avp_training.lots import load_dlp_lot, random_lot
-from avp_world.geometry import rect_corners, rect_inside_rect, rects_overlap
+from avp_world.geometry import rect_corners, rects_overlap
 from avp_world.lot import LotMap, load_bundled_lot
 
 KIND_CODES = {PARK: 0, LEAVE: 1, WANDER: 2}
@@ -292,38 +292,6 @@ def run_episode(lot: LotMap, world: World, labels: dict[int, int], kinds: dict[i
     return b
 
 
-class TrainingWorld(World):
-    """:class:`World` with a faster :meth:`occupancy` for big lots: the same containment test (V ⊆ S,
-    :func:`~avp_sim.core.observation.classify_world`) on the vehicle-spot pairs whose centres are close enough
-    for containment (a vehicle inside a spot has its centre inside it), the same result."""
-
-    def occupancy(self) -> tuple[np.ndarray, np.ndarray]:
-        if self._occupancy_step != self.step_index:
-            self._occupancy = classify_near(self.lot, self.vehicle_corners())
-            self._occupancy_step = self.step_index
-        return self._occupancy
-
-
-def classify_near(lot: LotMap, vehicle_corners: np.ndarray, tol: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`~avp_sim.core.observation.classify_world` evaluated only on pairs within reach (same output)."""
-    vc = np.asarray(vehicle_corners, dtype=float).reshape(-1, 4, 2)
-    sc = lot.spot_corners
-    occupied = np.zeros(len(sc), dtype=bool)
-    vehicle_spot = np.full(len(vc), -1, dtype=np.int64)
-    if len(vc) == 0 or len(sc) == 0:
-        return occupied, vehicle_spot
-    reach = 0.5 * np.hypot(lot.spot_dims[:, 0], lot.spot_dims[:, 1]) * (1.0 + tol) + 1e-9
-    d = np.hypot(*(vc.mean(axis=1)[:, None, :] - lot.spot_poses[None, :, :2]).transpose(2, 0, 1))
-    ii, jj = np.nonzero(d <= reach[None])
-    if len(ii):
-        inside = rect_inside_rect(vc[ii], sc[jj], tol=tol)
-        ii, jj = ii[inside], jj[inside]
-        occupied[jj] = True
-        for i, j in sorted(zip(ii.tolist(), jj.tolist(), strict=True), reverse=True):
-            vehicle_spot[i] = j  # the lowest row wins, as in classify_world
-    return occupied, vehicle_spot
-
-
 def _parked(world: World, row: int) -> bool:
     occupied, vehicle_spot = world.occupancy()
     return bool(vehicle_spot[row] >= 0)
@@ -361,7 +329,7 @@ def traffic_episode(seed: int, spec: DataSpec, lot_choice: str = "mixed") -> Sam
     lot, code = episode_lot(seed, spec, rng, lot_choice)
     gen = _generator(lot, TrafficParams(t_final=spec.t_final))
     tr = gen.generate(seed)
-    world = TrainingWorld(lot, tr.scenario, WorldConfig(t_final=spec.t_final + 1.0, sensor=SensorConfig()))
+    world = World(lot, tr.scenario, WorldConfig(t_final=spec.t_final + 1.0, sensor=SensorConfig()))
     b = run_episode(lot, world, tr.labels, tr.kinds, tr.ego_controls, tr.ego_states, spec, seed, code, spec.t_final,
                     rng)
     return b.build(spec.bev.size_px)
@@ -380,7 +348,7 @@ def paper_episode(seed: int, spec: DataSpec) -> Samples:
     ego_u, ego_x = gen.plan_ego(rng, [], start_pose=sc.ego_start)
     labels = {int(v.id): int(v.target_spot_id) for v in sc.dynamic_vehicles()}
     kinds = {v: PARK for v in labels}
-    world = TrainingWorld(lot, sc, WorldConfig(t_final=spec.paper_t_final + 1.0, sensor=SensorConfig()))
+    world = World(lot, sc, WorldConfig(t_final=spec.paper_t_final + 1.0, sensor=SensorConfig()))
     b = run_episode(lot, world, labels, kinds, ego_u, ego_x, spec, seed, LOT_PAPER, spec.paper_t_final, rng,
                     stop_when_parked=True)
     return b.build(spec.bev.size_px)

@@ -40,7 +40,7 @@ from avp_perception.core.prediction import BezierPredictor, PredictionConfig
 from avp_sim.core.observation import SensorConfig
 from avp_sim.core.scenario import ScenarioError, generate_paper_scenario
 from avp_sim.core.traffic import PARK, TrafficParams
-from avp_sim.core.world import WorldConfig
+from avp_sim.core.world import World, WorldConfig
 from avp_training.dataset import (
     KIND_CODES,
     LOT_DLP,
@@ -48,7 +48,6 @@ from avp_training.dataset import (
     LOT_RANDOM,
     ArrayFile,
     DataSpec,
-    TrainingWorld,
     _generator,
     run_episode,
 )
@@ -173,7 +172,7 @@ def episode_samples(args: tuple[str, int, TrajDataSpec]) -> TrajSamples:
         tr = _generator(lot, TrafficParams(t_final=es.t_final)).generate(seed)
         sc, labels, kinds, ego_u, ego_x, t_final = tr.scenario, tr.labels, tr.kinds, tr.ego_controls, tr.ego_states, \
             es.t_final
-    world = TrainingWorld(lot, sc, WorldConfig(t_final=t_final + 1.0 + HORIZON, sensor=SensorConfig()))
+    world = World(lot, sc, WorldConfig(t_final=t_final + 1.0 + HORIZON, sensor=SensorConfig()))
     intent = None
     if with_int:
         from avp_perception.core.intent_model import IntentPredictor

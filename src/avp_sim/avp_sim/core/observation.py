@@ -383,11 +383,21 @@ def classify_world(
     """
     vc = np.asarray(vehicle_corners, dtype=float).reshape(-1, 4, 2)
     sc = np.asarray(lot.spot_corners, dtype=float).reshape(-1, 4, 2)
+    spot_occupied = np.zeros(sc.shape[0], dtype=bool)
+    vehicle_spot = np.full(vc.shape[0], -1, dtype=np.int64)
     if vc.shape[0] == 0 or sc.shape[0] == 0:
-        return np.zeros(sc.shape[0], dtype=bool), np.full(vc.shape[0], -1, dtype=np.int64)
-    inside = rect_inside_rect(vc[:, None], sc[None, :], tol=tol)  # (N, S)
-    spot_occupied = inside.any(axis=0)
-    vehicle_spot = np.where(inside.any(axis=1), inside.argmax(axis=1), -1).astype(np.int64)
+        return spot_occupied, vehicle_spot
+    # Only pairs within reach can pass: a vehicle inside a spot has its centre (the mean of its corners, an
+    # affine image) inside the spot grown by tol, so within the spot's half-diagonal × (1 + tol) of its centre.
+    reach = 0.5 * np.hypot(lot.spot_dims[:, 0], lot.spot_dims[:, 1]) * (1.0 + tol) + 1e-9
+    gap = vc.mean(axis=1)[:, None, :] - sc.mean(axis=1)[None, :, :]
+    ii, jj = np.nonzero(np.hypot(gap[..., 0], gap[..., 1]) <= reach[None])  # row-major: jj ascending per ii
+    if ii.size:
+        inside = rect_inside_rect(vc[ii], sc[jj], tol=tol)
+        ii, jj = ii[inside], jj[inside]
+        spot_occupied[jj] = True
+        first_vehicle, first = np.unique(ii, return_index=True)
+        vehicle_spot[first_vehicle] = jj[first]  # the lowest row wins if spots overlap
     return spot_occupied, vehicle_spot
 
 
