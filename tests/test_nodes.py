@@ -66,9 +66,27 @@ def ros(ros_env, monkeypatch):
     rclpy.try_shutdown()
 
 
+def test_realtime_waits_for_the_first_command_then_runs(ros, tmp_path):
+    """realtime_wait_first_command (default): observation 0 is re-sent until a command answers it, then the
+    world steps on the wall timer with or without commands."""
+    probe, env = ros
+    obs_steps: list[int] = []
+    probe.node.create_subscription(Observation, "observation", lambda m: obs_steps.append(int(m.step)), STEP)
+    with Graph([_sim({"mode": "realtime", "seed": 1})], tmp_path, env=env) as g:
+        assert probe.spin_until(lambda: len(obs_steps) >= 10), "observation 0 is not re-sent"
+        assert set(obs_steps) == {0} and [m.step for m in probe.gt] == [0]  # the clock waits; one ground truth
+        probe.send(0, 1.0, 0.0)
+        assert probe.spin_until(lambda: len(probe.gt) >= 15), "the clock did not start after the first command"
+        assert all(rc is None for rc in g.poll().values())
+    steps = [m.step for m in probe.gt]
+    assert steps == list(range(len(steps)))
+    assert probe.ego(probe.gt[1]) != probe.ego(probe.gt[0])  # the command for step 0 moved the ego
+
+
 def test_realtime_without_commands_ego_holds_still(ros, tmp_path):
     probe, env = ros
-    with Graph([_sim({"mode": "realtime", "seed": 1})], tmp_path, env=env) as g:
+    with Graph([_sim({"mode": "realtime", "seed": 1, "realtime_wait_first_command": False})], tmp_path,
+               env=env) as g:
         assert probe.spin_until(lambda: len(probe.gt) >= 15), "no ground truth in real-time mode"
         assert all(rc is None for rc in g.poll().values())
     steps = [m.step for m in probe.gt]

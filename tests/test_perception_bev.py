@@ -373,3 +373,21 @@ def test_changed_boxes_by_hand():
     imgs[1, 5, 0, 2] = 1
     np.testing.assert_array_equal(changed_boxes(imgs, base), [[1, 2, 2, 4], [5, 5, 0, 0], [0, -1, 0, -1]])
     assert changed_boxes(imgs[:0], base).shape == (0, 4)
+
+
+@pytest.mark.parametrize(("lot_name", "resolution"), [("paper_lot", 0.25), ("side_lot", 0.3), ("dlp_lot", 0.5)])
+def test_occupancy_grid_layout_against_shapely(lot_name, resolution):
+    """debug/occupancy's cell -> spot table (each spot tests only its bounding box) against shapely."""
+    import shapely
+
+    from avp_perception.core.debug_views import grid_layout
+
+    lot = load_bundled_lot(lot_name)
+    layout = grid_layout(lot, resolution)
+    c = layout.cell_centres()
+    expect = np.full((layout.height, layout.width), -1)
+    for i in range(lot.n_spots - 1, -1, -1):  # the lowest row wins where spots overlap
+        expect[shapely.contains_xy(Polygon(lot.spot_corners[i]), c[..., 0], c[..., 1])] = i
+    np.testing.assert_array_equal(layout.spot_row, expect)
+    np.testing.assert_array_equal(layout.inside, shapely.contains_xy(Polygon(lot.boundary), c[..., 0], c[..., 1]))
+    assert (layout.spot_row >= 0).sum() > lot.n_spots  # spots cover cells

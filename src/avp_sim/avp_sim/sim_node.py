@@ -171,6 +171,10 @@ class SimNode(Node):
         if not self.started:
             self._publish_step()
             return
+        if w.step_index == 0 and self.p["realtime_wait_first_command"] and (
+                self.latest_cmd is None or self.latest_cmd[3] != step_to_ns(0, self.dt)):
+            self._publish_step()  # the clock starts with the ego's first answer (a re-send: no new ground truth)
+            return
         v, om, fresh = 0.0, 0.0, False
         if self.latest_cmd is not None:
             cv, com, wall, stamp = self.latest_cmd

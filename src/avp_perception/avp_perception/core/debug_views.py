@@ -63,14 +63,29 @@ def grid_layout(lot: LotMap, resolution: float) -> GridLayout:
                         np.full((height, width), -1, dtype=np.int64), np.zeros((height, width), dtype=bool))
     c = layout.cell_centres().reshape(-1, 2)
     inside = polygon_contains_points(np.asarray(lot.boundary, dtype=float), c)
-    row = np.full(len(c), -1, dtype=np.int64)
-    if lot.n_spots:
-        hit = points_in_rects(c[:, None, :], lot.spot_corners[None, :, :, :], tol=0.0)  # (cells, N_S)
-        any_hit = hit.any(axis=1)
-        row[any_hit] = np.argmax(hit[any_hit], axis=1)
-    layout.spot_row[:] = row.reshape(height, width)
+    layout.spot_row[:] = _spot_rows(layout, lot)
     layout.inside[:] = inside.reshape(height, width)
     return layout
+
+
+def _spot_rows(layout: GridLayout, lot: LotMap) -> np.ndarray:
+    """(height, width) row of the lowest spot whose rectangle holds the cell centre, -1 none. Each spot tests only
+    the cells of its bounding box (grown by a cell): a centre inside the rectangle lies in its box."""
+    row = np.full((layout.height, layout.width), -1, dtype=np.int64)
+    centres = layout.cell_centres()
+    res, (x0, y0) = layout.resolution, layout.origin
+    for j, corners in enumerate(np.asarray(lot.spot_corners, dtype=float)):
+        lo, hi = corners.min(axis=0), corners.max(axis=0)
+        c0 = max(int(math.floor((lo[0] - x0) / res)) - 1, 0)
+        c1 = min(int(math.ceil((hi[0] - x0) / res)) + 1, layout.width)
+        r0 = max(int(math.floor((lo[1] - y0) / res)) - 1, 0)
+        r1 = min(int(math.ceil((hi[1] - y0) / res)) + 1, layout.height)
+        if c0 >= c1 or r0 >= r1:
+            continue
+        hit = points_in_rects(centres[r0:r1, c0:c1], corners, tol=0.0)
+        window = row[r0:r1, c0:c1]
+        window[hit & (window < 0)] = j  # ascending j: the lowest row wins where spots overlap
+    return row
 
 
 def belief_grid(layout: GridLayout, beliefs: np.ndarray, seen: np.ndarray) -> np.ndarray:
