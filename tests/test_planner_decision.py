@@ -71,6 +71,18 @@ def test_parks_in_an_observed_vacant_spot_and_reaches_it(paper_lot, planner):
     assert {"spot_selection_time", "path_planning_time", "total"} <= set(d.timings)
 
 
+def test_time_budget_stops_the_searches(paper_lot):
+    """decide(time_budget=...) (the planner node's real-time deadline): with no time left no search starts and
+    the ego waits; with enough, the same step parks as without a budget."""
+    obs = make_obs(paper_lot, np.array([21.5, 30.0, -math.pi / 2]), vacant=[22])
+    starved = EgoPlanner(paper_lot, PlannerSettings()).decide(obs, time_budget=0.0)
+    assert starved.mode == "idle" and not starved.stats.get("queries")
+    roomy = EgoPlanner(paper_lot, PlannerSettings()).decide(obs, time_budget=5.0)
+    free = EgoPlanner(paper_lot, PlannerSettings()).decide(obs)
+    assert roomy.mode == free.mode == "park" and roomy.spot_id == free.spot_id == 22
+    np.testing.assert_array_equal(roomy.controls, free.controls)
+
+
 def test_candidate_threshold_delta(paper_lot, planner):
     """Only observed vacant spots with b <= δ are candidates; b > δ makes the planner look elsewhere."""
     ego = (21.5, 30.0, -math.pi / 2)

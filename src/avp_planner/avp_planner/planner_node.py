@@ -75,11 +75,17 @@ NODE_PARAMS = [
               "seconds is answered with v = ω = 0 and one log line (a hung perception node, issue #20); 0 = off. "
               "Lock-step always waits: a late input never changes the episode.", "", "", min=0.0, max=60.0,
               default=0.5),
+    ParamSpec("realtime_decision_deadline", float, "Real time only: a decision's searches stop this many wall "
+              "seconds after its observation reached the planner (at least MIN_REALTIME_BUDGET = 10 ms of searching), "
+              "so that the command can come before observation k+1 — the simulator ignores a later one "
+              "(command_max_lag 0). decision.decision_time_cap still holds; 0 = off. Lock-step: unused.", "", "",
+              min=0.0, max=10.0, default=0.08),
     ParamSpec("use_ego_intention", bool, "Wait for ego_intention (the belief node's ego_intent) and try the "
               "candidate spots in decreasing eta_0,i until one has a safe plan (Table I 'Implicit'); false = the "
               "lowest c_park.", "eta_0,i", "§VI-B-3", default=False),
 ]
 PLANNER_PARAMS = NODE_PARAMS + specs_from_dataclass(DEFAULT_SETTINGS)
+MIN_REALTIME_BUDGET = 0.01  # s of searching a real-time decision always gets (realtime_decision_deadline)
 MAX_PENDING = 100  # observations kept while their other inputs are awaited (10 s of steps)
 MODES = {"idle": PlannerDecision.MODE_IDLE, "park": PlannerDecision.MODE_PARK, "explore": PlannerDecision.MODE_EXPLORE}
 
@@ -115,6 +121,7 @@ class PlannerNode(LifecycleNode):
         self.use_beliefs, self.use_predictions = p["use_beliefs"], p["use_predictions"]
         self.use_ego_intention = p["use_ego_intention"]
         self.stale_timeout = p["stale_input_timeout"]
+        self.p_deadline = p["realtime_decision_deadline"]
         self.realtime = False  # from the simulator's latched episode_status (lock_step)
         self.obs_wall: dict[int, float] = {}  # wall time each pending observation arrived
         self.stale_since: float | None = None  # start of the current stall (one log line each way)
@@ -275,6 +282,7 @@ class PlannerNode(LifecycleNode):
                           f"the planner is behind); {self.skipped} skipped so far")
             return
         msg = self.obs.pop(k)
+        arrived = self.obs_wall.get(k, time.monotonic())
         if self.stale_since is not None:
             self.get_logger().info(f"inputs fresh again at step {k} after {time.monotonic() - self.stale_since:.1f} s "
                                    f"({self.held_steps} steps held still)")
@@ -296,8 +304,11 @@ class PlannerNode(LifecycleNode):
         for d in self.inputs:  # forget anything older
             for old in [s for s in d if s < k]:
                 del d[old]
+        budget = None
+        if self.realtime and self.p_deadline > 0:
+            budget = max(self.p_deadline - (time.monotonic() - arrived), MIN_REALTIME_BUDGET)
         t0 = time.perf_counter()
-        decision = self.planner.decide(obs, beliefs, preds, priority)
+        decision = self.planner.decide(obs, beliefs, preds, priority, time_budget=budget)
         total = time.perf_counter() - t0
         v, om = decision.command
         if decision.reason.startswith("invalid input"):

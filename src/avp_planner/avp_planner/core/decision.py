@@ -123,13 +123,17 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         self._failed_searches: dict[tuple, PlanResult] = {}  # see FAILED_SEARCH_CACHE
 
     def decide(self, obs: Observation, beliefs: np.ndarray | None = None,
-               predictions: Sequence[PredictedTrajectory] = (), spot_priority: Sequence[int] | None = None
-               ) -> Decision:
+               predictions: Sequence[PredictedTrajectory] = (), spot_priority: Sequence[int] | None = None,
+               time_budget: float | None = None) -> Decision:
         """One decision step of §V-D (see the module docstring).
 
         ``spot_priority`` (spot ids, most wanted first; the "Implicit" method of §VI-B-3): the candidate spots
         are tried in that order — candidates not listed last, nearest first — and the first one with a safe
         plan is taken instead of the lowest c_park.
+
+        ``time_budget`` (s, wall clock): no search starts or runs past it, as ``decision.decision_time_cap``
+        (the smaller holds); the planner node passes what is left of its real-time deadline
+        (``realtime_decision_deadline``). None: the cap only.
         """
         t_start = time.perf_counter()
         timing = {"spot_selection_time": 0.0, "path_planning_time": 0.0, "total": 0.0}
@@ -145,7 +149,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
                                                       "(idle_replan_steps)", poses=np.asarray(obs.ego_pose,
                                                                                              float)[None].copy()),
                                 timing, t_start)
-        st = self._step_context(obs, beliefs, predictions, spot_priority, timing, t_start)
+        st = self._step_context(obs, beliefs, predictions, spot_priority, timing, t_start, time_budget)
         done, keep_explore = self._follow_current(st)
         if done is None:
             done = self._try_parking(st, keep_explore)
@@ -154,7 +158,8 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         return done if done is not None else self._go_idle(st)
 
     def _step_context(self, obs: Observation, beliefs: np.ndarray | None, predictions: list[PredictedTrajectory],
-                      spot_priority: Sequence[int] | None, timing: dict, t_start: float) -> _Step:
+                      spot_priority: Sequence[int] | None, timing: dict, t_start: float,
+                      time_budget: float | None = None) -> _Step:
         """Beliefs, static world, predicted obstacles and candidate spots of this step (spot-selection time)."""
         b = self.update_beliefs(obs).copy() if beliefs is None else np.asarray(beliefs, dtype=float)
         ego = np.asarray(obs.ego_pose, dtype=float)
@@ -165,7 +170,8 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         cands, ordered = np.asarray(sel.rows, dtype=np.int64).reshape(-1), bool(sel.first_feasible)
         timing["spot_selection_time"] += time.perf_counter() - t0
         return _Step(obs=obs, b=b, ego=ego, world=world, dyn=dyn, cands=cands, ordered=ordered, timing=timing,
-                     t_start=t_start, t_end=t_start + self.settings.decision.decision_time_cap)
+                     t_start=t_start, t_end=t_start + min(self.settings.decision.decision_time_cap,
+                                                          math.inf if time_budget is None else time_budget))
 
     def _follow_current(self, st: _Step) -> tuple[Decision | None, _Plan | None]:
         """1. The plan being executed: parked at its end, still valid (go on), or dropped. Returns (the decision
