@@ -83,6 +83,22 @@ def test_realtime_waits_for_the_first_command_then_runs(ros, tmp_path):
     assert probe.ego(probe.gt[1]) != probe.ego(probe.gt[0])  # the command for step 0 moved the ego
 
 
+def test_markers_are_built_for_a_subscriber(ros, tmp_path, paper_lot):
+    """debug/markers (publish_markers) goes out while something subscribes: DELETEALL, every spot, the ego."""
+    from visualization_msgs.msg import MarkerArray
+
+    from avp_common.qos import DEBUG
+
+    probe, env = ros
+    got: list[MarkerArray] = []
+    probe.node.create_subscription(MarkerArray, "debug/markers", got.append, DEBUG)
+    with Graph([_sim({"seed": 1, "publish_markers": True})], tmp_path, env=env):
+        assert probe.spin_until(lambda: len(got) >= 1), "no debug/markers with a subscriber"
+    ns = [m.ns for m in got[0].markers]
+    assert got[0].markers[0].action == got[0].markers[0].DELETEALL
+    assert ns.count("spots") == paper_lot.n_spots and ns.count("ego") == 1
+
+
 def test_realtime_without_commands_ego_holds_still(ros, tmp_path):
     probe, env = ros
     with Graph([_sim({"mode": "realtime", "seed": 1, "realtime_wait_first_command": False})], tmp_path,

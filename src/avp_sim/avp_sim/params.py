@@ -110,7 +110,8 @@ SIM_PARAMS: list[ParamSpec] = [
               "pipeline, plus recorders/monitors that must see step 0).", min=1, max=100, default=1),
     ParamSpec("min_debug_subscribers", int, "Lock-step: step 0 also waits for this many debug/ground_truth "
               "subscribers (monitors and recorders that must not miss a step).", min=0, max=100, default=0),
-    ParamSpec("publish_markers", bool, "Publish debug/markers (MarkerArray) and debug/scan (LaserScan).",
+    ParamSpec("publish_markers", bool, "Publish debug/markers (MarkerArray) and debug/scan (LaserScan), each "
+              "built only while it has a subscriber (a viewer or a recorder).",
               default=True),
 ]
 
