@@ -133,18 +133,20 @@ class Authenticator:
     def publisher(self, msg_type, topic: str, qos):
         return _SigningPublisher(self.node.create_publisher(msg_type, topic, qos), self.key)
 
-    def subscription(self, msg_type, topic: str, callback, qos):
-        """A subscription that checks the tag on the received bytes, then deserialises and calls ``callback``."""
+    def subscription(self, msg_type, topic: str, callback, qos, *, with_info: bool = False):
+        """A subscription that checks the tag on the received bytes, then deserialises and calls ``callback``
+        (``callback(msg, info)`` with ``with_info``: the DDS message info, e.g. its source timestamp)."""
         holder: dict = {}
 
-        def checked(data: bytes) -> None:
+        def checked(data: bytes, info=None) -> None:
             if self.check_inputs and not verify(self.key, data):
                 self._report(holder["sub"].topic_name)
                 return
-            callback(deserialize_message(data, msg_type))
+            msg = deserialize_message(data, msg_type)
+            callback(msg, info) if with_info else callback(msg)
 
         # bursts taken in one executor round: a flood costs a wait-set rebuild per batch, not per message
-        holder["sub"] = draining_subscription(self.node, msg_type, topic, checked, qos)
+        holder["sub"] = draining_subscription(self.node, msg_type, topic, checked, qos, with_info=with_info)
         return holder["sub"]
 
     def _report(self, topic: str) -> None:

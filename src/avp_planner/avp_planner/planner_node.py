@@ -76,7 +76,8 @@ NODE_PARAMS = [
               "Lock-step always waits: a late input never changes the episode.", "", "", min=0.0, max=60.0,
               default=0.5),
     ParamSpec("realtime_decision_deadline", float, "Real time only: a decision's searches stop this many wall "
-              "seconds after its observation reached the planner (at least MIN_REALTIME_BUDGET = 10 ms of searching), "
+              "seconds after its observation was sent (DDS source timestamp; at least MIN_REALTIME_BUDGET = 10 ms "
+              "of searching), "
               "so that the command can come before observation k+1 — the simulator ignores a later one "
               "(command_max_lag 0). decision.decision_time_cap still holds; 0 = off. Lock-step: unused.", "", "",
               min=0.0, max=10.0, default=0.08),
@@ -124,6 +125,7 @@ class PlannerNode(LifecycleNode):
         self.p_deadline = p["realtime_decision_deadline"]
         self.realtime = False  # from the simulator's latched episode_status (lock_step)
         self.obs_wall: dict[int, float] = {}  # wall time each pending observation arrived
+        self.obs_sent: dict[int, int] = {}  # its DDS source timestamp [ns, system clock]
         self.stale_since: float | None = None  # start of the current stall (one log line each way)
         self.held_steps = 0
         self.zeroed: set[int] = set()  # steps answered with v = ω = 0 during the stall
@@ -157,7 +159,7 @@ class PlannerNode(LifecycleNode):
         self.pub_decision = self.create_publisher(PlannerDecision, "decision", STEP)
         self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", STEP)
         self.auth.subscription(LotMap, "lot_map", self._on_lot, LATCHED)
-        self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP_INPUT)
+        self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP_INPUT, with_info=True)
         if self.use_beliefs:
             self.auth.subscription(SpotBeliefs, "beliefs", self._on_beliefs, STEP_INPUT)
         if self.use_predictions:
@@ -220,7 +222,7 @@ class PlannerNode(LifecycleNode):
         for k in sorted(self.obs):
             self._try(k)
 
-    def _on_obs(self, msg: Observation) -> None:
+    def _on_obs(self, msg: Observation, info=None) -> None:
         k = int(msg.step)
         if k == 0 and self.last_step:  # a new episode (reset): forget the old one (step 0 again: a copy)
             self.obs.clear()
@@ -244,10 +246,12 @@ class PlannerNode(LifecycleNode):
         self.last_step = k
         self.obs[k] = msg
         self.obs_wall[k] = time.monotonic()
+        self.obs_sent[k] = int(info["source_timestamp"]) if info else 0
         for old in sorted(self.obs)[:-MAX_PENDING]:  # bounded: a hung input node must not grow the queue
             del self.obs[old]
         for old in [s for s in self.obs_wall if s not in self.obs]:
             del self.obs_wall[old]
+            self.obs_sent.pop(old, None)
         if not self.active:  # keep only the newest inputs while inactive
             for d in self.inputs:
                 for old in [s for s in d if s < k]:
@@ -282,7 +286,6 @@ class PlannerNode(LifecycleNode):
                           f"the planner is behind); {self.skipped} skipped so far")
             return
         msg = self.obs.pop(k)
-        arrived = self.obs_wall.get(k, time.monotonic())
         if self.stale_since is not None:
             self.get_logger().info(f"inputs fresh again at step {k} after {time.monotonic() - self.stale_since:.1f} s "
                                    f"({self.held_steps} steps held still)")
@@ -306,7 +309,7 @@ class PlannerNode(LifecycleNode):
                 del d[old]
         budget = None
         if self.realtime and self.p_deadline > 0:
-            budget = max(self.p_deadline - (time.monotonic() - arrived), MIN_REALTIME_BUDGET)
+            budget = max(self.p_deadline - self._since_sent(k), MIN_REALTIME_BUDGET)
         t0 = time.perf_counter()
         decision = self.planner.decide(obs, beliefs, preds, priority, time_budget=budget)
         total = time.perf_counter() - t0
@@ -316,6 +319,16 @@ class PlannerNode(LifecycleNode):
         self._publish_cmd(msg.header.stamp, float(v), float(om))
         self.answered, self.answered_at = (k, float(v), float(om)), time.monotonic()
         self._publish_decision(msg, decision, total)
+
+    def _since_sent(self, k: int) -> float:
+        """Wall seconds since observation k was sent (its DDS source timestamp), at least since it arrived here
+        (the arrival only where the clocks disagree, or by more than a second)."""
+        local = time.monotonic() - self.obs_wall.get(k, time.monotonic())
+        if self.obs_sent.get(k):
+            since = (time.time_ns() - self.obs_sent[k]) * 1e-9
+            if 0.0 <= since <= 1.0:
+                return max(local, since)
+        return local
 
     def _on_status(self, msg: EpisodeStatus) -> None:
         self.realtime = not bool(msg.lock_step)

@@ -56,6 +56,7 @@ class DynamicObstacles:
         self.ped_ids = [p.agent_id for p in ped]
         self.veh_n = np.array([len(p.poses) for p in veh], dtype=np.int64)  # own horizons (hold_last=False)
         self.ped_n = np.array([len(p.poses) for p in ped], dtype=np.int64)
+        self._margin_cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}  # by the ego's pose at k = 0
 
     @property
     def empty(self) -> bool:
@@ -113,7 +114,17 @@ class DynamicObstacles:
         """Per-agent margins: the nominal one, or, for an agent already closer than that to the ego's current
         pose (say a reactive car that stopped next to it), its current gap less 5 cm (never below 0), so
         that the ego may still move away instead of being frozen next to it (``keep_current_gap``; off: the
-        nominal margin for every agent, the paper's rule)."""
+        nominal margin for every agent, the paper's rule). Memoised by ego0: one decision prices every candidate
+        from the same pose."""
+        key = np.asarray(ego0, dtype=float).tobytes()
+        hit = self._margin_cache.get(key)
+        if hit is None:
+            if len(self._margin_cache) >= 64:
+                self._margin_cache.clear()
+            hit = self._margin_cache[key] = self._compute_margins(ego0)
+        return hit
+
+    def _compute_margins(self, ego0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         pair = np.stack([ego0, ego0])
         vm = np.full(len(self.veh_poses), self.vm)
         pm = np.full(len(self.ped_pos), self.pm)

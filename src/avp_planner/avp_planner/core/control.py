@@ -22,6 +22,7 @@ controls, Δt)`` exactly, which is how the simulator moves the ego.
 from __future__ import annotations
 
 import bisect
+import functools
 import math
 from dataclasses import dataclass
 
@@ -35,21 +36,28 @@ _STOP_EPS = 0.003  # m: a piece is finished when less than this is left
 
 
 def piece_speeds(length: float, v0: float, settings: ControlSettings) -> np.ndarray:
-    """Positive speeds per step covering ``length`` exactly (without the final stop control)."""
-    dt = settings.dt
-    dv = settings.a_max * dt * (1.0 - 1e-12)
+    """Positive speeds per step covering ``length`` exactly (without the final stop control); read-only (the
+    profiles are memoised: a decision prices the same lengths and start speed many times)."""
+    return _piece_speeds(float(length), max(0.0, float(v0)), settings.dt, settings.a_max, settings.v_max)
+
+
+@functools.lru_cache(maxsize=8192)
+def _piece_speeds(length: float, v0: float, dt: float, a_max: float, v_max: float) -> np.ndarray:
+    dv = a_max * dt * (1.0 - 1e-12)
     out: list[float] = []
-    s, v = 0.0, max(0.0, float(v0))
+    s, v = 0.0, v0
     while length - s > _STOP_EPS * 0.1:
         rem = length - s
-        v = min(settings.v_max, v + dv, brake_speed(rem, dt, dv), rem / dt)
+        v = min(v_max, v + dv, brake_speed(rem, dt, dv), rem / dt)
         if v <= 1e-12:  # pragma: no cover - numerical guard
             v = rem / dt
         out.append(v)
         s += v * dt
         if len(out) > 100000:  # pragma: no cover
             raise RuntimeError("speed profile did not terminate")
-    return np.asarray(out, dtype=float)
+    speeds = np.asarray(out, dtype=float)
+    speeds.setflags(write=False)
+    return speeds
 
 
 @dataclass(frozen=True)
