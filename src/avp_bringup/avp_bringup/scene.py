@@ -23,6 +23,8 @@ from std_msgs.msg import ColorRGBA
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
+from avp_common.markers import box_marker, marker
+
 MAP, ODOM, BASE = "map", "odom", "base_link"
 #: marker namespaces, one per layer (a viewer can toggle each)
 LAYERS = ("lot", "spots", "vehicles", "pedestrians", "predictions", "plan", "chosen_spot", "ego")
@@ -65,18 +67,6 @@ def belief_color(b: float) -> tuple[float, float, float, float]:
     return (0.15 + 0.75 * b, 0.8 - 0.6 * b, 0.2, 0.55)
 
 
-def _marker(ns: str, mid: int, kind: int, stamp, rgba, width: float = 0.0) -> Marker:
-    m = Marker()
-    m.header.frame_id, m.header.stamp = MAP, stamp
-    m.ns, m.id, m.type, m.action = ns, int(mid), kind, Marker.ADD
-    m.pose.orientation.w = 1.0
-    m.scale.x = m.scale.y = m.scale.z = 1.0
-    if width:
-        m.scale.x = float(width)
-    m.color = ColorRGBA(r=float(rgba[0]), g=float(rgba[1]), b=float(rgba[2]), a=float(rgba[3]))
-    return m
-
-
 def _pts(xy, z: float = 0.0) -> list[Point]:
     return [Point(x=float(x), y=float(y), z=z) for x, y in xy]
 
@@ -87,19 +77,11 @@ def _corners(x: float, y: float, theta: float, length: float, width: float) -> n
     return local @ np.array([[c, s], [-s, c]]) + (x, y)
 
 
-def _box(ns: str, mid: int, pose, length: float, width: float, height: float, rgba, stamp) -> Marker:
-    m = _marker(ns, mid, Marker.CUBE, stamp, rgba)
-    m.pose.position.x, m.pose.position.y, m.pose.position.z = float(pose[0]), float(pose[1]), height / 2
-    m.pose.orientation.z, m.pose.orientation.w = _quat_z(float(pose[2]))
-    m.scale.x, m.scale.y, m.scale.z = float(length), float(width), float(height)
-    return m
-
-
 def lot_markers(lot, stamp) -> MarkerArray:
     """``viz/lot`` (latched, once per lot): the lot's boundary and every spot's outline."""
-    boundary = _marker("lot", 0, Marker.LINE_STRIP, stamp, (0.85, 0.85, 0.85, 1.0), width=0.15)
+    boundary = marker("lot", 0, Marker.LINE_STRIP, stamp, (0.85, 0.85, 0.85, 1.0), width=0.15)
     boundary.points = _pts(np.vstack([lot.boundary, lot.boundary[:1]]))
-    outlines = _marker("lot", 1, Marker.LINE_LIST, stamp, (0.95, 0.95, 0.95, 0.8), width=0.05)
+    outlines = marker("lot", 1, Marker.LINE_LIST, stamp, (0.95, 0.95, 0.95, 0.8), width=0.05)
     for s in lot.spots:
         c = _corners(s.x, s.y, s.heading, s.length, s.width)
         outlines.points += _pts(np.repeat(np.vstack([c, c[:1]]), 2, axis=0)[1:-1], 0.01)
@@ -130,7 +112,7 @@ class SpotFill:
             lvl / BELIEF_LEVELS if lvl >= 0 else np.nan)), strict=True))) for lvl in range(-1, BELIEF_LEVELS + 1)}
 
     def marker(self, levels: np.ndarray, stamp) -> MarkerArray:
-        m = _marker("spots", 0, Marker.TRIANGLE_LIST, stamp, (1.0, 1.0, 1.0, 1.0))
+        m = marker("spots", 0, Marker.TRIANGLE_LIST, stamp, (1.0, 1.0, 1.0, 1.0))
         m.points = self.points
         m.colors = [self.palette[int(lvl)] for lvl in levels for _ in range(6)]
         return MarkerArray(markers=[m])
@@ -146,9 +128,9 @@ def scene_markers(lot, obs, predictions, decision, stamp) -> MarkerArray:
     arr.markers.append(clear)
     for v in obs.vehicles:
         rgba = (0.3, 0.4, 0.95, 0.9) if v.is_static else (0.95, 0.85, 0.1, 0.95)
-        arr.markers.append(_box("vehicles", v.id, v.pose, v.length, v.width, 1.5, rgba, stamp))
+        arr.markers.append(box_marker("vehicles", v.id, v.pose, v.length, v.width, 1.5, rgba, stamp))
     for p in obs.pedestrians:
-        m = _marker("pedestrians", p.id, Marker.CYLINDER, stamp, (0.95, 0.95, 0.95, 0.95))
+        m = marker("pedestrians", p.id, Marker.CYLINDER, stamp, (0.95, 0.95, 0.95, 0.95))
         m.pose.position.x, m.pose.position.y, m.pose.position.z = float(p.position[0]), float(p.position[1]), 0.9
         m.scale.x = m.scale.y = 2 * float(p.radius)
         m.scale.z = 1.8
@@ -157,10 +139,11 @@ def scene_markers(lot, obs, predictions, decision, stamp) -> MarkerArray:
         if len(t.poses) < 2:
             continue
         alpha = 0.25 + 0.75 * float(min(max(t.probability, 0.0), 1.0))
-        m = _marker("predictions", i, Marker.LINE_STRIP, stamp, (1.0, 0.2, 0.85, alpha), width=0.15)
+        m = marker("predictions", i, Marker.LINE_STRIP, stamp, (1.0, 0.2, 0.85, alpha), width=0.15)
         m.points = _pts([(q.x, q.y) for q in t.poses], 0.3)
         arr.markers.append(m)
-    arr.markers.append(_box("ego", 0, obs.ego_pose, obs.ego_length, obs.ego_width, 1.5, (0.9, 0.1, 0.1, 1.0), stamp))
+    arr.markers.append(box_marker("ego", 0, obs.ego_pose, obs.ego_length, obs.ego_width, 1.5, (0.9, 0.1, 0.1, 1.0),
+                                  stamp))
     if decision is not None:
         arr.markers += _plan_markers(lot, decision, stamp)
     return arr
@@ -171,14 +154,14 @@ def _plan_markers(lot, decision, stamp) -> list[Marker]:
     parking = decision.mode == decision.MODE_PARK
     if len(decision.plan.poses) >= 2:
         rgba = (0.1, 0.85, 0.3, 1.0) if parking else (0.2, 0.5, 1.0, 1.0)
-        m = _marker("plan", 0, Marker.LINE_STRIP, stamp, rgba, width=0.25)
+        m = marker("plan", 0, Marker.LINE_STRIP, stamp, rgba, width=0.25)
         m.points = _pts([(p.pose.position.x, p.pose.position.y) for p in decision.plan.poses], 0.2)
         out.append(m)
     idx = {s.id: s for s in lot.spots}
     if parking and int(decision.spot_id) in idx:
         s = idx[int(decision.spot_id)]
         c = _corners(s.x, s.y, s.heading, s.length, s.width)
-        m = _marker("chosen_spot", 0, Marker.LINE_STRIP, stamp, (0.1, 1.0, 0.3, 1.0), width=0.3)
+        m = marker("chosen_spot", 0, Marker.LINE_STRIP, stamp, (0.1, 1.0, 0.3, 1.0), width=0.3)
         m.points = _pts(np.vstack([c, c[:1]]), 0.05)
         out.append(m)
     return out
