@@ -23,7 +23,7 @@ from std_msgs.msg import ColorRGBA
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
-from avp_common.markers import box_marker, marker
+from avp_common.markers import box_marker, marker, quat_z
 
 MAP, ODOM, BASE = "map", "odom", "base_link"
 #: marker namespaces, one per layer (a viewer can toggle each)
@@ -35,15 +35,11 @@ def agent_frame(agent_id: int) -> str:
     return f"agent_{int(agent_id)}"
 
 
-def _quat_z(theta: float) -> tuple[float, float]:
-    return math.sin(theta / 2.0), math.cos(theta / 2.0)
-
-
 def _transform(parent: str, child: str, pose, stamp) -> TransformStamped:
     t = TransformStamped()
     t.header.stamp, t.header.frame_id, t.child_frame_id = stamp, parent, child
     t.transform.translation.x, t.transform.translation.y = float(pose[0]), float(pose[1])
-    t.transform.rotation.z, t.transform.rotation.w = _quat_z(float(pose[2]))
+    t.transform.rotation.z, t.transform.rotation.w = quat_z(float(pose[2]))
     return t
 
 

@@ -11,6 +11,11 @@ from visualization_msgs.msg import Marker
 MAP = "map"
 
 
+def quat_z(theta: float) -> tuple[float, float]:
+    """(z, w) of the unit quaternion of a rotation by ``theta`` about z (x = y = 0)."""
+    return math.sin(theta / 2.0), math.cos(theta / 2.0)
+
+
 def marker(ns: str, mid: int, kind: int, stamp, rgba, width: float = 0.0, frame: str = MAP) -> Marker:
     """A marker of type ``kind`` (unit scale, identity orientation); ``width``: the line width of strips/lists."""
     m = Marker()
@@ -28,6 +33,6 @@ def box_marker(ns: str, mid: int, pose, length: float, width: float, height: flo
     """A CUBE of ``length`` x ``width`` x ``height`` standing on the ground at ``pose`` = (x, y, theta)."""
     m = marker(ns, mid, Marker.CUBE, stamp, rgba)
     m.pose.position.x, m.pose.position.y, m.pose.position.z = float(pose[0]), float(pose[1]), height / 2
-    m.pose.orientation.z, m.pose.orientation.w = math.sin(float(pose[2]) / 2.0), math.cos(float(pose[2]) / 2.0)
+    m.pose.orientation.z, m.pose.orientation.w = quat_z(float(pose[2]))
     m.scale.x, m.scale.y, m.scale.z = float(length), float(width), float(height)
     return m

@@ -17,7 +17,6 @@ starts a new episode (the core is reset); one older than the newest seen is drop
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 
@@ -38,6 +37,7 @@ from avp_common.conversions import (
     predictions_from_msg,
 )
 from avp_common.lifecycle import guard_lifecycle_services
+from avp_common.markers import quat_z
 from avp_common.msg_auth import Authenticator
 from avp_common.node_main import run_node
 from avp_common.params import (
@@ -108,10 +108,6 @@ def ego_priority_from_msg(msg: IntentionArray, lot) -> np.ndarray:
         raise MessageError(f"unknown spot id {unknown[0]}")
     p = check_probabilities(m.spot_probabilities, "spot_probabilities")
     return priority_from_probabilities(ids, p)
-
-
-def _quat_z(theta: float):
-    return math.sin(theta / 2.0), math.cos(theta / 2.0)
 
 
 class PlannerNode(LifecycleNode):
@@ -374,7 +370,7 @@ class PlannerNode(LifecycleNode):
             ps = PoseStamped()
             ps.header = path.header
             ps.pose.position.x, ps.pose.position.y = float(q[0]), float(q[1])
-            ps.pose.orientation.z, ps.pose.orientation.w = _quat_z(float(q[2]))
+            ps.pose.orientation.z, ps.pose.orientation.w = quat_z(float(q[2]))
             path.poses.append(ps)
         self.pub_plan.publish(path)
         msg = PlannerDecision()
@@ -411,7 +407,7 @@ class PlannerNode(LifecycleNode):
             goal = Marker(ns="goal", id=0, type=Marker.ARROW, action=Marker.ADD, color=color)
             goal.header = path.header
             goal.pose.position.x, goal.pose.position.y = d.goal.x, d.goal.y
-            goal.pose.orientation.z, goal.pose.orientation.w = _quat_z(d.goal.theta)
+            goal.pose.orientation.z, goal.pose.orientation.w = quat_z(d.goal.theta)
             goal.scale.x, goal.scale.y, goal.scale.z = 2.0, 0.4, 0.4
             arr.markers.append(goal)
         return arr
