@@ -314,7 +314,7 @@ def test_bad_messages_into_a_running_planner(ros_env, tmp_path, monkeypatch, pap
         play(step)
         # an impossible lifecycle transition (configure while active): answered with success = false
         client = feeder.node.create_client(ChangeState, f"{ns}/planner_under_test/change_state")
-        assert client.wait_for_service(timeout_sec=10)
+        assert client.wait_for_service(timeout_sec=60)
         req = ChangeState.Request()
         req.transition.id = 1
         fut = client.call_async(req)
@@ -341,7 +341,7 @@ def test_bad_requests_into_a_running_simulator(ros_env, tmp_path, monkeypatch):
     from geometry_msgs.msg import TwistStamped
 
     from avp_common.conversions import step_to_time
-    from avp_common.msg_auth import load_key, sign
+    from avp_common.msg_auth import episode_of, load_key, sign
     from avp_common.qos import STATUS, STEP
     from avp_msgs.msg import EpisodeStatus, GroundTruth, Observation
     from avp_msgs.srv import ResetEpisode
@@ -353,7 +353,8 @@ def test_bad_requests_into_a_running_simulator(ros_env, tmp_path, monkeypatch):
     gts, status = [], []
     node.create_subscription(GroundTruth, "debug/ground_truth", gts.append, STEP)
     node.create_subscription(EpisodeStatus, "episode_status", status.append, STATUS)
-    node.create_subscription(Observation, "observation", lambda m: None, STEP)
+    obs = []
+    node.create_subscription(Observation, "observation", obs.append, STEP)
     pub = node.create_publisher(TwistStamped, "cmd", STEP)
     client = node.create_client(ResetEpisode, "reset_episode")
 
@@ -366,11 +367,12 @@ def test_bad_requests_into_a_running_simulator(ros_env, tmp_path, monkeypatch):
         m = TwistStamped()
         m.header.stamp = step_to_time(step, 0.1)
         m.twist.linear.x, m.twist.angular.z = v, om
-        pub.publish(sign(load_key(), m))  # tagged: these commands test the checks behind the tag
+        spin(10, lambda: bool(obs))
+        pub.publish(sign(load_key(), m, episode_of(obs[-1].header.frame_id)))  # tagged, of the running episode
 
     def reset(**kw):  # re-sent while unanswered: a response can be lost while discovery settles
         return call_idempotent(client, ResetEpisode.Request(**kw), lambda s: rclpy.spin_once(node, timeout_sec=s),
-                               timeout=20)
+                               timeout=60)
 
     bad_scenario = tmp_path / "bad.yaml"
     data = yaml.safe_load(SCENARIO.read_text())
@@ -386,7 +388,7 @@ def test_bad_requests_into_a_running_simulator(ros_env, tmp_path, monkeypatch):
         send(7, 1.0, 0.0)
         spin(1.0)
         assert max(g.step for g in gts) == 0, "a bad command made the simulator step"
-        assert client.wait_for_service(timeout_sec=10)
+        assert client.wait_for_service(timeout_sec=60)
         r1 = reset(seed=1, reactive=True, scenario_file=str(tmp_path / "nope.yaml"))
         r2 = reset(seed=1, reactive=True, scenario_file=str(bad_scenario))
         assert not r1.success and "scenario_file: not a file of the served" in r1.message and "\n" not in r1.message

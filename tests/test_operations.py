@@ -223,7 +223,7 @@ def test_swap_to_a_user_node_in_lockstep(ros, tmp_path):
         assert monitor.finished, "the episode did not complete after the swap"
         rc = graph.poll()
         t1 = time.monotonic()  # the shut-down planner exits on its own; under load that can take a moment
-        while rc[planner] is None and time.monotonic() - t1 < 10.0:
+        while rc[planner] is None and time.monotonic() - t1 < 60.0:
             time.sleep(0.1)
             rc = graph.poll()
     finally:

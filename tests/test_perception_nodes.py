@@ -31,6 +31,7 @@ from avp_common.conversions import (  # noqa: E402
     predictions_from_msg,
     step_to_time,
 )
+from avp_common.msg_auth import with_episode  # noqa: E402
 from avp_common.qos import LATCHED, STEP  # noqa: E402
 from avp_msgs.msg import (  # noqa: E402
     IntentionArray,
@@ -163,7 +164,7 @@ class Probe:
             self.got[name].setdefault(key(msg), []).append(msg)
         return cb
 
-    def spin_until(self, cond, timeout=10.0) -> bool:
+    def spin_until(self, cond, timeout=30.0) -> bool:
         t0 = time.monotonic()
         while not cond() and time.monotonic() - t0 < timeout:
             rclpy.spin_once(self.node, timeout_sec=0.02)
@@ -185,7 +186,7 @@ class Probe:
         k = int(msg.step)
         for _ in range(4):
             self.pub_obs.publish(msg)
-            if self.spin_until(lambda: all(len(self.got[n].get(k, [])) >= count for n in need), 4.0):
+            if self.spin_until(lambda: all(len(self.got[n].get(k, [])) >= count for n in need), 10.0):
                 return True
         return False
 
@@ -326,7 +327,7 @@ def test_belief_sources_and_ego_intention_over_dds(paper_lot, ros, tmp_path, sou
         for k, o in enumerate(obs):
             assert probe.step(observation_to_msg(o), need), f"no output for step {k}"
             if ego_intent:
-                assert probe.spin_until(lambda k=k: k in ego_msgs, 4.0), f"no ego_intention for step {k}"
+                assert probe.spin_until(lambda k=k: k in ego_msgs, 10.0), f"no ego_intention for step {k}"
         assert all(rc is None for rc in graph.poll().values())
     finally:
         graph.stop()
@@ -388,9 +389,19 @@ def test_belief_node_bad_observations(paper_lot, ros, tmp_path):
         assert 1 not in probe.got["beliefs"], "a bad observation was answered"
         assert probe.step(observation_to_msg(obs[1]), need)  # the node keeps going, its state untouched
         np.testing.assert_array_equal(np.asarray(probe.got["beliefs"][1][0].beliefs, dtype=float), f32(ref[1][0]))
-        # time going back (a new episode): a reset, and the answer of a fresh core
+        # a replayed copy of the running episode's step 0 (issue #27): dropped, no reset
+        probe.pub_obs.publish(observation_to_msg(obs[0]))
+        probe.spin_for(1.0)
+        assert len(probe.got["beliefs"][0]) == 1, "a replayed step 0 was answered"
+        # a later episode id (a new episode): a reset, and the answer of a fresh core
         other = replace(obs[5], step=0)
-        assert probe.step(observation_to_msg(other), need, count=2)
+        new_episode = observation_to_msg(other)
+        new_episode.header.frame_id = with_episode("map", 1)
+        assert probe.step(new_episode, need, count=2)
+        # ... after which a message of the earlier episode is a replay: dropped
+        probe.pub_obs.publish(observation_to_msg(replace(obs[6], step=1)))
+        probe.spin_for(1.0)
+        assert len(probe.got["beliefs"][1]) == 1, "a message of an earlier episode was answered"
         fresh = reference_core(lot, node_params()[0]).perceive(other)
         np.testing.assert_array_equal(np.asarray(probe.got["beliefs"][0][1].beliefs, dtype=float),
                                       f32(fresh.beliefs))
@@ -404,7 +415,8 @@ def test_belief_node_bad_observations(paper_lot, ros, tmp_path):
     for line, (_, needle) in zip(errors, bad, strict=True):
         assert "/avp/observation step 1" in line and needle in line and "dropped" in line
     warns = log_lines(tmp_path, "avp_belief", "WARN")
-    assert len(warns) == 1 and "/avp/observation" in warns[0] and "time went back" in warns[0]
+    assert len(warns) == 2 and all("/avp/observation" in w for w in warns), warns
+    assert "step 0 is older than step 1" in warns[0] and "a replay of an earlier episode" in warns[1]
 
 
 def test_prediction_node_bad_intentions(paper_lot, ros, tmp_path):
@@ -415,13 +427,16 @@ def test_prediction_node_bad_intentions(paper_lot, ros, tmp_path):
     graph.start()
     need = ("predictions",)
 
-    def send(k: int, its, stamp_step: int | None = None, obs_step: int | None = None):
+    def send(k: int, its, stamp_step: int | None = None, obs_step: int | None = None, episode: int = 0):
         o = replace(obs[k], step=k if obs_step is None else obs_step)
         m = intentions_to_msg(o.step, o.dt, its)
+        m.header.frame_id = with_episode("map", episode)
         if stamp_step is not None:
             m.header.stamp = step_to_time(stamp_step, o.dt)
         probe.pub_int.publish(m)
-        return observation_to_msg(o)
+        om = observation_to_msg(o)
+        om.header.frame_id = with_episode("map", episode)
+        return om
 
     try:
         assert probe.spin_until(lambda: probe.pub_obs.get_subscription_count() >= 1
@@ -446,8 +461,11 @@ def test_prediction_node_bad_intentions(paper_lot, ros, tmp_path):
         probe.spin_for(1.5)
         assert set(probe.got["predictions"]) == {0}, "a bad message was answered"
         assert probe.step(send(5, [rounded(i) for i in ref[5][1]]), need)  # still running
-        # time going back: a new episode's step 0 is answered
-        assert probe.step(send(6, [rounded(i) for i in ref[6][1]], obs_step=0), need, count=2)
+        # a replayed step 0 of the running episode is dropped (issue #27); a later episode's step 0 is answered
+        probe.pub_obs.publish(send(0, good))
+        probe.spin_for(1.0)
+        assert len(probe.got["predictions"][0]) == 1, "a replayed step 0 was answered"
+        assert probe.step(send(6, [rounded(i) for i in ref[6][1]], obs_step=0, episode=1), need, count=2)
         assert all(rc is None for rc in graph.poll().values())
     finally:
         graph.stop()
@@ -457,7 +475,7 @@ def test_prediction_node_bad_intentions(paper_lot, ros, tmp_path):
     for k, (line, (_, needle)) in enumerate(zip(errors, bad, strict=True), start=1):
         assert f"/avp/intentions step {k}" in line and needle in line and "dropped" in line
     warns = log_lines(tmp_path, "avp_prediction", "WARN")
-    assert len(warns) == 1 and "time went back" in warns[0]
+    assert len(warns) == 1 and "step 0 is older than step 5" in warns[0], warns
 
 
 def test_launch_file_starts_the_default_graph():

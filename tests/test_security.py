@@ -13,7 +13,6 @@ import time
 from pathlib import Path
 
 import pytest
-import yaml
 
 rclpy = pytest.importorskip("rclpy")
 
@@ -24,12 +23,15 @@ from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
 from avp_bringup.graph import Graph, NodeSpec  # noqa: E402
 from avp_bringup.services import call_idempotent  # noqa: E402
 from avp_common.conversions import step_to_time  # noqa: E402
-from avp_common.msg_auth import load_key, sign  # noqa: E402
+from avp_common.msg_auth import episode_of, load_key, sign  # noqa: E402
 from avp_common.qos import GROUND_TRUTH, STEP  # noqa: E402
 from avp_msgs.msg import GroundTruth, Observation  # noqa: E402
 from avp_msgs.srv import ResetEpisode  # noqa: E402
 
 SCENARIO = Path(__file__).resolve().parents[1] / "src/avp_sim/config/scenarios/two_cars.yaml"
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+from hostile_requests import hostile_requests  # noqa: E402
+
 REFUSED = "scenario_file: not a file of the served scenario directories"
 
 
@@ -51,7 +53,7 @@ def node(ros_env, monkeypatch):
     rclpy.try_shutdown()
 
 
-def _call(n, client, req, timeout=20.0):
+def _call(n, client, req, timeout=60.0):
     return call_idempotent(client, req, lambda s: rclpy.spin_once(n, timeout_sec=s), timeout=timeout)
 
 
@@ -63,14 +65,15 @@ def test_reset_service_reads_only_served_scenarios(node, tmp_path):
     outside = tmp_path / "outside.yaml"
     outside.write_text("secret_token: hunter2\n  bad: [\n")
     gts: list[GroundTruth] = []
+    obs: list[Observation] = []
     n.create_subscription(GroundTruth, "debug/ground_truth", gts.append, GROUND_TRUTH)
-    n.create_subscription(Observation, "observation", lambda m: None, STEP)
+    n.create_subscription(Observation, "observation", obs.append, STEP)
     cmd = n.create_publisher(TwistStamped, "cmd", STEP)
     spec = NodeSpec("avp_sim", "avp_sim", "sim_node", "config/sim.param.yaml",
                     {"seed": 3, "publish_markers": False, "scenario_dir": str(served)})
     with Graph([spec], tmp_path, env=env) as g:
         client = n.create_client(ResetEpisode, "reset_episode")
-        assert client.wait_for_service(timeout_sec=20)
+        assert client.wait_for_service(timeout_sec=60)
         t0 = time.monotonic()
         while not gts and time.monotonic() - t0 < 30:
             rclpy.spin_once(n, timeout_sec=0.05)
@@ -85,37 +88,30 @@ def test_reset_service_reads_only_served_scenarios(node, tmp_path):
             replies[name] = (r, time.monotonic() - t)
         for name, (r, dt) in replies.items():
             assert not r.success and REFUSED in r.message, (name, r.message)
-            assert dt < 1.0, f"{name}: answered after {dt:.2f} s"
+            assert dt < 5.0, f"{name}: answered after {dt:.2f} s"
             assert "hunter2" not in r.message and "secret" not in r.message
         # the same answer whether the file exists or not: no existence oracle
         assert replies["/etc/passwd"][0].message == replies["/nonexistent.yaml"][0].message
         broken = _call(n, client, ResetEpisode.Request(seed=3, reactive=True, scenario_file="broken.yaml"))
         assert not broken.success and "scenario_file: not valid YAML (line" in broken.message
         assert "hunter2" not in broken.message and "secret" not in broken.message
-        base = yaml.safe_load(SCENARIO.read_text())
-        one = {k: base["dynamic_vehicles"][0][k] for k in ("target_spot", "maneuver")}
-        bad_texts = {
-            "ego_start[0]": {**base, "ego_start": [float("nan"), 38.0, 0.0]},
-            "dynamic_vehicles": {**base, "dynamic_vehicles": [dict(one) for _ in range(10_000)]},
-            "YAML aliases": "a: &x [1, 2]\nvacant_spot_ids: *x\n",
-            "ego_start: the ego's footprint": {**base, "ego_start": [-50.0, 0.0, 0.0]},
-        }
-        for needle, data in bad_texts.items():
-            text = data if isinstance(data, str) else yaml.safe_dump(data)
-            r = _call(n, client, ResetEpisode.Request(seed=3, reactive=True, scenario_yaml=text))
-            assert not r.success and needle in r.message, (needle, r.message)
-        big = _call(n, client, ResetEpisode.Request(seed=3, reactive=True, scenario_yaml="#" * 2_000_000))
-        assert not big.success and "scenario_yaml: larger than 1000000 bytes" in big.message
-        both = _call(n, client, ResetEpisode.Request(seed=3, scenario_file="two_cars.yaml", scenario_yaml="{}"))
-        assert not both.success and "give one of them" in both.message
+        # issue #27: 10 000 vehicles (500 KB), 1 MB of YAML, a 60 000-key mapping, 5 000-deep nesting, 65 vehicles,
+        # NaN, aliases, ... (bench/hostile_requests.py): each refused with its reason; how fast is measured by
+        # bench/bench_requests.py (docs/benchmarks.md), the limit here only shows that none stalls the simulator
+        for name, (fields, needle) in hostile_requests().items():
+            t = time.monotonic()
+            r = _call(n, client, ResetEpisode.Request(seed=3, reactive=True, **fields))
+            took = time.monotonic() - t
+            assert not r.success and needle in r.message, (name, r.message)
+            assert took < 5.0, f"{name}: answered after {took:.2f} s"
         assert _rss_mb(pid) - rss0 < 50.0, "the probes grew the simulator's memory"
         # the running episode is untouched: step 0 of seed 3 answers a command
         m = TwistStamped()
         m.header.stamp = step_to_time(0, 0.1)
         m.twist.linear.x = 1.0
-        cmd.publish(sign(load_key(), m))
+        cmd.publish(sign(load_key(), m, episode_of(obs[-1].header.frame_id)))
         t0 = time.monotonic()
-        while not any(x.step == 1 for x in gts) and time.monotonic() - t0 < 10:
+        while not any(x.step == 1 for x in gts) and time.monotonic() - t0 < 60:
             rclpy.spin_once(n, timeout_sec=0.05)
         assert any(x.step == 1 for x in gts)
         ok = _call(n, client, ResetEpisode.Request(seed=1, reactive=False, scenario_yaml=SCENARIO.read_text()))
@@ -138,7 +134,7 @@ def test_parameters_cannot_be_changed_from_another_process(node, tmp_path):
                                             ("avp_planner", "control.v_max", 50.0, 2.0)):
             setter = n.create_client(SetParameters, f"/avp/{node_name}/set_parameters")
             getter = n.create_client(GetParameters, f"/avp/{node_name}/get_parameters")
-            assert setter.wait_for_service(timeout_sec=20) and getter.wait_for_service(timeout_sec=20)
+            assert setter.wait_for_service(timeout_sec=60) and getter.wait_for_service(timeout_sec=60)
             r = _call(n, setter, SetParameters.Request(parameters=[_param(key, value)]))
             assert len(r.results) == 1 and not r.results[0].successful, (node_name, key)
             assert key in r.results[0].reason and "read-only" in r.results[0].reason
@@ -183,7 +179,7 @@ def test_hijacked_commands_do_not_steer_the_ego(paper_lot, node, tmp_path):
             rclpy.spin_once(n, timeout_sec=0.0)
         assert monitor.finished, "episode did not finish"
         t1 = time.monotonic()
-        while len(monitor.gt) < monitor.status.step + 1 and time.monotonic() - t1 < 10:
+        while len(monitor.gt) < monitor.status.step + 1 and time.monotonic() - t1 < 30:
             rclpy.spin_once(monitor, timeout_sec=0.05)
         assert all(rc is None for rc in g.poll().values())
     got = monitor.ego_trajectory()
@@ -205,8 +201,9 @@ def test_extreme_commands_are_clamped(node, tmp_path):
 
     n, env = node
     gts: list[GroundTruth] = []
+    obs: list[Observation] = []
     n.create_subscription(GroundTruth, "debug/ground_truth", gts.append, GROUND_TRUTH)
-    n.create_subscription(Observation, "observation", lambda m: None, STEP)
+    n.create_subscription(Observation, "observation", obs.append, STEP)
     cmd = n.create_publisher(TwistStamped, "cmd", STEP)
     key = load_key()
 
@@ -214,7 +211,8 @@ def test_extreme_commands_are_clamped(node, tmp_path):
         m = TwistStamped()
         m.header.stamp.sec, m.header.stamp.nanosec = sec, nanosec
         m.twist.linear.x, m.twist.angular.z = v, om
-        cmd.publish(sign(key, m))
+        spin(10, lambda: bool(obs))
+        cmd.publish(sign(key, m, episode_of(obs[-1].header.frame_id)))  # of the running episode
 
     def spin(seconds: float, cond=lambda: False) -> None:
         t0 = time.monotonic()

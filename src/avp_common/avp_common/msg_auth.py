@@ -3,12 +3,15 @@ can feed the ego pipeline or steer the ego.
 
 The Fast DDS of the ROS 2 wheels has no DDS security (no SROS2), and Jazzy's rclpy does not tell a subscriber
 which writer sent a message, so a node cannot tell its configured publisher's message from another process's by
-origin. Instead every message of the pipeline carries a tag in ``header.frame_id = "<frame>#<tag>"``: the first
-32 hex digits of HMAC-SHA256(key, the bytes sent, with the tag's place filled with '0's). The sender publishes the
-serialised bytes it tagged; the receiver subscribes raw, checks the bytes it got, then deserialises. A node with
-``auth_inputs: true`` drops an input whose tag does not verify and names the publishers on that topic (once per
-new one, then a count at most once a second). A copy of a message is the sender's own (same content); a changed
-one cannot be forged without the key.
+origin. Instead every message of the pipeline carries a tag in ``header.frame_id = "<frame>#<episode><tag>"``: the
+episode id (16 hex digits, issue #27: the simulator's episode the message belongs to, 0 for none) and the first 32
+hex digits of HMAC-SHA256(key, the bytes sent, with the tag's place filled with '0's). The tag covers the episode
+id, so a copy of a message stays a message of its episode: a replayed step 0 of the running episode is a copy, not a
+new episode, and a message of an earlier episode is dropped (:mod:`avp_common.step_answers`). The sender publishes
+the serialised bytes it tagged; the receiver subscribes raw, checks the bytes it got, then deserialises. A node with
+``auth_inputs: true`` drops an input whose tag does not verify and names the publishers on that topic (once per new
+one, then a count at most once a second). A copy of a message is the sender's own (same content); a changed one
+cannot be forged without the key.
 
 Tagged: ``lot_map`` and ``observation`` (simulator), ``beliefs``, ``intentions``, ``ego_intention`` (belief
 node), ``predictions`` (prediction node), ``cmd`` (every ego node; a custom planner wraps its publisher with
@@ -35,6 +38,24 @@ from avp_common.drain import draining_subscription
 KEY_ENV = "AVP_CMD_KEY_FILE"
 KEY_BYTES = 32
 TAG_HEX = 32
+EPISODE_HEX = 16
+#: the largest input a node reads (issue #27): a DLP-lot observation is ~0.2 MB; anything larger is dropped before
+#: its tag is even checked
+MAX_INPUT_BYTES = 16 * 2**20
+
+
+def with_episode(frame: str, episode: int) -> str:
+    """``frame`` (any tag stripped) marked as belonging to ``episode``: sign() keeps the mark and tags it."""
+    return f"{frame.partition('#')[0]}#{int(episode) & (2**64 - 1):0{EPISODE_HEX}x}"
+
+
+def episode_of(frame_id: str) -> int:
+    """The episode id a (tagged) ``header.frame_id`` carries; 0 when it carries none."""
+    mark = frame_id.partition("#")[2][:EPISODE_HEX]
+    try:
+        return int(mark, 16) if len(mark) == EPISODE_HEX else 0
+    except ValueError:
+        return 0
 
 
 def key_path() -> Path:
@@ -67,30 +88,34 @@ _FRAME_LEN_AT = 12  # CDR: 4-byte encapsulation header, header.stamp (int32 sec,
 
 def _frame_span(data: bytes | bytearray) -> tuple[int, int] | None:
     """(start, end) of the tag's 32 characters at the end of ``header.frame_id`` in a serialised message whose
-    first field is its ``header``; None if the frame carries no tag slot."""
+    first field is its ``header``; None if the frame carries no tag slot (``#``, 16 episode and 32 tag
+    characters)."""
     if len(data) < _FRAME_LEN_AT + 4:
         return None
     order = "little" if data[1] & 1 else "big"  # CDR_LE / CDR_BE encapsulation
     n = int.from_bytes(data[_FRAME_LEN_AT:_FRAME_LEN_AT + 4], order)  # characters + the terminating NUL
     end = _FRAME_LEN_AT + 4 + n - 1
     start = end - TAG_HEX
-    if n < TAG_HEX + 2 or end > len(data) or data[start - 1:start] != b"#":
+    mark = start - EPISODE_HEX - 1
+    if n < TAG_HEX + EPISODE_HEX + 2 or end > len(data) or data[mark:mark + 1] != b"#":
         return None
     return start, end
 
 
-def sign(key: bytes, msg: Any) -> bytes:
+def sign(key: bytes, msg: Any, episode: int | None = None) -> bytes:
     """``msg`` (a message whose first field is its ``header``) serialised with its tag in ``header.frame_id``:
     publish these bytes (``Publisher.publish`` takes them). The tag covers the exact bytes sent, so the receiver
-    checks what it got (CDR padding is not deterministic from one serialisation to the next)."""
-    base = msg.header.frame_id.partition("#")[0]
-    msg.header.frame_id = f"{base}#{_PLACEHOLDER.decode()}"
+    checks what it got (CDR padding is not deterministic from one serialisation to the next). ``episode``: the
+    episode id to carry (default: the one ``header.frame_id`` is marked with, :func:`with_episode`, else 0)."""
+    ep = episode_of(msg.header.frame_id) if episode is None else episode
+    base = with_episode(msg.header.frame_id, ep)
+    msg.header.frame_id = f"{base}{_PLACEHOLDER.decode()}"
     data = bytearray(serialize_message(msg))
     span = _frame_span(data)
     assert span is not None
     tag = hmac.new(key, bytes(data), hashlib.sha256).hexdigest()[:TAG_HEX].encode()
     data[span[0]:span[1]] = tag
-    msg.header.frame_id = f"{base}#{tag.decode()}"
+    msg.header.frame_id = f"{base}{tag.decode()}"
     return bytes(data)
 
 
@@ -139,6 +164,9 @@ class Authenticator:
         holder: dict = {}
 
         def checked(data: bytes, info=None) -> None:
+            if len(data) > MAX_INPUT_BYTES:
+                self._report(holder["sub"].topic_name, f"larger than {MAX_INPUT_BYTES} bytes, dropped unread")
+                return
             if self.check_inputs and not verify(self.key, data):
                 self._report(holder["sub"].topic_name)
                 return
@@ -149,7 +177,7 @@ class Authenticator:
         holder["sub"] = draining_subscription(self.node, msg_type, topic, checked, qos, with_info=with_info)
         return holder["sub"]
 
-    def _report(self, topic: str) -> None:
+    def _report(self, topic: str, why: str = "unauthenticated") -> None:
         """One line when a new publisher shows up on ``topic`` while its messages fail, else one a second."""
         n = self.dropped[topic] = self.dropped.get(topic, 0) + 1
         now = time.monotonic()
@@ -164,5 +192,5 @@ class Authenticator:
             reported |= set(new)
             self._last_log[topic] = now
             self.node.get_logger().error(
-                f"{topic}: {n} unauthenticated message(s) dropped so far (auth_inputs; docs/bad_input.md); "
+                f"{topic}: {n} {why} message(s) dropped so far (auth_inputs; docs/bad_input.md); "
                 f"publishers on it: {sorted(pubs)}" + (f"; new: {new}" if new else ""))

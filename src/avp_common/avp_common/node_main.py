@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 import sys
 from collections.abc import Callable
 
@@ -20,10 +21,29 @@ def ctrl_c_in_finaliser_hook(unraisable) -> None:
     sys.__unraisablehook__(unraisable)
 
 
+_stopping = {"signal": 0}  # the signal (SIGINT / SIGTERM) that asked this process to stop, 0 before one came
+
+
+def _mark_stopping(signum: int, frame) -> None:  # noqa: ANN001 - the signal module's signature
+    """Python-level SIGINT/SIGTERM handler: remember that a stop was asked for, then stop as before."""
+    _stopping["signal"] = signum
+    raise KeyboardInterrupt
+
+
+def stopping() -> bool:
+    """True once SIGINT or SIGTERM reached this process (what fails after it is part of the shutdown)."""
+    return bool(_stopping["signal"])
+
+
 def run_node(factory: Callable[[], object], label: str, args=None) -> int:
     """Build the node with ``factory`` and spin it. A bad parameter/map at start-up prints one line
     (``[label] start-up failed: ...``) and returns 2; Ctrl-C / external shutdown return 0 (also when rclpy raises
     because the context is already shut down); any other error propagates."""
+    # installed before rclpy.init, whose C handler (context shut down, executors woken) chains to this one: a take
+    # or wait that fails in the window before the KeyboardInterrupt lands (a pybind11 RuntimeError from
+    # take_message under a flood, #27) is then known to be part of the stop, not a fault
+    signal.signal(signal.SIGINT, _mark_stopping)
+    signal.signal(signal.SIGTERM, _mark_stopping)
     rclpy.init(args=args)
     node = None
     hook, sys.unraisablehook = sys.unraisablehook, ctrl_c_in_finaliser_hook
@@ -37,8 +57,9 @@ def run_node(factory: Callable[[], object], label: str, args=None) -> int:
         pass
     except Exception:
         # Ctrl-C whose KeyboardInterrupt was swallowed (raised inside a __del__) after rclpy's SIGINT handler had
-        # shut the context down: the executor's next wait set fails with RCLError. That is a shutdown, not a fault.
-        if rclpy.ok():
+        # shut the context down: the executor's next wait set fails with RCLError. That is a shutdown, not a fault;
+        # so is any error after SIGINT/SIGTERM came (e.g. a take interrupted under a flood).
+        if rclpy.ok() and not stopping():
             raise
     finally:
         if node is not None:

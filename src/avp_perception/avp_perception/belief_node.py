@@ -18,9 +18,11 @@ With ``nawaz`` / ``observation`` the intentions topic carries an empty array eac
 lock-step partner).
 
 One output per observation step, in order. An observation of a step already answered (the simulator
-re-sends in lock-step when a reply went missing) gets the same messages again, not a second update. A step
-lower than the last one means a new episode: the belief map, the ego trail and the intent bookkeeping are
-reset (one warning). A malformed observation (NaN/inf, unknown spot ids, a header stamp that is not
+re-sends in lock-step when a reply went missing) gets the same messages again, not a second update. An
+observation of a later episode (the episode id in its tag, issue #27) starts a new episode: the belief map, the
+ego trail and the intent bookkeeping are reset; one of an earlier episode, or of a step lower than the last one
+answered (step 0 included), is dropped (avp_common.step_answers). Outputs carry the observation's episode id. A
+malformed observation (NaN/inf, unknown spot ids, a header stamp that is not
 step * dt) is dropped with one error naming the topic; the node keeps running.
 """
 
@@ -41,7 +43,7 @@ from avp_common.conversions import (
     lot_from_msg_or_log,
     observation_from_msg,
 )
-from avp_common.msg_auth import Authenticator
+from avp_common.msg_auth import Authenticator, episode_of, with_episode
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
 from avp_common.qos import DEBUG, LATCHED, STEP, STEP_INPUT
@@ -124,10 +126,10 @@ class BeliefNode(Node):
                 del self.pending[old]
             return
         topic = self.sub_obs.topic_name
-        step = int(msg.step)
-        if self.answers.is_copy(step, self._republish):
+        step, episode = int(msg.step), episode_of(msg.header.frame_id)
+        if self.answers.is_copy(step, self._republish, episode):
             return
-        if why := self.answers.stale(step):
+        if why := self.answers.stale(step, episode):
             self.reject_warn(f"{topic}: {why}")
             return
         try:
@@ -137,9 +139,9 @@ class BeliefNode(Node):
         except (MessageError, ValueError) as exc:
             self.reject(f"{topic} step {step}: {exc}; dropped")
             return
-        if step < self.answers.last_step:
-            self.get_logger().warning(f"{topic}: step {step} after step {self.answers.last_step}: time went back, new "
-                                      "episode; beliefs and intent state reset")
+        if self.answers.begin(episode):
+            self.get_logger().info(f"{topic}: episode {episode:x} begins at step {step}; beliefs and intent state "
+                                   "reset")
             self.core.reset()
             self.seen[:] = False
         out = self.core.believe(obs, self.source, self.nawaz, self.ego_intent)
@@ -149,6 +151,9 @@ class BeliefNode(Node):
         ego = None
         if out.ego_intention is not None:
             ego = intentions_to_msg(step, obs.dt, [replace(out.ego_intention, vehicle_id=EGO_VEHICLE_ID)])
+        for m in (beliefs, intentions, ego):
+            if m is not None:  # the answer belongs to the observation's episode (issue #27)
+                m.header.frame_id = with_episode(m.header.frame_id, episode)
         self._publish(beliefs, intentions, ego)
         self.answers.store(step, (beliefs, intentions, ego, msg, out))
         self._publish_debug(msg, out)

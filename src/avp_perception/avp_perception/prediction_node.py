@@ -12,8 +12,10 @@ probability, spot id and goal.
 
 Lock-step: the observation and the intentions of step k are matched by step (either may come first) and
 answered once; an observation of a step already answered (re-sent by the simulator) gets the same message
-again. A step lower than the last one answered means a new episode: older buffered messages are dropped
-(one warning). A malformed message — NaN/inf, unknown spot ids, probabilities outside [0, 1], a header
+again. An observation of a later episode (the episode id in its tag, issue #27) starts a new episode: buffered
+messages of another episode are dropped; one of an earlier episode, or of a step lower than the last one answered
+(step 0 included), is dropped with a warning (avp_common.step_answers). A malformed message — NaN/inf, unknown spot
+ids, probabilities outside [0, 1], a header
 stamp that is not step * dt, intentions stamped unlike their observation — is dropped with one error
 naming the topic; the node keeps running.
 """
@@ -32,7 +34,7 @@ from avp_common.conversions import (
     predictions_to_msg,
     time_to_ns,
 )
-from avp_common.msg_auth import Authenticator
+from avp_common.msg_auth import Authenticator, episode_of, with_episode
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
 from avp_common.qos import LATCHED, STEP, STEP_INPUT
@@ -82,19 +84,17 @@ class PredictionNode(Node):
             self._try(k)
 
     def _on_obs(self, msg: Observation) -> None:
-        k = int(msg.step)
-        if self.answers.is_copy(k, self.pub.publish):  # re-sent observation: the same answer again
+        k, episode = int(msg.step), episode_of(msg.header.frame_id)
+        if self.answers.is_copy(k, self.pub.publish, episode):  # re-sent observation: the same answer again
             return
-        if why := self.answers.stale(k):
+        if why := self.answers.stale(k, episode):
             self.reject_warn(f"{self.sub_obs.topic_name}: {why}")
             return
-        if k == 0 and self.answers.last_step > 0:
-            self.get_logger().warning(f"{self.sub_obs.topic_name}: step {k} after step {self.answers.last_step}: "
-                                      "time went back, new episode")
-            self.answers.reset()
-            for d in (self.obs, self.intentions):  # what is buffered beyond k belongs to the old episode
-                for s in [s for s in d if s > k]:
-                    del d[s]
+        if self.answers.begin(episode):
+            self.get_logger().info(f"{self.sub_obs.topic_name}: episode {episode:x} begins at step {k}")
+        for d in (self.obs, self.intentions):  # what is buffered of another episode is not answered
+            for s in [s for s, m in d.items() if episode_of(m.header.frame_id) != episode]:
+                del d[s]
         self.obs[k] = msg
         self._trim(self.obs)
         self._try(k)
@@ -105,15 +105,19 @@ class PredictionNode(Node):
             del d[s]
 
     def _on_intentions(self, msg: IntentionArray) -> None:
-        k = int(msg.step)
-        if k == self.answers.last_step:
-            return  # already answered (re-sent with a re-sent observation)
+        k, episode = int(msg.step), episode_of(msg.header.frame_id)
+        if episode < self.answers.episode or (episode == self.answers.episode and k <= self.answers.last_step):
+            return  # already answered (re-sent with a re-sent observation), or of an earlier episode
         self.intentions[k] = msg
         self._trim(self.intentions)
         self._try(k)
 
     def _try(self, k: int) -> None:
         if self.predictor is None or k not in self.obs or k not in self.intentions:
+            return
+        e_obs, e_int = episode_of(self.obs[k].header.frame_id), episode_of(self.intentions[k].header.frame_id)
+        if e_obs != e_int:  # of two episodes: the earlier one's message goes, the later one's waits for its partner
+            (self.obs if e_obs < e_int else self.intentions).pop(k)
             return
         obs_msg, int_msg = self.obs.pop(k), self.intentions.pop(k)
         for d in (self.obs, self.intentions):  # forget anything older
@@ -142,6 +146,7 @@ class PredictionNode(Node):
             return
         trajectories = self.predictor.predict(obs, intentions)
         out = predictions_to_msg(k, obs.dt, trajectories)
+        out.header.frame_id = with_episode(out.header.frame_id, episode_of(obs_msg.header.frame_id))
         self.pub.publish(out)
         self.answers.store(k, out)
 

@@ -11,8 +11,9 @@ A lifecycle (managed) node, so that planners can be swapped while the simulator 
 docs/custom_planner.md): *configure* builds the planner core for the lot, *activate* starts answering
 observations (the newest one buffered while inactive first), *deactivate* stops it (no command is
 published while inactive: the simulator holds the ego still), *shutdown* ends the process. With
-``autostart`` (default) it configures and activates itself at start-up. An observation with step 0
-starts a new episode (the core is reset); one older than the newest seen is dropped with a warning.
+``autostart`` (default) it configures and activates itself at start-up. An observation of a later episode
+(the episode id in its tag, issue #27) starts a new episode (the core is reset); one of an earlier episode, or of a
+step older than the newest seen (step 0 included), is dropped with a warning; commands carry the episode id.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from avp_common.conversions import (
 )
 from avp_common.lifecycle import guard_lifecycle_services
 from avp_common.markers import quat_z
-from avp_common.msg_auth import Authenticator
+from avp_common.msg_auth import Authenticator, episode_of, with_episode
 from avp_common.node_main import run_node
 from avp_common.params import (
     ParamSpec,
@@ -139,6 +140,7 @@ class PlannerNode(LifecycleNode):
         self.lot = None
         self.configured = False
         self.active = False
+        self.episode = -1  # the running episode's id (avp_common.msg_auth.episode_of; issue #27)
         self.last_step: int | None = None  # newest observation step seen
         self.obs: dict[int, Observation] = {}
         self.beliefs: dict[int, SpotBeliefs] = {}
@@ -219,15 +221,18 @@ class PlannerNode(LifecycleNode):
             self._try(k)
 
     def _on_obs(self, msg: Observation, info=None) -> None:
-        k = int(msg.step)
-        if k == 0 and self.last_step:  # a new episode (reset): forget the old one (step 0 again: a copy)
-            self.obs.clear()
-            self.answered = None
-            for d in (self.beliefs, self.preds, self.ego_int):
-                for old in [s for s in d if s > 0]:
-                    del d[old]
-            if self.planner is not None:
+        k, episode = int(msg.step), episode_of(msg.header.frame_id)
+        if episode < self.episode:  # a replayed recording of an earlier episode (issue #27)
+            self.reject_warn(f"{self.sub_obs.topic_name}: step {k} of an episode that ended (a replay of an earlier "
+                             "episode); dropped")
+            return
+        if episode > self.episode:  # a new episode (reset): forget the old one (its step 0 again is a copy)
+            if self.episode >= 0 and self.planner is not None:
                 self.planner.reset()
+            self.episode, self.last_step, self.answered = episode, None, None
+            for d in self.inputs:
+                for old in [s for s, m in d.items() if episode_of(m.header.frame_id) != episode]:
+                    del d[old]
         elif self.last_step is not None and k < self.last_step:
             self.reject_warn(
                 f"{self.sub_obs.topic_name}: step {k} is older than step {self.last_step} (out of order); dropped")
@@ -255,14 +260,20 @@ class PlannerNode(LifecycleNode):
         self._try(k)
 
     def _on_beliefs(self, msg: SpotBeliefs) -> None:
+        if episode_of(msg.header.frame_id) < self.episode:
+            return  # of an earlier episode (a replay)
         self.beliefs[int(msg.step)] = msg
         self._try(int(msg.step))
 
     def _on_preds(self, msg: PredictedTrajectoryArray) -> None:
+        if episode_of(msg.header.frame_id) < self.episode:
+            return  # of an earlier episode (a replay)
         self.preds[int(msg.step)] = msg
         self._try(int(msg.step))
 
     def _on_ego_intention(self, msg: IntentionArray) -> None:
+        if episode_of(msg.header.frame_id) < self.episode:
+            return  # of an earlier episode (a replay)
         self.ego_int[int(msg.step)] = msg
         self._try(int(msg.step))
 
@@ -272,6 +283,11 @@ class PlannerNode(LifecycleNode):
         if ((self.use_beliefs and k not in self.beliefs) or (self.use_predictions and k not in self.preds)
                 or (self.use_ego_intention and k not in self.ego_int)):
             return
+        episode = episode_of(self.obs[k].header.frame_id)
+        for d in self.inputs[1:]:  # an input of another episode for this step: the earlier one goes
+            if k in d and episode_of(d[k].header.frame_id) != episode:
+                (d if episode_of(d[k].header.frame_id) < episode else self.obs).pop(k)
+                return
         if self.realtime and k < max(self.obs):
             # real time: a newer observation is already waiting, so deciding this one would only answer a step the
             # simulator has left (its command would be ignored) and put the next answer further behind; skip it
@@ -357,7 +373,7 @@ class PlannerNode(LifecycleNode):
     def _publish_cmd(self, stamp, v: float, om: float) -> None:
         cmd = TwistStamped()
         cmd.header.stamp = stamp
-        cmd.header.frame_id = "ego"
+        cmd.header.frame_id = with_episode("ego", self.episode)  # the simulator takes commands of its episode only
         cmd.twist.linear.x, cmd.twist.angular.z = v, om
         self.pub_cmd.publish(cmd)  # tagged (avp_common.msg_auth)
 

@@ -12,7 +12,7 @@ from geometry_msgs.msg import TwistStamped
 from rclpy.node import Node
 
 from avp_common.conversions import MessageError, lot_from_msg_or_log, observation_from_msg
-from avp_common.msg_auth import Authenticator
+from avp_common.msg_auth import Authenticator, episode_of, with_episode
 from avp_common.node_main import run_node
 from avp_common.params import ParamSpec, declare_and_validate
 from avp_common.qos import LATCHED, STEP
@@ -61,7 +61,7 @@ class ScriptedDriverNode(Node):
         v, om = self.driver.command(obs)
         cmd = TwistStamped()
         cmd.header.stamp = msg.header.stamp
-        cmd.header.frame_id = "ego"
+        cmd.header.frame_id = with_episode("ego", episode_of(msg.header.frame_id))  # the observation's episode
         cmd.twist.linear.x = float(v)
         cmd.twist.angular.z = float(om)
         self.pub.publish(cmd)  # tagged (avp_common.msg_auth)

@@ -51,9 +51,11 @@ class DynamicObstacles:
         self.veh_poses = np.array([pad(p.poses, 3) for p in veh]).reshape(len(veh), t, 3)
         self.veh_half = np.array([[0.5 * p.length, 0.5 * p.width] for p in veh]).reshape(len(veh), 2)
         self.veh_ids = [p.agent_id for p in veh]
+        self.veh_prob = [float(p.probability) for p in veh]  # the hypotheses' probabilities (decision trace)
         self.ped_pos = np.array([pad(p.poses, 2) for p in ped]).reshape(len(ped), t, 2)
         self.ped_radius = np.array([p.radius for p in ped], dtype=float)
         self.ped_ids = [p.agent_id for p in ped]
+        self.ped_prob = [float(p.probability) for p in ped]
         self.veh_n = np.array([len(p.poses) for p in veh], dtype=np.int64)  # own horizons (hold_last=False)
         self.ped_n = np.array([len(p.poses) for p in ped], dtype=np.int64)
         self._margin_cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}  # by the ego's pose at k = 0
@@ -161,6 +163,34 @@ class DynamicObstacles:
         if not hits:
             return np.zeros(0, dtype=np.int64)
         return np.unique(np.concatenate(hits))
+
+    def blocker(self, ego_poses: np.ndarray, k0: int = 1) -> tuple[int, bool, int, float] | None:
+        """Who meets the ego first (issue #28's decision trace): (time index k, is a pedestrian, agent id,
+        probability of that hypothesis) of the earliest colliding pair (the most probable hypothesis at that
+        k), or None. The same pairs and gaps as :meth:`collision_steps`."""
+        if self.empty:
+            return None
+        ego = self._extend(ego_poses)
+        vm, pm = self._margins(ego[0])
+        best: tuple | None = None
+        for is_ped in (False, True):
+            n = len(self.ped_pos) if is_ped else len(self.veh_poses)
+            if not n:
+                continue
+            if is_ped:
+                reach = self.circum + self.ped_radius + self.pm
+                k, a = self._pairs(ego, self.ped_pos, reach, k0, self.ped_n)
+                hit = self._ped_gaps(ego, k, a) <= pm[a] if len(k) else np.zeros(0, bool)
+            else:
+                reach = self.circum + np.hypot(self.veh_half[:, 0], self.veh_half[:, 1]) + self.vm
+                k, a = self._pairs(ego, self.veh_poses[..., :2], reach, k0, self.veh_n)
+                hit = self._vehicle_gaps(ego, k, a) <= vm[a] if len(k) else np.zeros(0, bool)
+            ids, probs = (self.ped_ids, self.ped_prob) if is_ped else (self.veh_ids, self.veh_prob)
+            for kk, aa in zip(k[hit].tolist(), a[hit].tolist(), strict=True):
+                key = (kk, -probs[aa])
+                if best is None or key < best[0]:
+                    best = (key, (int(kk), is_ped, int(ids[aa]), probs[aa]))
+        return None if best is None else best[1]
 
     def first_collision(self, ego_poses: np.ndarray, k0: int = 1) -> int:
         """First colliding time index (>= k0), or -1."""

@@ -27,7 +27,7 @@ from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
 from avp_common.conversions import lot_to_msg, observation_to_msg, step_to_ns, step_to_time, time_to_ns
-from avp_common.msg_auth import Authenticator
+from avp_common.msg_auth import Authenticator, episode_of, with_episode
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
 from avp_common.qos import DEBUG, GROUND_TRUTH, LATCHED, STATUS, STEP, STEP_INPUT
@@ -95,6 +95,9 @@ class SimNode(Node):
     # ---------------------------------------------------------------- episodes
     def _new_episode(self, seed: int, reactive: bool, scenario: tuple[str, object] | None = None) -> World:
         self.world = make_world(self.lot, self.p, seed, reactive, scenario_data=scenario)
+        # the episode id every message of this episode carries (avp_common.msg_auth, issue #27): the wall clock
+        # in ns, strictly increasing, so that a replay of an earlier episode (or of an earlier run) is older
+        self.episode = max(time.time_ns(), getattr(self, "episode", 0) + 1)
         seed, reactive = self.world.scenario.seed, self.world.scenario.reactive
         self.seed, self.reactive = seed, reactive
         self.started = False
@@ -116,7 +119,7 @@ class SimNode(Node):
             resp.success, resp.message, resp.n_vehicles = True, "ok", len(w.scenario.vehicles)
         except Exception as exc:  # noqa: BLE001 - any bad request is answered, the node keeps running
             resp.success, resp.message = False, f"reset_episode: {exc}"
-            self.get_logger().error(resp.message)
+            self.reject(resp.message)  # a stream of bad requests: one line a second per reason
         return resp
 
     # ---------------------------------------------------------------- stepping
@@ -136,7 +139,7 @@ class SimNode(Node):
                     self.pub_scan.publish(self._scan_msg(obs, stamp))
         self.pub_status.publish(self._status_msg(w, stamp))
         if not w.done:
-            self.pub_obs.publish(observation_to_msg(obs))
+            self.pub_obs.publish(observation_to_msg(obs, with_episode("map", self.episode)))
         self.last_pub_wall = time.monotonic()
         self.started = True
 
@@ -208,6 +211,10 @@ class SimNode(Node):
             return
         w = self.world
         if w is None or w.done:
+            return
+        if episode_of(msg.header.frame_id) != self.episode:  # an answer to another episode's observation (a replay)
+            self.reject_warn(f"{self.sub_cmd.topic_name}: command of another episode than the running one (a "
+                             "replay, or an answer to the episode before a reset); dropped")
             return
         expected = step_to_ns(w.step_index, self.dt)
         got = time_to_ns(msg.header.stamp)

@@ -80,10 +80,12 @@ def _mean(x: Iterable[float]) -> float | None:
 
 def episode_record(*, method: str, seed: int, reactive: bool, status: str, metrics: Mapping, min_ade: np.ndarray,
                    min_fde: np.ndarray, step_timings: Sequence[Mapping], horizon: float, transport: str,
-                   wall_s: float, lot: Mapping | None = None, ego_poses: np.ndarray | None = None) -> dict:
+                   wall_s: float, lot: Mapping | None = None, ego_poses: np.ndarray | None = None,
+                   decision_trace: Mapping | None = None) -> dict:
     """One JSON line: identity (with the lot, :func:`lot_record`), the §VI-B metrics, the ego's reversals and
     U-turns (:func:`motion_counts` of ``ego_poses``, its pose per step), and (under ``timings``) what depends on
-    compute speed."""
+    compute speed. ``decision_trace``: the planner's per-episode trace summary (steps per mode, idle steps per
+    cause, the longest idle spells; :class:`avp_planner.core.trace.DecisionTrace`, issue #28)."""
     pt = metrics.get("parking_time")
     pt = None if pt is None or (isinstance(pt, float) and math.isnan(pt)) else float(pt)
     sel = [float(t["spot_selection_time"]) for t in step_timings]
@@ -102,6 +104,7 @@ def episode_record(*, method: str, seed: int, reactive: bool, status: str, metri
         "ade_horizon": float(horizon),
         "lot": dict(lot) if lot is not None else None,
         **(motion_counts(ego_poses) if ego_poses is not None else {}),
+        **({"decision_trace": dict(decision_trace)} if decision_trace is not None else {}),
         "transport": transport,
         "timings": {
             "spot_selection_time": _mean(sel), "path_planning_time": _mean(searched),

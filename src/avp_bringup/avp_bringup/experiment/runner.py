@@ -86,8 +86,11 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
     ego = (OracleEgo if profile.ground_truth else MethodEgo)(
         lot, profile, deterministic=True, intent_weights=cfg.intent_weights, intent_seed=cfg.intent_seed,
         message_precision=cfg.message_precision)
+    from avp_planner.core.trace import DecisionTrace
+
     preds: dict[int, list] = {}
     timings: list[dict] = []
+    trace = DecisionTrace(world.dt)
     while not world.done:
         obs = world.observe()
         if profile.ground_truth:  # the oracle bound, and only it, is told the simulator's state (.oracle)
@@ -95,6 +98,8 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
         out = ego.step(obs)
         preds[out.step] = [p for p in out.predictions if not p.is_pedestrian]
         timings.append(out.timings)
+        if out.decision is not None:
+            trace.add(out.step, out.decision)
         world.step(*out.command)
         if on_step is not None:
             on_step(world, out)
@@ -102,7 +107,7 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
     return episode_record(method=profile.name, seed=seed, reactive=reactive, status=world.status,
                           metrics=world.metrics.as_dict(), min_ade=ade, min_fde=fde, step_timings=timings,
                           horizon=cfg.ade_horizon, transport="inproc", wall_s=time.perf_counter() - t0,
-                          lot=lot_record(lot), ego_poses=np.asarray(world.log_ego))
+                          lot=lot_record(lot), ego_poses=np.asarray(world.log_ego), decision_trace=trace.summary())
 
 
 _WORKER: dict[str, Any] = {}

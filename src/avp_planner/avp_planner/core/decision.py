@@ -82,6 +82,7 @@ from avp_planner.core.planner_types import (
 )
 from avp_planner.core.settings import PlannerSettings
 from avp_planner.core.spot_selection import SelectionContext, make_spot_selector
+from avp_planner.core.trace import idle_cause
 from avp_search.collision import DynamicObstacles, StaticWorld
 from avp_search.hybrid_astar import PlanResult
 from avp_search.paths import wrap
@@ -121,6 +122,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         self._front_blocked_step: int | None = None  # since when the road ahead is blocked by agents only
         self._idle_until = -(10**9)  # idle_replan_steps: no new search before this step after an idle decision
         self._failed_searches: dict[tuple, PlanResult] = {}  # see FAILED_SEARCH_CACHE
+        self._last_cause: dict = {"cause": "unknown"}  # why the last idle decision was idle (decision trace)
 
     def decide(self, obs: Observation, beliefs: np.ndarray | None = None,
                predictions: Sequence[PredictedTrajectory] = (), spot_priority: Sequence[int] | None = None,
@@ -141,14 +143,15 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         bad = self._check_inputs(obs, beliefs, predictions)
         if bad:
             self._plan = None
-            return self._finish(Decision(IDLE, reason=bad), timing, t_start)
+            return self._finish(Decision(IDLE, reason=bad, trace={"mode": IDLE, "cause": "invalid_input"}), timing,
+                                t_start)
         if self._plan is None and obs.step < self._idle_until:  # stay put until the next idle re-plan (§V-D-3)
             if beliefs is None:
                 self.update_beliefs(obs)
             return self._finish(Decision(IDLE, reason=f"waiting: re-plan at step {self._idle_until} "
                                                       "(idle_replan_steps)", poses=np.asarray(obs.ego_pose,
-                                                                                             float)[None].copy()),
-                                timing, t_start)
+                                                                                             float)[None].copy(),
+                                         trace={"mode": IDLE, **self._last_cause}), timing, t_start)
         st = self._step_context(obs, beliefs, predictions, spot_priority, timing, t_start, time_budget)
         done, keep_explore = self._follow_current(st)
         if done is None:
@@ -180,8 +183,8 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         if p is not None and p.mode == PARK and p.index >= len(p.traj.controls):
             if math.hypot(*(p.traj.states[-1][:2] - ego[:2])) <= self.settings.decision.replan_pose_tolerance:
                 return self._finish(Decision(IDLE, spot_id=p.spot_id, goal=p.goal.copy(), poses=ego[None].copy(),
-                                             n_candidates=len(st.cands), reason="parked"), st.timing,
-                                    st.t_start), None
+                                             n_candidates=len(st.cands), reason="parked",
+                                             trace={"mode": "parked"}), st.timing, st.t_start), None
         if self._plan is None:
             return None, None
         ok, st.why = self._still_valid(self._plan, ego, st.world, st.dyn)
@@ -254,8 +257,9 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
                                     st.stats)
         reason = "no safe parking or exploration plan" + (f" ({st.why})" if st.why else "")
         self._idle_until = st.obs.step + d.idle_replan_steps
-        return self._finish(Decision(IDLE, n_candidates=len(st.cands), reason=reason, poses=ego[None].copy()),
-                            st.timing, st.t_start, st.stats)
+        self._last_cause = idle_cause(st, self.settings.control)
+        return self._finish(Decision(IDLE, n_candidates=len(st.cands), reason=reason, poses=ego[None].copy(),
+                                     trace={"mode": IDLE, **self._last_cause}), st.timing, st.t_start, st.stats)
 
     def _still_valid(self, plan: _Plan, ego: np.ndarray, world: StaticWorld, dyn: DynamicObstacles) -> tuple[bool, str]:
         d = self.settings.decision
@@ -281,9 +285,11 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         k = plan.index
         u = plan.traj.controls[k]
         plan.index += 1
+        trace = ({"mode": "wait_and_go", **plan.wait_cause} if k < plan.wait_steps
+                 else {"mode": plan.kind or plan.mode})
         return Decision(plan.mode, spot_id=plan.spot_id, goal=plan.goal.copy(), poses=plan.traj.states[k:].copy(),
                         controls=plan.traj.controls[k:].copy(), command=(float(u[0]), float(u[1])),
-                        n_candidates=n_cand, reason=reason, cost=plan.cost, replanned=new)
+                        n_candidates=n_cand, reason=reason, cost=plan.cost, replanned=new, trace=trace)
 
     @staticmethod
     def _finish(dec: Decision, timing: dict, t_start: float, stats: dict | None = None) -> Decision:

@@ -58,6 +58,7 @@ class SafetyMixin:
         plan = self._adopt(order[:3], world, dyn, obs, timing, require_dynamic=False)
         if plan is not None:
             plan.note = f"evasive: standing still is hit at step {standing}"
+            plan.kind = "evasive"
         return plan
 
     def _detour(self, obs, b, ego, world, dyn, cands, ordered, t_end, stats, timing, blocked_plans, back_ok):
@@ -81,4 +82,6 @@ class SafetyMixin:
                                            behind=back_ok or not d.detour_waits_to_turn_back)
             if plan is not None:
                 stats["around_agents"] = True
+        if plan is not None:
+            plan.kind = "detour"
         return plan

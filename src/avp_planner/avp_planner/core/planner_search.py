@@ -19,6 +19,7 @@ from avp_planner.core.planner_types import (
     _Candidate,
     _Plan,
 )
+from avp_planner.core.trace import blocker_trace
 from avp_search.collision import DynamicObstacles, StaticWorld
 from avp_search.hybrid_astar import EgoHeuristic, HybridAStar, PlanResult
 from avp_search.paths import wrap
@@ -105,7 +106,11 @@ class SearchMixin:
             if ok and cand.mode == PARK:
                 ok = self._parked_in(traj.states[-1], cand.goal, cand.spot_id, obs)
             if ok and (not require_dynamic or dyn.first_collision(traj.states) < 0):
-                return _Plan(cand.mode, cand.spot_id, cand.goal, traj, cand.cost, margins, 0, cand.path.length)
+                plan = _Plan(cand.mode, cand.spot_id, cand.goal, traj, cand.cost, margins, 0, cand.path.length,
+                             wait_steps=int(cand.wait_steps))
+                if cand.wait_steps:  # who it waits for: the first agent met if it went at once
+                    plan.wait_cause = blocker_trace(dyn, traj.states[cand.wait_steps:], obs)
+                return plan
         return None
 
     def _parked_in(self, final: np.ndarray, goal: np.ndarray, spot_id: int, obs: Observation) -> bool:

@@ -32,7 +32,9 @@ class Decision:
     (K - 1, 2) the remaining controls; command: (v, ω) for this step; timings: seconds
     (``spot_selection_time``: candidate selection, ordering, pricing and prediction checks;
     ``path_planning_time``: Hybrid A* searches and tracking; ``total``); n_candidates: |I_can,0|;
-    reason: why this mode (or why a plan was dropped); cost: c of the plan; stats: details.
+    reason: why this mode (or why a plan was dropped); cost: c of the plan; stats: details; trace: the step's
+    mode (park, explore, wait_and_go, detour, evasive, idle, parked) and, when idle or waiting, its cause
+    (:mod:`avp_planner.core.trace`).
     """
 
     mode: str
@@ -47,6 +49,7 @@ class Decision:
     cost: float = math.nan
     replanned: bool = False
     stats: dict = field(default_factory=dict)
+    trace: dict = field(default_factory=dict)  # mode and idle cause of this step (avp_planner.core.trace)
 
 
 @dataclass
@@ -60,6 +63,9 @@ class _Plan:
     index: int = 0  # next control to send
     path_length: float = 0.0
     note: str = ""
+    wait_steps: int = 0  # a wait-and-go plan: the steps it stands first (decision trace, issue #28)
+    kind: str = ""  # "detour" / "evasive": how it was found (the trace's mode); "" = its mode
+    wait_cause: dict = field(default_factory=dict)  # who it waits for (avp_planner.core.trace.blocker_trace)
 
 
 @dataclass

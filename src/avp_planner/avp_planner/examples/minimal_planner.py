@@ -28,7 +28,7 @@ from geometry_msgs.msg import TwistStamped
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
 from avp_common.lifecycle import guard_lifecycle_services
-from avp_common.msg_auth import load_key, sign
+from avp_common.msg_auth import episode_of, load_key, sign, with_episode
 from avp_common.node_main import run_node
 from avp_common.params import ParamSpec, declare_and_validate
 from avp_common.qos import STEP
@@ -96,7 +96,7 @@ class MinimalPlanner(LifecycleNode):
                 v = 0.0
         cmd = TwistStamped()
         cmd.header.stamp = msg.header.stamp  # the stamp of the observation this command answers
-        cmd.header.frame_id = "ego"
+        cmd.header.frame_id = with_episode("ego", episode_of(msg.header.frame_id))  # ... and its episode
         cmd.twist.linear.x = float(v)
         cmd.twist.angular.z = 0.0
         self.pub_cmd.publish(sign(self.key, cmd))  # the simulator takes only tagged commands (avp_common.msg_auth)

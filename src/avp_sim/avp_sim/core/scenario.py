@@ -221,7 +221,11 @@ def plan_states(agent: VehicleAgent, n_steps: int | None = None, dt: float = 0.1
 
 
 def _valid_dynamic(lot: LotMap, agent: VehicleAgent, ego_start: np.ndarray, ego: VehicleSpec,
-                   params: ScenarioParams, others: list[VehicleAgent]) -> bool:
+                   params: ScenarioParams, others: list[VehicleAgent],
+                   plans: dict[int, np.ndarray] | None = None) -> bool:
+    """Whether ``agent``'s plan stays in the lot, starts clear of the ego and never meets the plans of ``others``.
+    ``plans``: the accepted agents' rolled-out states by vehicle id, filled as they are met (issue #27: a request
+    of n vehicles then rolls out n plans, not n^2/2); pairs whose whole sweeps are apart are not tested further."""
     hist = int(round(params.t_hist / params.dt))
     states = plan_states(agent, dt=params.dt)
     fp = _footprints(states, agent.length, agent.width)
@@ -234,8 +238,16 @@ def _valid_dynamic(lot: LotMap, agent: VehicleAgent, ego_start: np.ndarray, ego:
         spot = lot.spot_poses[lot.spot_index(agent.target_spot_id)][:2]
         if np.hypot(*(states[hist, :2] - spot)) >= np.hypot(*(ego_start[:2] - spot)):
             return False
+    plans = {} if plans is None else plans
+    lo, hi = fp.reshape(-1, 2).min(0) - 0.2, fp.reshape(-1, 2).max(0) + 0.2  # the sweep's box, with the margin
     for other in others:
-        o = plan_states(other, dt=params.dt)
+        if other.id not in plans:
+            plans[other.id] = plan_states(other, dt=params.dt)
+        o = plans[other.id]
+        # a corner of any footprint lies within half a diagonal of its centre: apart boxes cannot overlap
+        r = 0.5 * math.hypot(other.length, other.width)
+        if (o[:, :2].min(0) - r > hi).any() or (o[:, :2].max(0) + r < lo).any():
+            continue
         n = max(len(o), len(states))
         a = np.concatenate([states, np.repeat(states[-1:], n - len(states), 0)])
         b = np.concatenate([o, np.repeat(o[-1:], n - len(o), 0)])
@@ -267,6 +279,7 @@ def generate_paper_scenario(
     ego_start = np.array(params.ego_start, dtype=float)
 
     dynamic: list[VehicleAgent] = []
+    plans: dict[int, np.ndarray] = {}
     attempts = 0
     while len(dynamic) < n_dyn:
         attempts += 1
@@ -278,7 +291,7 @@ def generate_paper_scenario(
         v_c = float(rng.uniform(*params.cruise_speed))
         approach = float(rng.uniform(*params.approach_distance))
         agent = build_dynamic_vehicle(lot, 1000 + len(dynamic), spot, key, v_c, approach, params, vehicle)
-        if _valid_dynamic(lot, agent, ego_start, vehicle, params, dynamic):
+        if _valid_dynamic(lot, agent, ego_start, vehicle, params, dynamic, plans):
             dynamic.append(agent)
     # drawn in both modes so that reactive and non-reactive runs of a seed share the same setup (§VI-B)
     passiveness = [int(rng.integers(params.passiveness[0], params.passiveness[1] + 1)) for _ in dynamic]
@@ -356,6 +369,13 @@ def scenario_from_dict(lot: LotMap, data: dict, source: str, seed: int, reactive
     unknown = sorted(set(data) - _FILE_KEYS)
     if unknown:
         raise ScenarioError(f"{source}: '{unknown[0]}': unknown key (known: {sorted(_FILE_KEYS)})")
+    # counts first (issue #27): bounded work before any element is looked at
+    n_dyn = len(data["dynamic_vehicles"]) if isinstance(data.get("dynamic_vehicles"), list) else 0
+    if n_dyn > MAX_DYNAMIC_VEHICLES:
+        raise ScenarioError(f"{source}: dynamic_vehicles: {n_dyn} vehicles, at most {MAX_DYNAMIC_VEHICLES}")
+    n_vac = len(data["vacant_spot_ids"]) if isinstance(data.get("vacant_spot_ids"), list) else 0
+    if n_vac > lot.n_spots:
+        raise ScenarioError(f"{source}: vacant_spot_ids: {n_vac} ids, but lot '{lot.name}' has {lot.n_spots} spots")
     seed = _integer(data.get("seed", seed), f"{source}: seed")
     reactive = data.get("reactive", reactive)
     if not isinstance(reactive, bool):
@@ -371,14 +391,16 @@ def scenario_from_dict(lot: LotMap, data: dict, source: str, seed: int, reactive
     vac = data["vacant_spot_ids"]
     if not isinstance(vac, list):
         raise ScenarioError(f"{source}: vacant_spot_ids: expected a list of spot ids, got {vac!r}")
-    vacant = []
+    vacant: list[int] = []
+    seen: set[int] = set()
     for i, s in enumerate(vac):
         sid = _integer(s, f"{source}: vacant_spot_ids[{i}]")
         if not lot.has_spot(sid):
             raise ScenarioError(f"{source}: vacant_spot_ids[{i}]: unknown spot id {sid} (lot '{lot.name}')")
-        if sid in vacant:
+        if sid in seen:
             raise ScenarioError(f"{source}: vacant_spot_ids[{i}]: spot {sid} listed twice")
         vacant.append(sid)
+        seen.add(sid)
     dyn_list = data.get("dynamic_vehicles", [])
     if not isinstance(dyn_list, list):
         raise ScenarioError(f"{source}: dynamic_vehicles: expected a list, got {type(dyn_list).__name__}")
@@ -386,6 +408,7 @@ def scenario_from_dict(lot: LotMap, data: dict, source: str, seed: int, reactive
         raise ScenarioError(f"{source}: dynamic_vehicles: {len(dyn_list)} vehicles, at most {MAX_DYNAMIC_VEHICLES}")
     names = {"/".join(k): k for k in ALL_MANEUVERS}
     dynamic: list[VehicleAgent] = []
+    plans: dict[int, np.ndarray] = {}
     for j, d in enumerate(dyn_list):
         w = f"{source}: dynamic_vehicles[{j}]"
         if not isinstance(d, dict):
@@ -397,7 +420,7 @@ def scenario_from_dict(lot: LotMap, data: dict, source: str, seed: int, reactive
             if key not in d:
                 raise ScenarioError(f"{w}.{key}: missing")
         spot = _integer(d["target_spot"], f"{w}.target_spot")
-        if spot not in vacant:
+        if spot not in seen:
             raise ScenarioError(f"{w}.target_spot: spot {spot} is not in vacant_spot_ids")
         if spot in {a.target_spot_id for a in dynamic}:
             raise ScenarioError(f"{w}.target_spot: spot {spot} is already the target of another vehicle")
@@ -407,7 +430,7 @@ def scenario_from_dict(lot: LotMap, data: dict, source: str, seed: int, reactive
         approach = _number(d.get("approach_distance", 0.0), f"{w}.approach_distance", 0.0, 50.0)
         n_pass = _integer(d.get("passiveness", params.passiveness[0]), f"{w}.passiveness", 0, 100)
         agent = build_dynamic_vehicle(lot, 1000 + j, spot, names[d["maneuver"]], v_c, approach, params, vehicle)
-        if not _valid_dynamic(lot, agent, ego_start, vehicle, params, dynamic):
+        if not _valid_dynamic(lot, agent, ego_start, vehicle, params, dynamic, plans):
             raise ScenarioError(f"{w}: its plan leaves the lot, starts on the ego or collides with another "
                                 f"dynamic vehicle's plan")
         dynamic.append(replace(agent, passiveness=n_pass if reactive else 0))

@@ -21,6 +21,10 @@ from avp_sim.core.scenario import ScenarioError
 from avp_world.safe_yaml import YamlInputError, load_bounded, read_bounded
 
 DEFAULT_MAX_BYTES = 1_000_000
+#: YAML nodes and nesting a scenario may have (issue #27): 5 000 vacant spot ids + 64 vehicles x 11 nodes fit
+#: three times over; a larger or deeper request is refused after at most this many parser events (< 20 ms)
+MAX_SCENARIO_NODES = 16_384
+MAX_SCENARIO_DEPTH = 8
 
 
 def bundled_scenario_dir() -> Path | None:
@@ -72,10 +76,11 @@ def read_capped(path: Path, max_bytes: int) -> bytes:
 
 
 def parse_scenario_text(data: bytes | str, field: str, max_bytes: int = DEFAULT_MAX_BYTES) -> Any:
-    """YAML of a scenario (:func:`avp_world.safe_yaml.load_bounded`: size cap, UTF-8, no aliases);
-    ScenarioError naming ``field`` with line, column and problem only (never the text)."""
+    """YAML of a scenario (:func:`avp_world.safe_yaml.load_bounded`: size, node and depth caps checked before
+    anything is built, UTF-8, no aliases); ScenarioError naming ``field`` with line, column and problem only (never
+    the text)."""
     try:
-        return load_bounded(data, field, max_bytes)
+        return load_bounded(data, field, max_bytes, MAX_SCENARIO_NODES, MAX_SCENARIO_DEPTH)
     except YamlInputError as exc:
         raise ScenarioError(str(exc)) from None
 
