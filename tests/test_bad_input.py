@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 import yaml
 
-from avp_sim.core.scenario import ScenarioError, load_scenario_file, plan_states
+from avp_sim.core.scenario import ScenarioError, plan_states
+from avp_sim.core.scenario_file import load_scenario_file
 from avp_world.geometry import rect_corners
 
 SCENARIO = Path(__file__).resolve().parents[1] / "src/avp_sim/config/scenarios/two_cars.yaml"

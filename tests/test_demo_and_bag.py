@@ -42,6 +42,19 @@ def test_demo_writes_results_and_a_readable_bag(ros_env, tmp_path):
                 reader.messages(connections=[topics["/avp/lot_map"]])]
         decisions = [reader.deserialize(raw, c.msgtype) for c, _, raw in
                      reader.messages(connections=[topics["/avp/decision"]])]
+        traces = [reader.deserialize(raw, c.msgtype) for c, _, raw in
+                  reader.messages(connections=[topics["/avp/avp_planner/debug/decision"]])]
+    # issue #28: the decision trace of every step, consistent with the decision, and `avp why` reads it back
+    assert [t.step for t in traces] == list(range(metrics["steps"]))
+    kinds = {0: {"idle", "parked"}, 1: {"park", "wait_and_go", "detour", "evasive"},
+             2: {"explore", "wait_and_go", "detour", "evasive"}}
+    assert all(t.mode in kinds[d.mode] for t, d in zip(traces, decisions, strict=True))
+    assert all((t.cause == "") == (t.idle_steps == 0) for t in traces)
+    why = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "why", str(bag)], env=ros_env,
+                         capture_output=True, text=True, timeout=60)
+    assert why.returncode == 0 and "steps by mode:" in why.stdout, why.stdout + why.stderr
+    modes = eval(why.stdout.split("steps by mode: ")[1].splitlines()[0])  # noqa: S307 - our own dict's repr
+    assert sum(modes.values()) == metrics["steps"]
     # the planner node answered every step with a decision carrying its timings and plan
     assert [d.step for d in decisions] == list(range(metrics["steps"]))
     assert all(d.mode in (0, 1, 2) and d.path_planning_time >= 0.0 for d in decisions)

@@ -54,6 +54,12 @@ if [ "$(cat "$ROOT/ros2_ws/.build.sha1" 2>/dev/null || true)" != "$SRC_HASH" ] |
     # data_files glob, and a stale entry-point script in install/: drop both
     [ -d build ] && find build -xtype l -delete
     [ -d install ] && find install -xtype l -delete
+    # avp_msgs globs msg/*.msg at CMake configure time: a message added or removed needs a fresh configure
+    MSGS="$(cd ../src/avp_msgs && ls msg srv 2>/dev/null | sha1sum | cut -d' ' -f1)"
+    if [ "$(cat build/.avp_msgs.list 2>/dev/null || true)" != "$MSGS" ]; then
+      rm -rf build/avp_msgs
+      mkdir -p build && echo "$MSGS" > build/.avp_msgs.list
+    fi
     # vendor/: interface packages the wheels lack, built only where they are not installed (vendor/README.md)
     BASES=(../src)
     env -u PYTHONPATH "$VENV/bin/python" -c "import tf2_msgs.msg" 2>/dev/null || BASES+=(../vendor/tf2_msgs)

@@ -39,6 +39,7 @@ GRAPH_TOPICS: dict[str, tuple[str, bool]] = {
     "/avp/ego_intention": ("avp_msgs/msg/IntentionArray", False),  # the implicit method's (belief node's ego_intent)
     "/avp/predictions": ("avp_msgs/msg/PredictedTrajectoryArray", False),
     "/avp/decision": ("avp_msgs/msg/PlannerDecision", False),
+    "/avp/avp_planner/debug/decision": ("avp_msgs/msg/DecisionTrace", False),  # why the ego stands (issue #28)
     "/avp/plan": ("nav_msgs/msg/Path", False),
     # what a viewer needs (issue #21): transforms, the scene node's markers, the ray scan
     "/tf": ("tf2_msgs/msg/TFMessage", False),

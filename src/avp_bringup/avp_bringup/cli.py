@@ -212,6 +212,17 @@ def cmd_metrics(args: argparse.Namespace) -> int:
     return 0 if same else 1
 
 
+def cmd_why(args: argparse.Namespace) -> int:
+    from avp_bringup.why import explain
+
+    try:
+        print(explain(args.source, args.seed, args.method, args.mode))
+    except (ValueError, OSError) as exc:
+        print(f"[avp why] {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
 def cmd_swap_planner(args: argparse.Namespace) -> int:
     import rclpy
 
@@ -341,6 +352,12 @@ def _add_bag_commands(sub) -> None:
     p = sub.add_parser("metrics", help="recompute an episode's metrics from a bag")
     p.add_argument("bag")
     p.set_defaults(func=cmd_metrics)
+    p = sub.add_parser("why", help="why the ego was not moving: an episode's idle spells and their causes")
+    p.add_argument("source", help="a bag, or the --out folder of avp experiment")
+    p.add_argument("--seed", type=int, help="the episode of a run folder")
+    p.add_argument("--method", default="bezier")
+    p.add_argument("--mode", default="reactive", choices=["reactive", "non_reactive"])
+    p.set_defaults(func=cmd_why)
     p = sub.add_parser("swap-planner", help="replace the running planner while the simulator keeps stepping")
     p.add_argument("profile", nargs="?", help="planner profile: a name of avp_planner/config/profiles/ or a "
                    "parameter YAML; starts a new planner process with it")

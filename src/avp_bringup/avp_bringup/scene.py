@@ -114,10 +114,12 @@ class SpotFill:
         return MarkerArray(markers=[m])
 
 
-def scene_markers(lot, obs, predictions, decision, stamp) -> MarkerArray:
+def scene_markers(lot, obs, predictions, decision, stamp, trace=None) -> MarkerArray:
     """``viz/scene``, one step's moving part (see the module docstring): observed vehicles and pedestrians,
     predictions, the ego, its plan and chosen spot. ``obs``: the core Observation; ``predictions``:
-    PredictedTrajectoryArray message or None; ``decision``: PlannerDecision or None."""
+    PredictedTrajectoryArray message or None; ``decision``: PlannerDecision or None; ``trace``: the planner's
+    DecisionTrace or None — while the ego waits for an agent, that agent is ringed in red and the cause is written
+    above the ego (issue #28)."""
     arr = MarkerArray()
     clear = Marker()
     clear.action = Marker.DELETEALL
@@ -142,7 +144,31 @@ def scene_markers(lot, obs, predictions, decision, stamp) -> MarkerArray:
                                   stamp))
     if decision is not None:
         arr.markers += _plan_markers(lot, decision, stamp)
+    if trace is not None and trace.cause:
+        arr.markers += _blocking_markers(obs, trace, stamp)
     return arr
+
+
+def _blocking_markers(obs, trace, stamp) -> list[Marker]:
+    """The blocking agent ringed (red circle) and the cause as text over the ego."""
+    out = []
+    agents = obs.pedestrians if trace.agent_is_pedestrian else obs.vehicles
+    at = next(((float(a.position[0]), float(a.position[1])) if trace.agent_is_pedestrian
+               else (float(a.pose[0]), float(a.pose[1])) for a in agents if int(a.id) == int(trace.agent_id)), None)
+    if at is not None:
+        r = 1.2 if trace.agent_is_pedestrian else 3.2
+        ang = np.linspace(0.0, 2 * np.pi, 33)
+        m = marker("blocking_agent", 0, Marker.LINE_STRIP, stamp, (1.0, 0.1, 0.1, 1.0), width=0.25)
+        m.points = _pts(np.column_stack([at[0] + r * np.cos(ang), at[1] + r * np.sin(ang)]), 0.4)
+        out.append(m)
+    text = trace.cause_key + (f" {int(trace.agent_id)} (p {trace.probability:.2f}, conflict in "
+                              f"{0.1 * trace.conflict_step:.1f} s)" if trace.agent_id >= 0 else "")
+    t = marker("why", 0, Marker.TEXT_VIEW_FACING, stamp, (1.0, 1.0, 1.0, 1.0))
+    t.pose.position.x, t.pose.position.y, t.pose.position.z = float(obs.ego_pose[0]), float(obs.ego_pose[1]), 3.0
+    t.scale.z = 1.0
+    t.text = f"waiting {0.1 * trace.idle_steps:.1f} s: {text}"
+    out.append(t)
+    return out
 
 
 def _plan_markers(lot, decision, stamp) -> list[Marker]:

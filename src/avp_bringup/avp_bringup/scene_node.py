@@ -31,7 +31,7 @@ from avp_common.node_main import run_node
 from avp_common.params import ParamSpec, declare_and_validate
 from avp_common.qos import DEBUG, LATCHED, STEP_INPUT, reader_qos
 from avp_common.ratelog import RateLimitedLog
-from avp_msgs.msg import LotMap, Observation, PlannerDecision, PredictedTrajectoryArray, SpotBeliefs
+from avp_msgs.msg import DecisionTrace, LotMap, Observation, PlannerDecision, PredictedTrajectoryArray, SpotBeliefs
 
 SCENE_PARAMS = [
     ParamSpec("auth_inputs", bool, "Take lot_map, observation, beliefs and predictions only when tagged with the "
@@ -71,6 +71,9 @@ class SceneNode(Node):
         self.auth.subscription(SpotBeliefs, "beliefs", self._on_beliefs, STEP_INPUT)
         self.auth.subscription(PredictedTrajectoryArray, "predictions", self._on_preds, STEP_INPUT)
         self.create_subscription(PlannerDecision, "decision", self._on_decision, STEP_INPUT)
+        self.traces: dict[int, DecisionTrace] = {}  # the planner's trace (issue #28): drawn when it is there
+        self.create_subscription(DecisionTrace, "avp_planner/debug/decision",
+                                 lambda m: self.traces.__setitem__(int(m.step), m), STEP_INPUT)
 
     def _on_lot(self, msg: LotMap) -> None:
         lot = lot_from_msg_or_log(msg, self.get_logger())
@@ -139,16 +142,17 @@ class SceneNode(Node):
         if self.levels is None or not np.array_equal(levels, self.levels):
             self.pub_spots.publish(self.fill.marker(levels, stamp))
             self.levels = levels
-        self.pub_scene.publish(scene.scene_markers(self.lot, obs, self.preds.get(k), decision, stamp))
+        self.pub_scene.publish(scene.scene_markers(self.lot, obs, self.preds.get(k), decision, stamp,
+                                                   self.traces.get(k)))
         self.published = k
 
     def _forget(self) -> None:
-        for d in (self.obs, self.beliefs, self.preds, self.decisions):
+        for d in (self.obs, self.beliefs, self.preds, self.decisions, self.traces):
             d.clear()
         self.published, self.seen, self.levels = -1, None, None
 
     def _trim(self) -> None:
-        for d in (self.obs, self.beliefs, self.preds, self.decisions):
+        for d in (self.obs, self.beliefs, self.preds, self.decisions, self.traces):
             for s in sorted(d)[:-KEEP_STEPS]:
                 del d[s]
 

@@ -50,6 +50,7 @@ from avp_common.params import (
 from avp_common.qos import LATCHED, RESEND_ANSWER_INTERVAL, STATUS, STEP, STEP_INPUT
 from avp_common.ratelog import RateLimitedLog
 from avp_msgs.msg import (
+    DecisionTrace,
     EpisodeStatus,
     IntentionArray,
     LotMap,
@@ -60,6 +61,8 @@ from avp_msgs.msg import (
 )
 from avp_planner.core.settings import DEFAULT_SETTINGS
 from avp_planner.core.spot_selection import spot_selector_class
+from avp_planner.core.trace import DecisionTrace as DecisionTrace_
+from avp_planner.trace_msg import trace_to_msg
 
 NODE_PARAMS = [
     ParamSpec("autostart", bool, "Lifecycle: configure and activate at start-up; false = stay unconfigured until "
@@ -155,6 +158,9 @@ class PlannerNode(LifecycleNode):
         self.pub_cmd = self.auth.publisher(TwistStamped, "cmd", STEP)
         self.pub_plan = self.create_publisher(Path, "plan", STEP)
         self.pub_decision = self.create_publisher(PlannerDecision, "decision", STEP)
+        # why the ego does what it does, every step (issue #28): mode, idle cause, blocking agent
+        self.pub_trace = self.create_publisher(DecisionTrace, "~/debug/decision", STEP)
+        self.trace = DecisionTrace_(0.1)
         self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", STEP)
         self.auth.subscription(LotMap, "lot_map", self._on_lot, LATCHED)
         self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP_INPUT, with_info=True)
@@ -229,6 +235,7 @@ class PlannerNode(LifecycleNode):
         if episode > self.episode:  # a new episode (reset): forget the old one (its step 0 again is a copy)
             if self.episode >= 0 and self.planner is not None:
                 self.planner.reset()
+            self.trace = DecisionTrace_(0.1)
             self.episode, self.last_step, self.answered = episode, None, None
             for d in self.inputs:
                 for old in [s for s, m in d.items() if episode_of(m.header.frame_id) != episode]:
@@ -404,6 +411,8 @@ class PlannerNode(LifecycleNode):
         msg.path_planning_time = float(timings.get("path_planning_time", total))
         msg.reason = str(getattr(d, "reason", ""))
         self.pub_decision.publish(msg)
+        self.pub_trace.publish(trace_to_msg(path.header, int(obs_msg.step), d,
+                                            self.trace.add(int(obs_msg.step), d)))
         self.pub_markers.publish(self._markers(path, msg))
 
     def _markers(self, path: Path, d: PlannerDecision) -> MarkerArray:

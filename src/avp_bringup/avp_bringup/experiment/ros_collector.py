@@ -14,6 +14,7 @@ from avp_common.conversions import predictions_from_msg
 from avp_common.qos import STATUS
 from avp_msgs.msg import (
     AgentState,
+    DecisionTrace,
     EpisodeStatus,
     GroundTruth,
     Observation,
@@ -41,6 +42,8 @@ class EpisodeCollector(Node):
         self.create_subscription(PredictedTrajectoryArray, "predictions", self._on_preds, deep)
         self.create_subscription(PlannerDecision, "decision", self._on_decision, deep)
         self.create_subscription(Observation, "observation", self._on_obs, deep)
+        # the planner's decision trace (issue #28), when it publishes one (a user's planner may not)
+        self.create_subscription(DecisionTrace, "avp_planner/debug/decision", self._on_trace, deep)
         self.kind_vehicle = AgentState.KIND_VEHICLE
         self.terminal = (EpisodeStatus.STATE_SUCCESS, EpisodeStatus.STATE_COLLISION,
                          EpisodeStatus.STATE_TIMEOUT)
@@ -54,6 +57,7 @@ class EpisodeCollector(Node):
         self.timings: dict[int, dict] = {}
         self.t_obs: dict[int, int] = {}  # step -> DDS source timestamp [ns] of the observation (first sent)
         self.t_preds: dict[int, int] = {}  # ... of the predictions
+        self.traces: dict[int, tuple] = {}  # step -> avp_planner.trace_msg.trace_from_msg
 
     def _on_gt(self, msg) -> None:
         ego = [a.pose for a in msg.agents if a.kind == AgentState.KIND_EGO]
@@ -78,6 +82,11 @@ class EpisodeCollector(Node):
         self.timings[int(msg.step)] = {"spot_selection_time": float(msg.spot_selection_time),
                                        "path_planning_time": float(msg.path_planning_time)}
 
+    def _on_trace(self, msg) -> None:
+        from avp_planner.trace_msg import trace_from_msg
+
+        self.traces[int(msg.step)] = trace_from_msg(msg)
+
     def step_timings(self, k: int) -> dict:
         """The planner's timings of step k with the perception's critical path (see the module docstring)
         added to the spot-selection time."""
@@ -94,8 +103,11 @@ class EpisodeCollector(Node):
     def missing(self) -> dict[str, list[int]]:
         """Steps of the ended episode whose ground truth / predictions / decision have not arrived."""
         n = int(self.status.metrics.steps)
-        return {name: [k for k in range(m) if k not in d] for name, d, m in
-                (("ground_truth", self.gt, n + 1), ("predictions", self.preds, n), ("decision", self.timings, n))}
+        out = {name: [k for k in range(m) if k not in d] for name, d, m in
+               (("ground_truth", self.gt, n + 1), ("predictions", self.preds, n), ("decision", self.timings, n))}
+        if self.traces:  # the planner publishes its trace: wait for every step's
+            out["decision_trace"] = [k for k in range(n) if k not in self.traces]
+        return out
 
     @property
     def finished(self) -> bool:
@@ -124,4 +136,16 @@ class EpisodeCollector(Node):
                               status=STATE_NAMES.get(int(s.state), str(s.state)), metrics=metrics, min_ade=ade,
                               min_fde=fde, step_timings=[self.step_timings(k) for k in range(n)], horizon=horizon,
                               transport="ros", wall_s=wall_s, lot=self.lot,
-                              ego_poses=np.array([self.ego[k] for k in range(n + 1)]))
+                              ego_poses=np.array([self.ego[k] for k in range(n + 1)]),
+                              decision_trace=self._trace_summary(n, float(s.dt)))
+
+    def _trace_summary(self, n: int, dt: float) -> dict | None:
+        """The episode's trace summary from the planner's ~/debug/decision (as the in-process runner's)."""
+        from avp_planner.core.trace import DecisionTrace as Trace
+
+        if not all(k in self.traces for k in range(n)):
+            return None
+        trace = Trace(dt)
+        for k in range(n):
+            trace.add_step(*self.traces[k])
+        return trace.summary()

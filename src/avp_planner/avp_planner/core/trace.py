@@ -130,23 +130,29 @@ class DecisionTrace:
         self.spells: list[_Spell] = []
         self._open: _Spell | None = None
 
-    def add(self, step: int, decision) -> None:
+    def add(self, step: int, decision) -> int:
+        """Count one step's decision; returns the length of the idle spell it is part of (0 if it moves)."""
         tr = getattr(decision, "trace", None) or {}
         mode = tr.get("mode", decision.mode)
+        still = abs(float(decision.command[0])) < 1e-9 and mode in ("idle", "wait_and_go")
+        agent = tr.get("agent_id")
+        return self.add_step(step, mode, cause_key(tr) if still else "", None if agent is None else int(agent))
+
+    def add_step(self, step: int, mode: str, cause: str, agent_id: int | None = None) -> int:
+        """Count one step given its mode and, when idle or waiting (``cause`` not ""), its cause key."""
         self.modes[mode] += 1
-        still = abs(float(decision.command[0])) < 1e-9
-        if still and mode in ("idle", "wait_and_go"):
-            key = cause_key(tr)
-            self.causes[key] += 1
-            if self._open is None or self._open.end != step - 1:
-                self._close()
-                self._open = _Spell(step, step)
-            self._open.end = step
-            self._open.causes[key] += 1
-            if tr.get("agent_id") is not None:
-                self._open.agents[int(tr["agent_id"])] += 1
-        else:
+        if not cause:
             self._close()
+            return 0
+        self.causes[cause] += 1
+        if self._open is None or self._open.end != step - 1:
+            self._close()
+            self._open = _Spell(step, step)
+        self._open.end = step
+        self._open.causes[cause] += 1
+        if agent_id is not None and agent_id >= 0:
+            self._open.agents[agent_id] += 1
+        return self._open.end - self._open.start + 1
 
     def _close(self) -> None:
         if self._open is not None:

@@ -7,12 +7,8 @@ from typing import Any
 
 from avp_sim.core.busy import BusyParams, generate_busy_scenario
 from avp_sim.core.observation import SensorConfig
-from avp_sim.core.scenario import (
-    ScenarioParams,
-    generate_paper_scenario,
-    load_scenario_file,
-    scenario_from_dict,
-)
+from avp_sim.core.scenario import ScenarioParams, generate_paper_scenario
+from avp_sim.core.scenario_file import load_scenario_file, scenario_from_dict
 from avp_sim.core.world import World, WorldConfig
 from avp_world.lot import LotMap, load_bundled_lot, load_lot
 
@@ -62,7 +58,7 @@ def world_config(p: dict[str, Any]) -> WorldConfig:
 def make_world(lot: LotMap, p: dict[str, Any], seed: int, reactive: bool, scenario_file: str = "",
                scenario_data: tuple[str, Any] | None = None) -> World:
     """A fresh episode of the §VI-A protocol for ``seed`` (same seed ⇒ same episode), the scenario of
-    ``scenario_file`` (a trusted local YAML file, :func:`avp_sim.core.scenario.load_scenario_file`) or of
+    ``scenario_file`` (a trusted local YAML file, :func:`avp_sim.core.scenario_file.load_scenario_file`) or of
     ``scenario_data`` ((source name, parsed YAML) of a request, :mod:`avp_sim.core.scenario_source`)."""
     if scenario_data is not None:
         scenario = scenario_from_dict(lot, scenario_data[1], scenario_data[0], seed, reactive, scenario_params(p))

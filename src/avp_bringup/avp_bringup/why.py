@@ -1,0 +1,69 @@
+"""``avp why``: why the ego was not moving — the idle spells of one episode with their causes (issue #28).
+
+From a **bag** (a directory or .mcap file): the planner's ``~/debug/decision`` trace (avp_msgs/DecisionTrace)
+of the last episode in it. From a **run** (the ``--out`` folder of ``avp experiment``): the ``decision_trace`` of
+the record of ``--seed``/``--method``/``--mode`` in its episodes.jsonl. Prints the steps per mode, the idle steps
+per cause and the longest idle spells (when, how long, the main cause, the blocking agents).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from avp_planner.core.trace import DecisionTrace, spells_text
+
+TRACE_TOPIC = "/avp/avp_planner/debug/decision"
+
+
+def trace_from_bag(bag: Path) -> tuple[dict, float]:
+    """(trace summary, dt) of the last episode in ``bag``; ValueError when it holds no decision trace."""
+    from avp_bringup.bagread import BagReader
+    from avp_planner.trace_msg import trace_from_msg
+
+    reader = BagReader(bag)
+    steps: dict[int, tuple] = {}
+    for _topic, msgtype, _t, raw in reader.messages((TRACE_TOPIC,)):
+        step = trace_from_msg(reader.deserialize(raw, msgtype))
+        if step[0] == 0:
+            steps = {}  # a new episode: keep the last one
+        steps[step[0]] = step
+    if not steps:
+        raise ValueError(f"{bag}: no {TRACE_TOPIC} messages (recorded by avp demo/record since issue #28)")
+    trace = DecisionTrace(0.1)
+    for k in sorted(steps):
+        trace.add_step(*steps[k])
+    return trace.summary(), 0.1
+
+
+def trace_from_run(out: Path, seed: int, method: str, mode: str) -> tuple[dict, float]:
+    """(trace summary, dt) of one record of an experiment folder; ValueError naming what is missing."""
+    path = out / "episodes.jsonl"
+    if not path.is_file():
+        raise ValueError(f"{out}: no episodes.jsonl (not an `avp experiment --out` folder)")
+    found = None
+    for line in path.read_text().splitlines():
+        if line.strip():
+            r = json.loads(line)
+            if r.get("seed") == seed and r.get("method") == method and r.get("mode") == mode:
+                found = r
+    if found is None:
+        raise ValueError(f"{path}: no episode of method {method!r}, seed {seed}, mode {mode!r}")
+    if "decision_trace" not in found:
+        raise ValueError(f"{path}: the {method} seed {seed} {mode} record has no decision_trace (recorded before "
+                         "issue #28: run it again with avp experiment)")
+    return found["decision_trace"], 0.1
+
+
+def explain(source: str, seed: int | None = None, method: str = "bezier", mode: str = "reactive") -> str:
+    """The text ``avp why`` prints for a bag or a run folder."""
+    p = Path(source)
+    if p.is_dir() and (p / "episodes.jsonl").is_file():
+        if seed is None:
+            raise ValueError("a run folder needs --seed (and --method, --mode)")
+        summary, dt = trace_from_run(p, seed, method, mode)
+        head = f"{p}: {method} seed {seed} {mode}"
+    else:
+        summary, dt = trace_from_bag(p)
+        head = f"{p}: the last episode of the bag"
+    return f"{head}\n{spells_text(summary, dt)}"

@@ -1,0 +1,35 @@
+"""The planner's decision trace as an avp_msgs/DecisionTrace message (issue #28), and back.
+
+The node publishes one per decision on ``~/debug/decision``; ``avp why`` reads them back from a bag
+(:func:`trace_from_msg` feeds :class:`avp_planner.core.trace.DecisionTrace`).
+"""
+
+from __future__ import annotations
+
+from avp_msgs.msg import DecisionTrace
+from avp_planner.core.trace import cause_key
+
+
+def trace_to_msg(header, step: int, decision, idle_steps: int) -> DecisionTrace:
+    """Step ``step``'s trace (``decision.trace`` of :class:`~avp_planner.core.planner_types.Decision`)."""
+    tr = getattr(decision, "trace", None) or {}
+    still = abs(float(decision.command[0])) < 1e-9 and tr.get("mode", decision.mode) in ("idle", "wait_and_go")
+    msg = DecisionTrace()
+    msg.header = header
+    msg.step = int(step)
+    msg.mode = str(tr.get("mode", decision.mode))
+    msg.cause = str(tr.get("cause", "")) if still else ""
+    msg.cause_key = cause_key(tr) if still else ""
+    msg.agent_id = int(tr.get("agent_id", -1)) if still else -1
+    msg.agent_is_pedestrian = bool(tr.get("pedestrian", False)) if still else False
+    msg.probability = float(tr.get("probability", 0.0)) if still else 0.0
+    msg.conflict_step = int(tr.get("hit_step", -1)) if still else -1
+    msg.agent_motion = str(tr.get("motion", "")) if still else ""
+    msg.idle_steps = int(idle_steps)
+    msg.reason = str(getattr(decision, "reason", ""))
+    return msg
+
+
+def trace_from_msg(msg: DecisionTrace) -> tuple[int, str, str, int | None]:
+    """(step, mode, cause key or "" while driving, blocking agent id or None) for ``DecisionTrace.add_step``."""
+    return int(msg.step), str(msg.mode), str(msg.cause_key), (int(msg.agent_id) if msg.agent_id >= 0 else None)

@@ -1,0 +1,119 @@
+"""Issue #28 item 1: why the ego is not moving — the planner's decision trace on hand-built scenes (the cause an
+oracle can tell: the only car that can block, the only obstacle), its per-episode counts, and ``avp why``."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from test_planner_decision import L, W, make_obs, static_car
+
+from avp_planner.core.decision import EgoPlanner
+from avp_planner.core.settings import PlannerSettings
+from avp_planner.core.trace import DecisionTrace, agent_motion, cause_key
+from avp_world.types import ObservedVehicle, PredictedTrajectory
+
+
+def _rushing_car(speed: float = 5.0):
+    """A car coming up the middle aisle at the ego (heading north) and its prediction: on the ego's road."""
+    n = 40
+    ys = 12.0 + 0.1 * speed * np.arange(1, n + 1)
+    pred = PredictedTrajectory(agent_id=7, poses=np.column_stack([np.full(n, 21.5), ys, np.full(n, math.pi / 2)]),
+                               dt=0.1, length=L, width=W, probability=0.75)
+    hist = np.column_stack([np.full(6, 21.5), 12.0 - 0.1 * speed * np.arange(5, -1, -1), np.full(6, math.pi / 2)])
+    return ObservedVehicle(id=7, length=L, width=W, is_static=False, history=hist), pred
+
+
+def test_an_idle_step_names_the_agent_that_blocks_it(paper_lot):
+    s = PlannerSettings()
+    calm = EgoPlanner(paper_lot, replace(s, decision=replace(s.decision, evasive=False)))
+    car, pred = _rushing_car()
+    d = calm.decide(make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vehicles=[car]), predictions=[pred])
+    assert d.mode == "idle" and d.command == (0.0, 0.0)
+    t = d.trace
+    assert t["mode"] == "idle" and t["cause"] == "agent" and t["agent_id"] == 7 and not t["pedestrian"]
+    assert t["probability"] == pytest.approx(0.75) and t["hit_step"] >= 1
+    assert t["motion"] == "towards" and cause_key(t) == "vehicle:towards"
+    # with evasive on (the default), the same scene is an evasive step, not an idle one
+    d = EgoPlanner(paper_lot, s).decide(make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vehicles=[car]),
+                                        predictions=[pred])
+    assert d.trace["mode"] == "evasive" and d.command[0] != 0.0
+
+
+def test_an_idle_step_without_agents_is_static_or_has_no_candidate(paper_lot):
+    ego = (21.5, 20.0, -math.pi / 2)
+    boxed = [static_car(500, 21.5, 10.0, 0.0, length=5.0), static_car(501, 21.5, 29.0, 0.0, length=5.0)]
+    d = EgoPlanner(paper_lot, PlannerSettings()).decide(make_obs(paper_lot, ego, vehicles=boxed))
+    # every spot occupied, both exploration goals on the middle road beyond the cars: nothing to search
+    assert d.mode == "idle" and d.trace == {"mode": "idle", "cause": "no_candidate"}, d.trace
+    # a vacant spot, but a search too short to reach it (and the exploration goals): searched, no path
+    s = PlannerSettings()
+    short = EgoPlanner(paper_lot, replace(s, search=replace(s.search, max_iterations=3)))
+    d = short.decide(make_obs(paper_lot, ego, vacant=[3], vehicles=boxed))
+    assert d.mode == "idle" and d.trace == {"mode": "idle", "cause": "static"}, d.trace
+    bad = EgoPlanner(paper_lot, PlannerSettings()).decide(make_obs(paper_lot, (np.nan, 30.0, 0.0)))
+    assert bad.trace == {"mode": "idle", "cause": "invalid_input"}
+    p = EgoPlanner(paper_lot, PlannerSettings())
+    d = p.decide(make_obs(paper_lot, (21.5, 30.0, -math.pi / 2), vacant=[22]))
+    assert d.trace == {"mode": "park"} and d.command[0] != 0.0
+
+
+def test_agent_motion_is_read_from_the_observed_history(paper_lot):
+    ego = (21.5, 25.0, -math.pi / 2)
+
+    def motion(hist_y):
+        y = np.asarray(hist_y, float)
+        v = ObservedVehicle(id=3, length=L, width=W, is_static=False,
+                            history=np.column_stack([np.full(len(y), 21.5), y, np.full(len(y), math.pi / 2)]))
+        return agent_motion(make_obs(paper_lot, ego, vehicles=[v]), 3, False)
+
+    assert motion([10.0] * 7) == "standing"
+    assert motion(10.0 + 0.3 * np.arange(7)) == "towards"  # 3 m/s northwards, the ego is north of it
+    assert motion(10.0 - 0.3 * np.arange(7)) == "away"
+    assert motion(np.r_[10.0 + 0.3 * np.arange(5), 11.2 + 0.05, 11.25 + 0.05]) == "braking"  # 3 -> 0.5 m/s
+    assert agent_motion(make_obs(paper_lot, ego), 3, False) == "unseen"
+
+
+def test_the_trace_counts_modes_causes_and_spells():
+    tr = DecisionTrace(0.1)
+
+    def step(k, mode, v, **cause):
+        return tr.add(k, SimpleNamespace(mode=mode, command=(v, 0.0), trace={"mode": mode, **cause}))
+
+    for k in range(5):
+        step(k, "explore", 1.0)
+    lens = [step(k, "idle", 0.0, cause="agent", agent_id=9, pedestrian=False, motion="standing") for k in range(5, 9)]
+    assert lens == [1, 2, 3, 4]
+    step(9, "wait_and_go", 0.0, cause="agent", agent_id=4, pedestrian=True, motion="towards")
+    step(10, "park", 1.0)
+    step(11, "idle", 0.0, cause="static")
+    step(12, "parked", 0.0)
+    s = tr.summary()
+    assert s["steps_by_mode"] == {"explore": 5, "idle": 5, "park": 1, "parked": 1, "wait_and_go": 1}
+    assert s["idle_steps_by_cause"] == {"pedestrian:towards": 1, "static": 1, "vehicle:standing": 4}
+    assert s["longest_idle_steps"] == 5
+    assert s["idle_spells"][0] == {"start_step": 5, "steps": 5, "start_s": 0.5, "seconds": 0.5,
+                                   "cause": "vehicle:standing", "cause_share": 0.8, "blocking_agents": [9, 4]}
+    assert s["idle_spells"][1]["cause"] == "static" and len(s["idle_spells"]) == 2
+
+
+def test_avp_why_prints_the_spells_of_a_run_record(tmp_path):
+    tr = DecisionTrace(0.1)
+    for k in range(30):
+        tr.add_step(k, "idle", "vehicle:braking", 1003)
+    rec = {"method": "bezier", "seed": 5, "mode": "reactive", "decision_trace": tr.summary()}
+    (tmp_path / "episodes.jsonl").write_text(json.dumps(rec) + "\n" + json.dumps({**rec, "seed": 6}) + "\n")
+    r = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "why", str(tmp_path), "--seed", "5"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert "longest idle spell: 30 steps (3.0 s)" in r.stdout
+    assert "t =    0.0 s for   3.0 s: vehicle:braking (100 % of its steps); blocking agent(s) [1003]" in r.stdout
+    r = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "why", str(tmp_path), "--seed", "9"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "no episode of method 'bezier', seed 9" in r.stderr
