@@ -117,3 +117,56 @@ def test_avp_why_prints_the_spells_of_a_run_record(tmp_path):
     r = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "why", str(tmp_path), "--seed", "9"],
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "no episode of method 'bezier', seed 9" in r.stderr
+
+
+# ------------------------------------------------------------------------------- issue #28 item 3: mechanisms
+
+
+def _standing_car_and_its_moving_hypothesis(y0: float = 13.0, probability: float = 1.0):
+    """A car standing in the middle aisle south of the ego, facing it (history: 0.6 s at rest), predicted to
+    drive north at 2 m/s — through the ego's parking manoeuvre into spot 14."""
+    hist = np.tile([21.5, y0, math.pi / 2], (7, 1))
+    car = ObservedVehicle(id=8, length=L, width=W, is_static=False, history=hist)
+    n = 60
+    poses = np.column_stack([np.full(n, 21.5), y0 + 0.2 * np.arange(1, n + 1), np.full(n, math.pi / 2)])
+    return car, PredictedTrajectory(agent_id=8, poses=poses, dt=0.1, length=L, width=W, probability=probability)
+
+
+def _planner(lot, **kw):
+    s = PlannerSettings()
+    dec = {k: v for k, v in kw.items() if hasattr(s.decision, k)}
+    col = {k: v for k, v in kw.items() if hasattr(s.collision, k)}
+    return EgoPlanner(lot, replace(s, decision=replace(s.decision, evasive=False, **dec),
+                                   collision=replace(s.collision, **col)))
+
+
+def test_assume_yielding_lets_the_ego_go_when_the_car_waits_for_it(paper_lot):
+    """Mechanism a: the car stands with the ego 9.7 m ahead of its front; the paper's planner waits for its
+    moving hypothesis, the yielding assumption predicts it keeps standing and the ego parks."""
+    car, pred = _standing_car_and_its_moving_hypothesis()
+    obs = make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vacant=[14], vehicles=[car])
+    paper = _planner(paper_lot).decide(obs, predictions=[pred])
+    assert paper.command[0] == 0.0 and paper.trace.get("agent_id") == 8, paper.trace
+    assert paper.trace["motion"] == "standing"
+    yielding = _planner(paper_lot, assume_yielding=True).decide(obs, predictions=[pred])
+    assert yielding.mode == "park" and yielding.spot_id == 14 and yielding.command[0] != 0.0
+    # a car beyond the look-ahead (or moving) keeps its hypotheses: the switch changes nothing there
+    far, far_pred = _standing_car_and_its_moving_hypothesis(y0=11.0)
+    obs_far = make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vacant=[14], vehicles=[far])
+    d = _planner(paper_lot, assume_yielding=True, yield_lookahead=5.0).decide(obs_far, predictions=[far_pred])
+    assert d.command[0] == 0.0 and d.trace.get("agent_id") == 8
+
+
+def test_commit_window_lets_an_improbable_late_conflict_pass(paper_lot):
+    """Mechanism b: a hypothesis of probability 0.2 that meets the plan only after the commit window no longer
+    blocks it (risk 0.2 <= 0.5); one of probability 0.8 still does; without the window both block."""
+    car, pred = _standing_car_and_its_moving_hypothesis(probability=0.2)
+    obs = make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vacant=[14], vehicles=[car])
+    paper = _planner(paper_lot).decide(obs, predictions=[pred])
+    assert paper.command[0] == 0.0 and paper.trace["hit_step"] > 10, paper.trace
+    split = _planner(paper_lot, commit_horizon=1.0, risk_bound=0.5)
+    d = split.decide(obs, predictions=[pred])
+    assert d.mode == "park" and d.spot_id == 14 and d.command[0] != 0.0
+    likely = replace(pred, probability=0.8)
+    d = _planner(paper_lot, commit_horizon=1.0, risk_bound=0.5).decide(obs, predictions=[likely])
+    assert d.command[0] == 0.0 and d.trace.get("agent_id") == 8

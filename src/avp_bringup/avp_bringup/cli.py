@@ -263,7 +263,7 @@ def cmd_params(args: argparse.Namespace) -> int:
     from avp_common.params import markdown_table
     from avp_perception.params import BELIEF_PARAMS, PREDICTION_PARAMS
     from avp_planner.examples.minimal_planner import MINIMAL_PARAMS
-    from avp_planner.planner_node import PLANNER_PARAMS
+    from avp_planner.params import PLANNER_PARAMS
     from avp_planner.scripted_driver_node import DRIVER_PARAMS
     from avp_sim.params import SIM_PARAMS
 

@@ -13,8 +13,6 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ament_index_python.packages import get_package_prefix, get_package_share_directory
-
 NAMESPACE = "/avp"
 
 
@@ -27,9 +25,13 @@ class NodeSpec:
     extra_params: dict = field(default_factory=dict)
 
     def executable_path(self) -> Path:
+        from ament_index_python.packages import get_package_prefix  # a graph needs the sourced workspace
+
         return Path(get_package_prefix(self.package)) / "lib" / self.package / self.executable
 
     def default_params(self) -> Path:
+        from ament_index_python.packages import get_package_share_directory
+
         return Path(get_package_share_directory(self.package)) / self.param_file
 
 

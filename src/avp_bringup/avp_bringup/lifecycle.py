@@ -83,7 +83,7 @@ def validate_profile(path: Path) -> None:
     import yaml
 
     from avp_common.params import ParameterError, check_value
-    from avp_planner.planner_node import PLANNER_PARAMS
+    from avp_planner.params import PLANNER_PARAMS
 
     try:
         data = yaml.safe_load(path.read_text())

@@ -23,6 +23,7 @@ class DynamicObstacles:
         predictions: §V-C predicted trajectories (vehicles: rectangles; pedestrians: discs).
         length, width: the ego footprint.
         vehicle_margin, pedestrian_margin: clearances required.
+        commit_steps, risk_bound: the horizon split of issue #28 (mechanism b, :meth:`_violations`); 0 = off.
     """
 
     def __init__(
@@ -34,11 +35,14 @@ class DynamicObstacles:
         pedestrian_margin: float = 0.4,
         keep_current_gap: bool = True,
         hold_last: bool = True,
+        commit_steps: int = 0,
+        risk_bound: float = 0.0,
     ):
         self.half_l, self.half_w = 0.5 * float(length), 0.5 * float(width)
         self.circum = math.hypot(self.half_l, self.half_w)
         self.vm, self.pm = float(vehicle_margin), float(pedestrian_margin)
         self.keep_current_gap, self.hold_last = bool(keep_current_gap), bool(hold_last)
+        self.commit_steps, self.risk_bound = int(commit_steps), float(risk_bound)  # 0: every meeting blocks
         veh = [p for p in predictions if not p.is_pedestrian and len(p.poses)]
         ped = [p for p in predictions if p.is_pedestrian and len(p.poses)]
         self.horizon = max((len(p.poses) for p in (*veh, *ped)), default=0)
@@ -51,11 +55,11 @@ class DynamicObstacles:
         self.veh_poses = np.array([pad(p.poses, 3) for p in veh]).reshape(len(veh), t, 3)
         self.veh_half = np.array([[0.5 * p.length, 0.5 * p.width] for p in veh]).reshape(len(veh), 2)
         self.veh_ids = [p.agent_id for p in veh]
-        self.veh_prob = [float(p.probability) for p in veh]  # the hypotheses' probabilities (decision trace)
+        self.veh_prob = np.array([float(p.probability) for p in veh])  # the hypotheses' probabilities (#28)
         self.ped_pos = np.array([pad(p.poses, 2) for p in ped]).reshape(len(ped), t, 2)
         self.ped_radius = np.array([p.radius for p in ped], dtype=float)
         self.ped_ids = [p.agent_id for p in ped]
-        self.ped_prob = [float(p.probability) for p in ped]
+        self.ped_prob = np.array([float(p.probability) for p in ped])
         self.veh_n = np.array([len(p.poses) for p in veh], dtype=np.int64)  # own horizons (hold_last=False)
         self.ped_n = np.array([len(p.poses) for p in ped], dtype=np.int64)
         self._margin_cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}  # by the ego's pose at k = 0
@@ -142,60 +146,77 @@ class DynamicObstacles:
             pm = np.where(g < self.pm, np.maximum(g - 0.05, 0.0), self.pm)
         return vm, pm
 
-    def collision_steps(self, ego_poses: np.ndarray, k0: int = 1) -> np.ndarray:
-        """Sorted time indices k >= k0 at which the ego (holding its last pose) meets a predicted agent,
-        i.e. comes within the margin of it (see :meth:`_margins` for agents already that close at k = 0)."""
+    def _hits(self, ego_poses: np.ndarray, k0: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Every meeting (k >= k0, the ego holding its last pose) of the ego with a predicted agent, i.e. within
+        the margin of it (see :meth:`_margins` for agents already that close at k = 0): (time indices, is a
+        pedestrian, row in its kind's arrays, probability of that hypothesis), sorted by k."""
+        empty = (np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int64), np.zeros(0))
         if self.empty:
-            return np.zeros(0, dtype=np.int64)
+            return empty
         ego = self._extend(ego_poses)
         vm, pm = self._margins(ego[0])
-        hits = []
+        ks, peds, rows, probs = [], [], [], []
         if len(self.veh_poses):
             reach = self.circum + np.hypot(self.veh_half[:, 0], self.veh_half[:, 1]) + self.vm
             k, a = self._pairs(ego, self.veh_poses[..., :2], reach, k0, self.veh_n)
             if len(k):
-                hits.append(k[self._vehicle_gaps(ego, k, a) <= vm[a]])
+                hit = self._vehicle_gaps(ego, k, a) <= vm[a]
+                ks.append(k[hit]), peds.append(np.zeros(int(hit.sum()), bool)), rows.append(a[hit])
+                probs.append(self.veh_prob[a[hit]])
         if len(self.ped_pos):
             reach = self.circum + self.ped_radius + self.pm
             k, a = self._pairs(ego, self.ped_pos, reach, k0, self.ped_n)
             if len(k):
-                hits.append(k[self._ped_gaps(ego, k, a) <= pm[a]])
-        if not hits:
-            return np.zeros(0, dtype=np.int64)
-        return np.unique(np.concatenate(hits))
+                hit = self._ped_gaps(ego, k, a) <= pm[a]
+                ks.append(k[hit]), peds.append(np.ones(int(hit.sum()), bool)), rows.append(a[hit])
+                probs.append(self.ped_prob[a[hit]])
+        if not ks:
+            return empty
+        k, ped, a, pr = (np.concatenate(x) for x in (ks, peds, rows, probs))
+        order = np.lexsort((-pr, k))  # by time, the most probable hypothesis first
+        return k[order], ped[order], a[order], pr[order]
+
+    def collision_steps(self, ego_poses: np.ndarray, k0: int = 1) -> np.ndarray:
+        """Sorted time indices k >= k0 at which the ego (holding its last pose) meets a predicted agent."""
+        return np.unique(self._hits(ego_poses, k0)[0])
+
+    def _violations(self, ego_poses: np.ndarray, k0: int = 1) -> tuple[int, int]:
+        """(first blocking k, index into :meth:`_hits` of the meeting that blocks) or (-1, -1). Without a commit
+        window every meeting blocks. With one (``commit_steps`` > 0, issue #28 mechanism b), a meeting within
+        it blocks; beyond it, the plan is blocked at the first k by which the hypotheses met (each counted once)
+        sum to more than ``risk_bound`` in probability."""
+        k, ped, a, pr = self._hits(ego_poses, k0)
+        if not len(k):
+            return -1, -1
+        if self.commit_steps <= 0:
+            return int(k[0]), 0
+        hard = np.nonzero(k <= self.commit_steps)[0]
+        if len(hard):
+            return int(k[hard[0]]), int(hard[0])
+        seen: set[tuple[bool, int]] = set()
+        risk = 0.0
+        for i in range(len(k)):
+            key = (bool(ped[i]), int(a[i]))
+            if key not in seen:
+                seen.add(key)
+                risk += float(pr[i])
+                if risk > self.risk_bound + 1e-12:
+                    return int(k[i]), i
+        return -1, -1
 
     def blocker(self, ego_poses: np.ndarray, k0: int = 1) -> tuple[int, bool, int, float] | None:
-        """Who meets the ego first (issue #28's decision trace): (time index k, is a pedestrian, agent id,
-        probability of that hypothesis) of the earliest colliding pair (the most probable hypothesis at that
-        k), or None. The same pairs and gaps as :meth:`collision_steps`."""
-        if self.empty:
+        """Who blocks the ego's poses (issue #28's decision trace): (time index k, is a pedestrian, agent id,
+        probability of that hypothesis) of the meeting that makes :meth:`first_collision` fail, or None."""
+        k, i = self._violations(ego_poses, k0)
+        if k < 0:
             return None
-        ego = self._extend(ego_poses)
-        vm, pm = self._margins(ego[0])
-        best: tuple | None = None
-        for is_ped in (False, True):
-            n = len(self.ped_pos) if is_ped else len(self.veh_poses)
-            if not n:
-                continue
-            if is_ped:
-                reach = self.circum + self.ped_radius + self.pm
-                k, a = self._pairs(ego, self.ped_pos, reach, k0, self.ped_n)
-                hit = self._ped_gaps(ego, k, a) <= pm[a] if len(k) else np.zeros(0, bool)
-            else:
-                reach = self.circum + np.hypot(self.veh_half[:, 0], self.veh_half[:, 1]) + self.vm
-                k, a = self._pairs(ego, self.veh_poses[..., :2], reach, k0, self.veh_n)
-                hit = self._vehicle_gaps(ego, k, a) <= vm[a] if len(k) else np.zeros(0, bool)
-            ids, probs = (self.ped_ids, self.ped_prob) if is_ped else (self.veh_ids, self.veh_prob)
-            for kk, aa in zip(k[hit].tolist(), a[hit].tolist(), strict=True):
-                key = (kk, -probs[aa])
-                if best is None or key < best[0]:
-                    best = (key, (int(kk), is_ped, int(ids[aa]), probs[aa]))
-        return None if best is None else best[1]
+        _, ped, a, pr = self._hits(ego_poses, k0)
+        ids = self.ped_ids if ped[i] else self.veh_ids
+        return k, bool(ped[i]), int(ids[int(a[i])]), float(pr[i])
 
     def first_collision(self, ego_poses: np.ndarray, k0: int = 1) -> int:
-        """First colliding time index (>= k0), or -1."""
-        steps = self.collision_steps(ego_poses, k0)
-        return int(steps[0]) if len(steps) else -1
+        """First time index (>= k0) at which the poses are blocked (see :meth:`_violations`), or -1."""
+        return self._violations(ego_poses, k0)[0]
 
     def proximity_cost(self, ego_poses: np.ndarray, dt: float, decay: float = 2.0, reach: float = 3.0) -> float:
         """sum_k sum_agents exp(-decay * gap) dt over pairs closer than ``reach`` (gap: SAT lower bound)."""

@@ -29,6 +29,11 @@ class CollisionSettings:
     pedestrian_margin: float = 0.4  # clearance to predicted pedestrian discs
     keep_current_gap: bool = True  # extra: an agent already nearer than the margin need only keep its gap (§V-D: no)
     beyond_horizon: str = "hold"  # a prediction after its last pose: "hold" it there | "release" (no obstacle)
+    # issue #28 mechanism b (beyond §V-D, which checks every predicted trajectory as an obstacle): > 0 = a plan meeting
+    # a hypothesis only after this many seconds is blocked only when the hypotheses it meets there sum to more than
+    # risk_bound in probability; 0 = every meeting blocks (the paper)
+    commit_horizon: float = 0.0
+    risk_bound: float = 0.5
 
 
 @dataclass(frozen=True)

@@ -129,7 +129,7 @@ def _flatten(d: dict, prefix: str = "") -> dict:
 
 
 def _planner_specs():
-    from avp_planner.planner_node import PLANNER_PARAMS
+    from avp_planner.params import PLANNER_PARAMS
 
     return {s.name: s for s in PLANNER_PARAMS}
 
@@ -227,12 +227,11 @@ def load_profile(name_or_path: str | Path) -> MethodProfile:
 def planner_values(profile: MethodProfile, deterministic: bool = True) -> dict[str, Any]:
     """avp_planner parameter values: the shipped planner.param.yaml, the profile's ``planner`` block, and
     (``deterministic``) the lifted wall-clock caps."""
-    from ament_index_python.packages import get_package_share_directory
-
     from avp_common.params import load_yaml_params
-    from avp_planner.planner_node import PLANNER_PARAMS
+    from avp_common.share import package_share
+    from avp_planner.params import PLANNER_PARAMS
 
-    path = Path(get_package_share_directory("avp_planner")) / "config" / "planner.param.yaml"
+    path = package_share("avp_planner") / "config" / "planner.param.yaml"
     values = load_yaml_params(path, "avp_planner", PLANNER_PARAMS)
     values.update(profile.planner)
     if deterministic:

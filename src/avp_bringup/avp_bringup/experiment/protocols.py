@@ -28,7 +28,7 @@ from typing import Any
 from avp_bringup.experiment.profiles import MethodProfile, ProfileError
 
 #: planner behaviours beyond §V-D, each {parameter: (on value, off value)}; "off" is the paper's rule. The
-#: defaults of planner.param.yaml have them all on.
+#: defaults of planner.param.yaml have the first three on, issue #28's two off (until their ablation decides).
 SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     # "If no safe plans were found ... the ego would stay put" (§V-D-3): no escape manoeuvre when standing still
     # is predicted to be hit
@@ -38,6 +38,12 @@ SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     # "avoids collisions with the predicted trajectories" (§V-D-1): the same margin to every agent, also to one
     # already nearer than it
     "keep_gap": {"collision.keep_current_gap": (True, False)},
+    # issue #28 (unfreezing; off in planner.param.yaml until the ablation picks the default): "the ego would stay
+    # put" while any prediction blocks — a) a car that stands or brakes with the ego ahead of it is predicted to keep
+    # standing (§III-B's reactive agents); b) beyond a 1 s commit window a plan is blocked only by hypotheses whose
+    # probabilities sum to more than collision.risk_bound
+    "yielding": {"decision.assume_yielding": (True, False)},
+    "commit_window": {"collision.commit_horizon": (1.0, 0.0)},
 }
 
 

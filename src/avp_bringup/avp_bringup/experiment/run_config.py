@@ -4,7 +4,6 @@ DDS transport (:mod:`.runner`, :mod:`.ros_transport`; a module of its own so tha
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from avp_bringup.experiment.profiles import MethodProfile, load_profile
@@ -32,13 +31,11 @@ Key = tuple[str, int, str]  # (method, seed, "reactive" | "non_reactive")
 
 def sim_values(cfg: RunConfig) -> dict[str, Any]:
     """avp_sim parameters of the episodes: the shipped sim.param.yaml with t_f and the overrides."""
-    from ament_index_python.packages import get_package_share_directory
-
     from avp_common.params import load_yaml_params, validate_values
+    from avp_common.share import package_share
     from avp_sim.params import SIM_PARAMS
 
-    p = load_yaml_params(Path(get_package_share_directory("avp_sim")) / "config" / "sim.param.yaml", "avp_sim",
-                         SIM_PARAMS)
+    p = load_yaml_params(package_share("avp_sim") / "config" / "sim.param.yaml", "avp_sim", SIM_PARAMS)
     p.update(load_protocol(cfg.protocol).sim)
     p.update(cfg.sim_overrides)
     p["t_final"] = float(cfg.t_final)

@@ -16,6 +16,7 @@ from avp_planner.core.planner_types import (
     STILL_SPEED,
     WORLD_CACHE_SIZE,
 )
+from avp_planner.core.yielding import yielding_predictions
 from avp_search.collision import DynamicObstacles, StaticWorld
 from avp_search.paths import wrap
 from avp_world.geometry import rect_corners, rect_inside_rect
@@ -140,9 +141,12 @@ class InputsMixin:
                 pos = np.asarray(p.position, dtype=float)[None, :] + k * vel[None, :]
                 preds.append(PredictedTrajectory(agent_id=int(p.id), poses=np.column_stack([pos, np.zeros(n)]),
                                                  dt=dt, is_pedestrian=True, radius=float(p.radius)))
+        if d.assume_yielding:
+            preds = yielding_predictions(obs, preds, d.yield_lookahead, d.yield_margin, dt)
         c = self.settings.collision
         return DynamicObstacles(preds, obs.ego_length, obs.ego_width, c.vehicle_margin, c.pedestrian_margin,
-                                keep_current_gap=c.keep_current_gap, hold_last=c.beyond_horizon == "hold")
+                                keep_current_gap=c.keep_current_gap, hold_last=c.beyond_horizon == "hold",
+                                commit_steps=int(round(c.commit_horizon / dt)), risk_bound=c.risk_bound)
 
     @staticmethod
     def _resample(p: PredictedTrajectory, dt: float) -> PredictedTrajectory:

@@ -69,6 +69,12 @@ class DecisionSettings:
     park_retry_steps: int = 5  # while exploring, parking is re-tried at least this often (and on any change)
     idle_replan_steps: int = 1  # after an idle decision (no safe plan) search again only this many steps later
     spot_selector: str = "auto"  # §V-D-1 spot choice: auto, c_park, ego_intention or a plugin (avp.spot_selectors)
+    # issue #28 mechanism a (beyond §V-D, which predicts every car along its intentions): a car standing or braking
+    # with the ego ahead of it within yield_lookahead is predicted to keep standing — the reactive agents of §III-B
+    # stop for the ego — its footprint grown forward by yield_margin (it may roll on while braking); false = the paper
+    assume_yielding: bool = False
+    yield_lookahead: float = 10.0  # m ahead of the car (its front) in which the ego counts as what it stops for
+    yield_margin: float = 1.0  # m: braking margin added in front of a car assumed to yield
 
 
 @dataclass(frozen=True)
@@ -94,6 +100,10 @@ class PlannerSettings(SearchConfig):
             ("decision.wait_step", d.wait_step > 0 and d.max_wait >= 0),
             ("decision.idle_replan_steps", d.idle_replan_steps >= 1),
             ("decision.fallback_prediction", d.fallback_prediction in ("constant_velocity", "static", "none")),
+            ("decision.yield_lookahead", d.yield_lookahead >= 0),
+            ("decision.yield_margin", d.yield_margin >= 0),
+            ("collision.commit_horizon", self.collision.commit_horizon >= 0),
+            ("collision.risk_bound", 0.0 <= self.collision.risk_bound <= 1.0),
         ]
         for name, ok in checks:
             if not ok:

@@ -1,0 +1,47 @@
+"""Issue #28 mechanism a — agents that yield to the ego (``decision.assume_yielding``; off = the paper).
+
+§V-C predicts every car along its intentions and §V-D keeps the ego out of every predicted trajectory. The
+reactive agents of §III-B (and of our simulator) do something else: a car stops while the ego is in its way. When
+it has stopped, or is braking, with the ego ahead of it, the ego waiting for its moving hypotheses waits for a car
+that waits for the ego — the freezing of Trautman & Krause (IROS 2010). This module replaces the hypotheses of such
+a car by one: it keeps standing where it is, its footprint grown forward by a braking margin (it may still roll a
+little while it stops). A car that moves on is predicted along its intentions again at the next step.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from avp_planner.core.trace import agent_motion
+from avp_world.types import Observation, PredictedTrajectory
+
+
+def yields_to_ego(obs: Observation, vehicle, lookahead: float) -> bool:
+    """``vehicle`` (observed, dynamic) stands or brakes (:func:`~avp_planner.core.trace.agent_motion`) and the
+    ego's centre lies ahead of its front, within ``lookahead`` and within a 60° cone of its heading."""
+    if vehicle.is_static or agent_motion(obs, int(vehicle.id), False) not in ("standing", "braking"):
+        return False
+    x, y, th = (float(a) for a in np.asarray(vehicle.history, float).reshape(-1, 3)[-1])
+    dx, dy = float(obs.ego_pose[0]) - x, float(obs.ego_pose[1]) - y
+    ahead = dx * math.cos(th) + dy * math.sin(th) - 0.5 * float(vehicle.length)
+    dist = math.hypot(dx, dy)
+    return 0.0 < ahead <= lookahead and (dx * math.cos(th) + dy * math.sin(th)) >= 0.5 * dist
+
+
+def yielding_predictions(obs: Observation, predictions: list[PredictedTrajectory], lookahead: float,
+                         margin: float, dt: float) -> list[PredictedTrajectory]:
+    """``predictions`` with every hypothesis of a car that yields to the ego (:func:`yields_to_ego`) replaced by
+    one of probability 1: standing at its pose, ``margin`` longer at the front, for the longest horizon given."""
+    yielding = {int(v.id): v for v in obs.vehicles if yields_to_ego(obs, v, lookahead)}
+    if not yielding:
+        return predictions
+    n = max((len(p.poses) for p in predictions), default=1) or 1
+    out = [p for p in predictions if p.is_pedestrian or int(p.agent_id) not in yielding]
+    for vid, v in yielding.items():
+        x, y, th = (float(a) for a in np.asarray(v.history, float).reshape(-1, 3)[-1])
+        cx, cy = x + 0.5 * margin * math.cos(th), y + 0.5 * margin * math.sin(th)
+        out.append(PredictedTrajectory(agent_id=vid, poses=np.tile([cx, cy, th], (n, 1)), dt=dt, probability=1.0,
+                                       length=float(v.length) + margin, width=float(v.width)))
+    return out
