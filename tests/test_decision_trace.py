@@ -170,3 +170,28 @@ def test_commit_window_lets_an_improbable_late_conflict_pass(paper_lot):
     likely = replace(pred, probability=0.8)
     d = _planner(paper_lot, commit_horizon=1.0, risk_bound=0.5).decide(obs, predictions=[likely])
     assert d.command[0] == 0.0 and d.trace.get("agent_id") == 8
+
+
+def test_deadlock_breaker_creeps_after_standing_stuck_time(paper_lot):
+    """Mechanism d: blocked by a conflict 3 s ahead, the paper's planner stands for ever; the breaker stands
+    stuck_time (3 s = 30 steps), then creeps (at most creep_speed) while the next 2 s stay clear, and stops again
+    when they do not (the same hypothesis, made to arrive within the check window)."""
+    car, pred = _standing_car_and_its_moving_hypothesis()
+
+    def run(planner, prediction, steps=40):
+        out = []
+        for k in range(steps):
+            obs = replace(make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vacant=[14], vehicles=[car]), step=k)
+            out.append(planner.decide(obs, predictions=[prediction]))
+        return out
+
+    paper = run(_planner(paper_lot), pred)
+    assert all(d.command[0] == 0.0 for d in paper)
+    breaker = run(_planner(paper_lot, deadlock_breaker=True), pred)
+    first = next(k for k, d in enumerate(breaker) if d.command[0] != 0.0)
+    assert first == 30 and breaker[first].trace["mode"] == "creep", (first, breaker[first].trace)
+    assert all(0.0 < abs(d.command[0]) <= 0.5 + 1e-9 for d in breaker[first:])
+    # the same car predicted to arrive within 1 s: the creep's check fails, the ego keeps standing
+    fast = replace(pred, poses=np.column_stack([np.full(60, 21.5), 13.0 + 0.6 * np.arange(1, 61),
+                                                 np.full(60, math.pi / 2)]))
+    assert all(d.command[0] == 0.0 for d in run(_planner(paper_lot, deadlock_breaker=True), fast))

@@ -46,8 +46,8 @@ def test_demo_writes_results_and_a_readable_bag(ros_env, tmp_path):
                   reader.messages(connections=[topics["/avp/avp_planner/debug/decision"]])]
     # issue #28: the decision trace of every step, consistent with the decision, and `avp why` reads it back
     assert [t.step for t in traces] == list(range(metrics["steps"]))
-    kinds = {0: {"idle", "parked"}, 1: {"park", "wait_and_go", "detour", "evasive"},
-             2: {"explore", "wait_and_go", "detour", "evasive"}}
+    kinds = {0: {"idle", "parked"}, 1: {"park", "wait_and_go", "detour", "evasive", "creep"},
+             2: {"explore", "wait_and_go", "detour", "evasive", "creep"}}
     assert all(t.mode in kinds[d.mode] for t, d in zip(traces, decisions, strict=True))
     assert all((t.cause == "") == (t.idle_steps == 0) for t in traces)
     why = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "why", str(bag)], env=ros_env,

@@ -44,6 +44,8 @@ SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     # probabilities sum to more than collision.risk_bound
     "yielding": {"decision.assume_yielding": (True, False)},
     "commit_window": {"collision.commit_horizon": (1.0, 0.0)},
+    # d) after standing decision.stuck_time, creep along the best blocked plan while its next 2 s are clear
+    "deadlock_breaker": {"decision.deadlock_breaker": (True, False)},
 }
 
 

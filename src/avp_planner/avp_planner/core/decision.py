@@ -123,6 +123,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         self._idle_until = -(10**9)  # idle_replan_steps: no new search before this step after an idle decision
         self._failed_searches: dict[tuple, PlanResult] = {}  # see FAILED_SEARCH_CACHE
         self._last_cause: dict = {"cause": "unknown"}  # why the last idle decision was idle (decision trace)
+        self._stuck_steps = 0  # consecutive steps stood idle or waiting (creep steps keep the count)
 
     def decide(self, obs: Observation, beliefs: np.ndarray | None = None,
                predictions: Sequence[PredictedTrajectory] = (), spot_priority: Sequence[int] | None = None,
@@ -137,6 +138,14 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         (the smaller holds); the planner node passes what is left of its real-time deadline
         (``realtime_decision_deadline``). None: the cap only.
         """
+        dec = self._decide(obs, beliefs, predictions, spot_priority, time_budget)
+        mode = dec.trace.get("mode", dec.mode)  # how long the ego has stood (deadlock_breaker's clock)
+        self._stuck_steps = (self._stuck_steps + 1 if mode in ("idle", "wait_and_go")
+                             else self._stuck_steps if mode == "creep" else 0)
+        return dec
+
+    def _decide(self, obs: Observation, beliefs: np.ndarray | None, predictions, spot_priority,
+                time_budget: float | None) -> Decision:
         t_start = time.perf_counter()
         timing = {"spot_selection_time": 0.0, "path_planning_time": 0.0, "total": 0.0}
         predictions = list(predictions or ())
@@ -255,6 +264,9 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
                 st.stats["evasive"] = True
                 return self._finish(self._execute(plan, len(st.cands), plan.note, True), st.timing, st.t_start,
                                     st.stats)
+        plan = self._creep(st)
+        if plan is not None:  # deadlock_breaker: one step of the creep, re-decided next step
+            return self._finish(self._execute(plan, len(st.cands), plan.note, True), st.timing, st.t_start, st.stats)
         reason = "no safe parking or exploration plan" + (f" ({st.why})" if st.why else "")
         self._idle_until = st.obs.step + d.idle_replan_steps
         self._last_cause = idle_cause(st, self.settings.control)

@@ -11,10 +11,11 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 
 import numpy as np
 
-from avp_planner.core.control import reference_trajectory
+from avp_planner.core.control import reference_trajectory, track
 from avp_planner.core.planner_types import (
     EXPLORE,
     PARK,
@@ -60,6 +61,30 @@ class SafetyMixin:
             plan.note = f"evasive: standing still is hit at step {standing}"
             plan.kind = "evasive"
         return plan
+
+    def _creep(self, st) -> _Plan | None:
+        """``deadlock_breaker`` (issue #28 mechanism d): once the ego has stood ``stuck_time``, the blocked plan
+        that meets the predictions latest, tracked at ``creep_speed``, if its next ``creep_check_time`` seconds meet
+        no predicted agent (any hypothesis, margins as usual) and no static obstacle; None otherwise. Re-decided
+        every step: the ego stops as soon as the check fails (braking from 0.5 m/s takes 0.25 s)."""
+        d, c = self.settings.decision, self.settings.control
+        if not d.deadlock_breaker or self._stuck_steps * c.dt < d.stuck_time - 1e-9 or not st.blocked_plans:
+            return None
+        slow = replace(c, v_max=d.creep_speed)
+        n = int(round(d.creep_check_time / c.dt))
+        for cand in sorted(st.blocked_plans, key=lambda p: -(p.first_hit if p.first_hit >= 0 else 10**9))[:3]:
+            traj = track(cand.path, slow, self.settings.vehicle.max_curvature, st.obs.ego_speed)
+            head = traj.states[: n + 1]
+            m = self.settings.collision.verify_margin
+            if not st.world.free(head[1:], m).all():
+                continue
+            hits = st.dyn.collision_steps(head)
+            if len(hits) and hits[0] <= n:
+                continue
+            margins = np.full(len(traj.states), m)
+            return _Plan(cand.mode, cand.spot_id, cand.goal, traj, math.inf, margins, 0, cand.path.length,
+                         note=f"creeping: stood {self._stuck_steps * c.dt:.1f} s (deadlock_breaker)", kind="creep")
+        return None
 
     def _detour(self, obs, b, ego, world, dyn, cands, ordered, t_end, stats, timing, blocked_plans, back_ok):
         """``dynamic_as_static_fallback``: park, else explore, with the standing agents' current footprints as

@@ -75,6 +75,13 @@ class DecisionSettings:
     assume_yielding: bool = False
     yield_lookahead: float = 10.0  # m ahead of the car (its front) in which the ego counts as what it stops for
     yield_margin: float = 1.0  # m: braking margin added in front of a car assumed to yield
+    # issue #28 mechanism d (beyond §V-D-3 "the ego would stay put"): after stuck_time s without moving, creep along
+    # the blocked plan that meets the predictions latest at creep_speed, each step only while its next
+    # creep_check_time s meet no predicted agent (every hypothesis) and no static obstacle; false = the paper
+    deadlock_breaker: bool = False
+    stuck_time: float = 3.0  # s stopped (idle or waiting) before creeping
+    creep_speed: float = 0.5  # m/s
+    creep_check_time: float = 2.0  # s of the creep checked hard against every hypothesis, each step
 
 
 @dataclass(frozen=True)
@@ -101,6 +108,9 @@ class PlannerSettings(SearchConfig):
             ("decision.idle_replan_steps", d.idle_replan_steps >= 1),
             ("decision.fallback_prediction", d.fallback_prediction in ("constant_velocity", "static", "none")),
             ("decision.yield_lookahead", d.yield_lookahead >= 0),
+            ("decision.stuck_time", d.stuck_time >= 0),
+            ("decision.creep_speed", 0 < d.creep_speed <= k.v_max),
+            ("decision.creep_check_time", d.creep_check_time > 0),
             ("decision.yield_margin", d.yield_margin >= 0),
             ("collision.commit_horizon", self.collision.commit_horizon >= 0),
             ("collision.risk_bound", 0.0 <= self.collision.risk_bound <= 1.0),

@@ -7,6 +7,7 @@ Every :class:`~avp_planner.core.planner_types.Decision` carries ``trace``: the s
   wait-and-go, our ``max_wait``);
 * ``detour``: driving a plan found with the standing agents as static obstacles (``dynamic_as_static_fallback``);
 * ``evasive``: driving away because standing still is predicted to be hit (``evasive``);
+* ``creep``: inching along the best blocked plan after standing ``stuck_time`` (``deadlock_breaker``, issue #28 d);
 * ``idle``: u = 0 (§V-D-3); ``parked``: at the end of the parking plan —
 
 and, for every idle or waiting step, the **cause**:
@@ -34,7 +35,7 @@ import numpy as np
 
 from avp_world.types import Observation
 
-MODES = ("park", "explore", "wait_and_go", "detour", "evasive", "idle", "parked")
+MODES = ("park", "explore", "wait_and_go", "detour", "evasive", "creep", "idle", "parked")
 STANDING_SPEED = 0.3  # m/s, as planner_types.STILL_SPEED
 BRAKING_DROP = 0.3  # m/s lost over the last BRAKING_WINDOW s: braking
 BRAKING_WINDOW = 0.5  # s
