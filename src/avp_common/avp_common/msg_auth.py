@@ -150,8 +150,8 @@ class Authenticator:
         self.node = node
         self.key = key if key is not None else load_key()
         self.check_inputs = bool(check_inputs)
-        self.dropped: dict[str, int] = {}
-        self._last_log: dict[str, float] = {}
+        self.dropped: dict[tuple[str, str], int] = {}  # (topic, reason) -> count
+        self._last_log: dict[tuple[str, str], float] = {}
         self._publishers: dict[str, tuple[float, set[str]]] = {}
         self._reported: dict[str, set[str]] = {}
 
@@ -178,8 +178,9 @@ class Authenticator:
         return holder["sub"]
 
     def _report(self, topic: str, why: str = "unauthenticated") -> None:
-        """One line when a new publisher shows up on ``topic`` while its messages fail, else one a second."""
-        n = self.dropped[topic] = self.dropped.get(topic, 0) + 1
+        """One line when a new publisher shows up on ``topic`` while its messages fail, else one a second per
+        reason (``why``: a flood of one kind must not hide the other)."""
+        n = self.dropped[(topic, why)] = self.dropped.get((topic, why), 0) + 1
         now = time.monotonic()
         seen_at, pubs = self._publishers.get(topic, (-1e9, set()))
         if now - seen_at >= 1.0:
@@ -188,9 +189,9 @@ class Authenticator:
             self._publishers[topic] = (now, pubs)
         reported = self._reported.setdefault(topic, set())
         new = sorted(pubs - reported)
-        if new or now - self._last_log.get(topic, -1e9) >= 1.0:
+        if new or now - self._last_log.get((topic, why), -1e9) >= 1.0:
             reported |= set(new)
-            self._last_log[topic] = now
+            self._last_log[(topic, why)] = now
             self.node.get_logger().error(
                 f"{topic}: {n} {why} message(s) dropped so far (auth_inputs; docs/bad_input.md); "
                 f"publishers on it: {sorted(pubs)}" + (f"; new: {new}" if new else ""))
