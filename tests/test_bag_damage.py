@@ -157,14 +157,16 @@ def test_empty_and_foreign_files_get_one_error_naming_them(tmp_path, ros_env):
 
 @pytest.fixture()
 def small_fs(tmp_path):
-    """A 512 KiB tmpfs (less than the 4 s demo's bag), or a skip saying why it cannot be made here."""
+    """A 1 MiB tmpfs (less than the 4 s demo's bag, about 1.4 MB), or a skip saying why it cannot be made here. Not
+    smaller: the bag's first splits and its first 256 KiB chunk must fit before the disk fills (with 512 KiB, a fast
+    machine that put the whole episode in one split read back an empty prefix)."""
     import os
 
     mnt = tmp_path / "small"
     mnt.mkdir()
     if os.geteuid() != 0:
         pytest.skip(f"mounting a size-limited tmpfs needs root; this test runs as uid {os.geteuid()}")
-    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=512k", "tmpfs", str(mnt)], capture_output=True, text=True)
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mnt)], capture_output=True, text=True)
     if r.returncode != 0:
         pytest.skip(f"cannot mount a size-limited tmpfs here: {r.stderr.strip()}")
     try:
