@@ -34,10 +34,6 @@ class StepAnswers:
         earlier episode is still told apart."""
         self.last_step, self.answer = -1, None
 
-    def is_new_episode(self, episode: int) -> bool:
-        """True for the first observation of a later episode than the running one."""
-        return episode > self.episode
-
     def begin(self, episode: int) -> bool:
         """Enter ``episode`` if it is a later one (answers forgotten); True when it was new and an episode ran
         before (the caller resets its own state)."""
@@ -53,22 +49,22 @@ class StepAnswers:
         self.last_step, self.answer = step, answer
         self.answered_at = time.monotonic()
 
-    def is_copy(self, step: int, republish: Callable[[Any], None], episode: int | None = None) -> bool:
-        """True when ``step`` of ``episode`` (default: the running one) is the step answered last (a re-sent
+    def is_copy(self, step: int, republish: Callable[[Any], None], episode: int) -> bool:
+        """True when ``step`` of ``episode`` is the step of the running episode answered last (a re-sent
         observation or a copy of it); then ``republish(answer)`` is called unless it was within the last
         ``RESEND_ANSWER_INTERVAL`` seconds."""
-        if (episode is not None and episode != self.episode) or step != self.last_step or self.answer is None:
+        if episode != self.episode or step != self.last_step or self.answer is None:
             return False
         if time.monotonic() - self.answered_at >= RESEND_ANSWER_INTERVAL:
             republish(self.answer)
             self.answered_at = time.monotonic()
         return True
 
-    def stale(self, step: int, episode: int | None = None) -> str | None:
+    def stale(self, step: int, episode: int) -> str | None:
         """Why ``step`` of ``episode`` is dropped (an earlier episode; or older than the last answered step of the
         running one), or None."""
-        if episode is not None and episode < self.episode:
+        if episode < self.episode:
             return f"step {step} of an episode that ended (a replay of an earlier episode); dropped"
-        if (episode is None or episode == self.episode) and step < self.last_step:
+        if episode == self.episode and step < self.last_step:
             return f"step {step} is older than step {self.last_step} (out of order or a stale copy); dropped"
         return None

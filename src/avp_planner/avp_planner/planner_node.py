@@ -240,21 +240,19 @@ class PlannerNode(LifecycleNode):
         self._try(k)
 
     def _on_beliefs(self, msg: SpotBeliefs) -> None:
-        if episode_of(msg.header.frame_id) < self.episode:
-            return  # of an earlier episode (a replay)
-        self.beliefs[int(msg.step)] = msg
-        self._try(int(msg.step))
+        self._on_input(self.beliefs, msg)
 
     def _on_preds(self, msg: PredictedTrajectoryArray) -> None:
-        if episode_of(msg.header.frame_id) < self.episode:
-            return  # of an earlier episode (a replay)
-        self.preds[int(msg.step)] = msg
-        self._try(int(msg.step))
+        self._on_input(self.preds, msg)
 
     def _on_ego_intention(self, msg: IntentionArray) -> None:
+        self._on_input(self.ego_int, msg)
+
+    def _on_input(self, inputs: dict, msg) -> None:
+        """Keep step k's beliefs / predictions / ego intention (not one of an earlier episode: a replay)."""
         if episode_of(msg.header.frame_id) < self.episode:
-            return  # of an earlier episode (a replay)
-        self.ego_int[int(msg.step)] = msg
+            return
+        inputs[int(msg.step)] = msg
         self._try(int(msg.step))
 
     def _try(self, k: int) -> None:

@@ -7,17 +7,16 @@ The node publishes one per decision on ``~/debug/decision``; ``avp why`` reads t
 from __future__ import annotations
 
 from avp_msgs.msg import DecisionTrace
-from avp_planner.core.trace import cause_key
+from avp_planner.core.trace import cause_key, step_of
 
 
 def trace_to_msg(header, step: int, decision, idle_steps: int) -> DecisionTrace:
     """Step ``step``'s trace (``decision.trace`` of :class:`~avp_planner.core.planner_types.Decision`)."""
-    tr = getattr(decision, "trace", None) or {}
-    still = abs(float(decision.command[0])) < 1e-9 and tr.get("mode", decision.mode) in ("idle", "wait_and_go")
+    mode, tr, still = step_of(decision)
     msg = DecisionTrace()
     msg.header = header
     msg.step = int(step)
-    msg.mode = str(tr.get("mode", decision.mode))
+    msg.mode = str(mode)
     msg.cause = str(tr.get("cause", "")) if still else ""
     msg.cause_key = cause_key(tr) if still else ""
     msg.agent_id = int(tr.get("agent_id", -1)) if still else -1

@@ -23,7 +23,7 @@ class DynamicObstacles:
         predictions: §V-C predicted trajectories (vehicles: rectangles; pedestrians: discs).
         length, width: the ego footprint.
         vehicle_margin, pedestrian_margin: clearances required.
-        commit_steps, risk_bound: the horizon split of issue #28 (mechanism b, :meth:`_violations`); 0 = off.
+        commit_steps, risk_bound: the horizon split of issue #28 (mechanism b, :meth:`_violation`); 0 = off.
     """
 
     def __init__(
@@ -180,12 +180,12 @@ class DynamicObstacles:
         """Sorted time indices k >= k0 at which the ego (holding its last pose) meets a predicted agent."""
         return np.unique(self._hits(ego_poses, k0)[0])
 
-    def _violations(self, ego_poses: np.ndarray, k0: int = 1) -> tuple[int, int]:
-        """(first blocking k, index into :meth:`_hits` of the meeting that blocks) or (-1, -1). Without a commit
-        window every meeting blocks. With one (``commit_steps`` > 0, issue #28 mechanism b), a meeting within
-        it blocks; beyond it, the plan is blocked at the first k by which the hypotheses met (each counted once)
-        sum to more than ``risk_bound`` in probability."""
-        k, ped, a, pr = self._hits(ego_poses, k0)
+    def _violation(self, hits: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]) -> tuple[int, int]:
+        """(first blocking k, index into ``hits`` (:meth:`_hits`) of the meeting that blocks) or (-1, -1). Without
+        a commit window every meeting blocks. With one (``commit_steps`` > 0, issue #28 mechanism b), a meeting
+        within it blocks; beyond it, the plan is blocked at the first k by which the hypotheses met (each counted
+        once) sum to more than ``risk_bound`` in probability."""
+        k, ped, a, pr = hits
         if not len(k):
             return -1, -1
         if self.commit_steps <= 0:
@@ -207,16 +207,17 @@ class DynamicObstacles:
     def blocker(self, ego_poses: np.ndarray, k0: int = 1) -> tuple[int, bool, int, float] | None:
         """Who blocks the ego's poses (issue #28's decision trace): (time index k, is a pedestrian, agent id,
         probability of that hypothesis) of the meeting that makes :meth:`first_collision` fail, or None."""
-        k, i = self._violations(ego_poses, k0)
+        hits = self._hits(ego_poses, k0)
+        k, i = self._violation(hits)
         if k < 0:
             return None
-        _, ped, a, pr = self._hits(ego_poses, k0)
+        _, ped, a, pr = hits
         ids = self.ped_ids if ped[i] else self.veh_ids
         return k, bool(ped[i]), int(ids[int(a[i])]), float(pr[i])
 
     def first_collision(self, ego_poses: np.ndarray, k0: int = 1) -> int:
-        """First time index (>= k0) at which the poses are blocked (see :meth:`_violations`), or -1."""
-        return self._violations(ego_poses, k0)[0]
+        """First time index (>= k0) at which the poses are blocked (see :meth:`_violation`), or -1."""
+        return self._violation(self._hits(ego_poses, k0))[0]
 
     def proximity_cost(self, ego_poses: np.ndarray, dt: float, decay: float = 2.0, reach: float = 3.0) -> float:
         """sum_k sum_agents exp(-decay * gap) dt over pairs closer than ``reach`` (gap: SAT lower bound)."""

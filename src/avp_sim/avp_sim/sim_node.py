@@ -76,6 +76,7 @@ class SimNode(Node):
         self.srv = self.create_service(ResetEpisode, "reset_episode", self._on_reset)
         self.pub_lot.publish(lot_to_msg(self.lot))
         self.world: World | None = None
+        self.episode = 0  # the running episode's id (set by _new_episode)
         self.seed = self.p["seed"]
         self.reactive = self.p["reactive"]
         self.started = False  # step 0 published
@@ -97,7 +98,7 @@ class SimNode(Node):
         self.world = make_world(self.lot, self.p, seed, reactive, scenario_data=scenario)
         # the episode id every message of this episode carries (avp_common.msg_auth, issue #27): the wall clock
         # in ns, strictly increasing, so that a replay of an earlier episode (or of an earlier run) is older
-        self.episode = max(time.time_ns(), getattr(self, "episode", 0) + 1)
+        self.episode = max(time.time_ns(), self.episode + 1)
         seed, reactive = self.world.scenario.seed, self.world.scenario.reactive
         self.seed, self.reactive = seed, reactive
         self.started = False

@@ -84,15 +84,10 @@ class MethodProfile:
 
 def methods_dir() -> Path:
     """The shipped profiles: the package share directory, else the source tree next to this package."""
-    try:
-        from ament_index_python.packages import get_package_share_directory
+    from avp_common.share import SRC, package_share
 
-        d = Path(get_package_share_directory("avp_bringup")) / "config" / "methods"
-        if d.is_dir():
-            return d
-    except Exception:  # noqa: BLE001 - not in a sourced workspace: fall back to the source tree
-        pass
-    return Path(__file__).resolve().parents[2] / "config" / "methods"
+    d = package_share("avp_bringup") / "config" / "methods"
+    return d if d.is_dir() else SRC / "avp_bringup" / "config" / "methods"
 
 
 #: directories of user method profiles (``:``-separated, like PATH), searched after the shipped ones: a plugin's

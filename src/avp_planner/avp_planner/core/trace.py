@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from avp_planner.core.control import reference_trajectory
 from avp_world.types import Observation
 
 MODES = ("park", "explore", "wait_and_go", "detour", "evasive", "creep", "idle", "parked")
@@ -84,8 +85,6 @@ def idle_cause(st, control) -> dict:
     """Why a decision step (:class:`~avp_planner.core.planner_types._Step`) ends idle: the blocked plan hit latest
     names its blocker (``agent``); else ``budget`` (a search hit the time cap, or the deadline passed), ``static``
     (searches ran, none found a path) or ``no_candidate`` (nothing to search)."""
-    from avp_planner.core.control import reference_trajectory
-
     if st.blocked_plans:
         c = max(st.blocked_plans, key=lambda c: (c.first_hit if c.first_hit >= 0 else 10**9, -c.path.length))
         poses, _ = reference_trajectory(c.path, control, float(st.obs.ego_speed))
@@ -94,6 +93,13 @@ def idle_cause(st, control) -> dict:
     if any(str(q.get("reason", "")).startswith("time cap") for q in queries) or time.perf_counter() > st.t_end:
         return {"cause": "budget"}
     return {"cause": "static" if queries else "no_candidate"}
+
+
+def step_of(decision) -> tuple[str, dict, bool]:
+    """(mode, trace, whether the ego stands idle or waiting) of one decision: what is counted and published."""
+    tr = getattr(decision, "trace", None) or {}
+    mode = tr.get("mode", decision.mode)
+    return mode, tr, abs(float(decision.command[0])) < 1e-9 and mode in ("idle", "wait_and_go")
 
 
 def cause_key(trace: dict) -> str:
@@ -133,9 +139,7 @@ class DecisionTrace:
 
     def add(self, step: int, decision) -> int:
         """Count one step's decision; returns the length of the idle spell it is part of (0 if it moves)."""
-        tr = getattr(decision, "trace", None) or {}
-        mode = tr.get("mode", decision.mode)
-        still = abs(float(decision.command[0])) < 1e-9 and mode in ("idle", "wait_and_go")
+        mode, tr, still = step_of(decision)
         agent = tr.get("agent_id")
         return self.add_step(step, mode, cause_key(tr) if still else "", None if agent is None else int(agent))
 
