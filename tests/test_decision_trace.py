@@ -195,3 +195,22 @@ def test_deadlock_breaker_creeps_after_standing_stuck_time(paper_lot):
     fast = replace(pred, poses=np.column_stack([np.full(60, 21.5), 13.0 + 0.6 * np.arange(1, 61),
                                                  np.full(60, math.pi / 2)]))
     assert all(d.command[0] == 0.0 for d in run(_planner(paper_lot, deadlock_breaker=True), fast))
+
+
+def test_commit_window_hold_keeps_a_likely_late_conflict_where_the_window_ends(paper_lot):
+    """Mechanism b, ``beyond_commit: hold``: a certain hypothesis (probability 1) that meets the plan only after the
+    1 s window is cut there and held (the car is assumed to stop for the ego, §III-B): the ego parks, where the risk
+    bound (1 > 0.5) and the paper's rule keep it standing; the same car predicted to arrive within the window still
+    blocks, and one held in the ego's way at the window's end is still an obstacle."""
+    car, pred = _standing_car_and_its_moving_hypothesis(y0=7.0, probability=1.0)  # held at y = 9 after 1 s
+    obs = make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vacant=[14], vehicles=[car])
+    assert _planner(paper_lot).decide(obs, predictions=[pred]).command[0] == 0.0
+    risk = _planner(paper_lot, commit_horizon=1.0, risk_bound=0.5).decide(obs, predictions=[pred])
+    assert risk.command[0] == 0.0 and risk.trace.get("agent_id") == 8, risk.trace
+    hold = _planner(paper_lot, commit_horizon=1.0, beyond_commit="hold").decide(obs, predictions=[pred])
+    assert hold.mode == "park" and hold.spot_id == 14 and hold.command[0] != 0.0, hold.trace
+    fast = replace(pred, poses=np.column_stack([np.full(60, 21.5), 13.0 + 0.8 * np.arange(1, 61),
+                                                 np.full(60, math.pi / 2)]))
+    d = _planner(paper_lot, commit_horizon=1.0, beyond_commit="hold").decide(obs, predictions=[fast])
+    assert d.command[0] == 0.0 and d.trace.get("agent_id") == 8, d.trace
+

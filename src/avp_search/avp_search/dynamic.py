@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
+from avp_search.reactive import reactive_hits
 from avp_world.types import PredictedTrajectory
 
 
@@ -24,6 +26,9 @@ class DynamicObstacles:
         length, width: the ego footprint.
         vehicle_margin, pedestrian_margin: clearances required.
         commit_steps, risk_bound: the horizon split of issue #28 (mechanism b, :meth:`_violation`); 0 = off.
+        hold_after_commit: with ``commit_steps`` > 0, instead of the risk bound each hypothesis is held, after
+            the window, at its pose at the window's end (and every meeting blocks): the agents are assumed to stop
+            for the ego, as the reactive agents of §III-B do, once the window is past.
     """
 
     def __init__(
@@ -37,12 +42,20 @@ class DynamicObstacles:
         hold_last: bool = True,
         commit_steps: int = 0,
         risk_bound: float = 0.0,
+        hold_after_commit: bool = False,
+        react_steps: int = 0,
+        react_margin: float = 0.0,
     ):
         self.half_l, self.half_w = 0.5 * float(length), 0.5 * float(width)
         self.circum = math.hypot(self.half_l, self.half_w)
         self.vm, self.pm = float(vehicle_margin), float(pedestrian_margin)
         self.keep_current_gap, self.hold_last = bool(keep_current_gap), bool(hold_last)
         self.commit_steps, self.risk_bound = int(commit_steps), float(risk_bound)  # 0: every meeting blocks
+        self.react_steps, self.react_margin = int(react_steps), float(react_margin)
+        if self.commit_steps > 0 and hold_after_commit:  # cut every prediction at the window, held there
+            predictions = [replace(p, poses=np.asarray(p.poses, dtype=float)[: self.commit_steps])
+                           for p in predictions]
+            self.hold_last, self.commit_steps = True, 0
         veh = [p for p in predictions if not p.is_pedestrian and len(p.poses)]
         ped = [p for p in predictions if p.is_pedestrian and len(p.poses)]
         self.horizon = max((len(p.poses) for p in (*veh, *ped)), default=0)
@@ -155,6 +168,20 @@ class DynamicObstacles:
             return empty
         ego = self._extend(ego_poses)
         vm, pm = self._margins(ego[0])
+        if self.react_steps <= 0:
+            return self._plain_hits(ego, vm, pm, k0)
+        # agents stop for the ego (avp_search.reactive), after a commit window in which they are assumed not to
+        late = reactive_hits(self, ego, vm, pm, max(k0, self.commit_steps + 1))
+        if self.commit_steps <= 0 or k0 > self.commit_steps:
+            return late
+        early = self._plain_hits(ego[: self.commit_steps + 1], vm, pm, k0)
+        k, ped, a, pr = (np.concatenate(x) for x in zip(early, late, strict=True))
+        order = np.lexsort((-pr, k))
+        return k[order], ped[order], a[order], pr[order]
+
+    def _plain_hits(self, ego: np.ndarray, vm: np.ndarray, pm: np.ndarray, k0: int):
+        """:meth:`_hits` with every agent following its hypothesis whatever the ego does (the paper)."""
+        empty = (np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int64), np.zeros(0))
         ks, peds, rows, probs = [], [], [], []
         if len(self.veh_poses):
             reach = self.circum + np.hypot(self.veh_half[:, 0], self.veh_half[:, 1]) + self.vm
@@ -188,7 +215,7 @@ class DynamicObstacles:
         k, ped, a, pr = hits
         if not len(k):
             return -1, -1
-        if self.commit_steps <= 0:
+        if self.commit_steps <= 0 or self.react_steps > 0:  # with the agents' reaction every meeting blocks
             return int(k[0]), 0
         hard = np.nonzero(k <= self.commit_steps)[0]
         if len(hard):

@@ -32,8 +32,17 @@ class CollisionSettings:
     # issue #28 mechanism b (beyond §V-D, which checks every predicted trajectory as an obstacle): > 0 = a plan meeting
     # a hypothesis only after this many seconds is blocked only when the hypotheses it meets there sum to more than
     # risk_bound in probability; 0 = every meeting blocks (the paper)
-    commit_horizon: float = 0.0
-    risk_bound: float = 0.5
+    commit_horizon: float = 0.0  # #28 b: s of hard checking against every hypothesis; beyond: beyond_commit (0 = off)
+    risk_bound: float = 0.5  # #28 b, beyond_commit risk: hypotheses met beyond the window may sum to this probability
+    # beyond the commit window: "risk" (the risk bound above) | "hold" (each hypothesis is an obstacle where it is at
+    # the window's end, as §III-B's reactive agents stop for the ego; commit_horizon -> 0 is the `blind` bound)
+    beyond_commit: str = "risk"  # #28 b: "risk" (risk_bound) or "hold" (each hypothesis held where the window ends)
+    # issue #28 mechanism a in its interactive form (beyond §V-D, which checks each predicted trajectory as if the
+    # agent went on whatever the ego does): > 0 = each hypothesis is rolled out against the ego's plan with §III-B's
+    # rule, the agent braking while its next reactive_steps steps come within the margin + reactive_margin of the ego
+    # (avp_search.reactive); 0 = the paper
+    reactive_steps: int = 0  # #28: agents stop for the ego, look-ahead L in steps (avp_search.reactive); 0 = off
+    reactive_margin: float = 0.0  # #28: m beyond the margin at which an agent is assumed to brake for the ego
 
 
 @dataclass(frozen=True)
@@ -88,6 +97,9 @@ class SearchConfig:
             ("collision.footprint_margin", c.footprint_margin >= 0),
             ("collision.verify_margin", 0 <= c.verify_margin <= c.footprint_margin),
             ("collision.beyond_horizon", c.beyond_horizon in ("hold", "release")),
+            ("collision.beyond_commit", c.beyond_commit in ("risk", "hold")),
+            ("collision.reactive_steps", c.reactive_steps >= 0),
+            ("collision.reactive_margin", c.reactive_margin >= 0),
             ("search.xy_resolution", s.xy_resolution > 0),
             ("search.heading_bins", s.heading_bins >= 8),
             ("search.primitive_length", s.primitive_length > s.sample_step > 0),

@@ -46,6 +46,9 @@ SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     "commit_window": {"collision.commit_horizon": (1.0, 0.0)},
     # d) after standing decision.stuck_time, creep along the best blocked plan while its next 2 s are clear
     "deadlock_breaker": {"decision.deadlock_breaker": (True, False)},
+    # "avoids collisions with the predicted trajectories" (§V-D-1) as if each agent went on whatever the ego does:
+    # the agents stop for the ego as §III-B's do (look-ahead 2 steps, avp_search.reactive)
+    "reactive_agents": {"collision.reactive_steps": (2, 0)},
 }
 
 

@@ -146,7 +146,9 @@ class InputsMixin:
         c = self.settings.collision
         return DynamicObstacles(preds, obs.ego_length, obs.ego_width, c.vehicle_margin, c.pedestrian_margin,
                                 keep_current_gap=c.keep_current_gap, hold_last=c.beyond_horizon == "hold",
-                                commit_steps=int(round(c.commit_horizon / dt)), risk_bound=c.risk_bound)
+                                commit_steps=int(round(c.commit_horizon / dt)), risk_bound=c.risk_bound,
+                                hold_after_commit=c.beyond_commit == "hold", react_steps=c.reactive_steps,
+                                react_margin=c.reactive_margin)
 
     @staticmethod
     def _resample(p: PredictedTrajectory, dt: float) -> PredictedTrajectory:

@@ -72,13 +72,13 @@ class DecisionSettings:
     # issue #28 mechanism a (beyond §V-D, which predicts every car along its intentions): a car standing or braking
     # with the ego ahead of it within yield_lookahead is predicted to keep standing — the reactive agents of §III-B
     # stop for the ego — its footprint grown forward by yield_margin (it may roll on while braking); false = the paper
-    assume_yielding: bool = False
+    assume_yielding: bool = False  # #28 a: a car standing/braking with the ego ahead keeps standing (§V-C: no)
     yield_lookahead: float = 10.0  # m ahead of the car (its front) in which the ego counts as what it stops for
     yield_margin: float = 1.0  # m: braking margin added in front of a car assumed to yield
     # issue #28 mechanism d (beyond §V-D-3 "the ego would stay put"): after stuck_time s without moving, creep along
     # the blocked plan that meets the predictions latest at creep_speed, each step only while its next
     # creep_check_time s meet no predicted agent (every hypothesis) and no static obstacle; false = the paper
-    deadlock_breaker: bool = False
+    deadlock_breaker: bool = False  # #28 d: creep along the best blocked plan after stuck_time (§V-D-3: no)
     stuck_time: float = 3.0  # s stopped (idle or waiting) before creeping
     creep_speed: float = 0.5  # m/s
     creep_check_time: float = 2.0  # s of the creep checked hard against every hypothesis, each step

@@ -1,0 +1,119 @@
+"""Collision checking against predicted agents that stop for the ego (issue #28, ``collision.reactive_steps``).
+
+§V-C/§V-D check the ego's plan against each agent's predicted trajectory as if the agent went on whatever the ego
+does. The agents of §III-B do not: agent A brakes at step t iff its next n_pass steps meet the ego's footprint
+V_0,t. A planner that ignores this waits for agents that wait for it (Trautman & Krause, "Unfreezing the robot",
+IROS 2010). Here each hypothesis is rolled out against the ego's plan with that rule, a look-ahead of L =
+``reactive_steps`` steps (the ego does not know n_pass: L = the smallest n_pass is the cautious choice, an agent
+that reacts late) and a reaction distance of the check's margin plus ``reactive_margin``:
+
+    j_0 = -1 (the agent where it is; its first predicted pose stands for it),
+    j_k = j_{k-1}            if one of its poses j_{k-1}+1 .. j_{k-1}+L comes within the reaction distance of the
+                             ego's pose k-1 (it brakes),
+          j_{k-1} + 1        otherwise (it follows its hypothesis; it holds its last pose after it, or leaves the
+                             scene with ``hold_last`` off),
+
+and the ego's pose k meets the agent if it comes within the margin of the agent's pose j_k. An agent on its way to
+where the ego stands therefore stops short of it; the ego may not drive into an agent, standing or moving. Agents
+that never come within reach of the plan are checked as before (j_k = k - 1).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def rect_gaps(e: np.ndarray, o: np.ndarray, al: float, aw: float, bl: np.ndarray, bw: np.ndarray) -> np.ndarray:
+    """SAT separation of ego rectangles ``e`` (..., 3; half sizes al, aw) and agent rectangles ``o`` (..., 3; half
+    sizes bl, bw, broadcast): the largest projected gap over the four axes (<= 0: they overlap)."""
+    tx, ty = o[..., 0] - e[..., 0], o[..., 1] - e[..., 1]
+    c, s = np.cos(e[..., 2]), np.sin(e[..., 2])
+    oc, os_ = np.cos(o[..., 2]), np.sin(o[..., 2])
+    cd = np.abs(c * oc + s * os_)
+    sd = np.abs(s * oc - c * os_)
+    return np.maximum.reduce([
+        np.abs(tx * c + ty * s) - (al + bl * cd + bw * sd),
+        np.abs(-tx * s + ty * c) - (aw + bl * sd + bw * cd),
+        np.abs(tx * oc + ty * os_) - (bl + al * cd + aw * sd),
+        np.abs(-tx * os_ + ty * oc) - (bw + al * sd + aw * cd),
+    ])
+
+
+def disc_gaps(e: np.ndarray, q: np.ndarray, al: float, aw: float, r: np.ndarray) -> np.ndarray:
+    """Distance from ego rectangles ``e`` (..., 3) to discs at ``q`` (..., 2) of radius ``r`` (< 0: overlap)."""
+    dx, dy = q[..., 0] - e[..., 0], q[..., 1] - e[..., 1]
+    c, s = np.cos(e[..., 2]), np.sin(e[..., 2])
+    lx = np.maximum(np.abs(dx * c + dy * s) - al, 0.0)
+    ly = np.maximum(np.abs(-dx * s + dy * c) - aw, 0.0)
+    return np.hypot(lx, ly) - r
+
+
+def _gap_table(ego: np.ndarray, poses: np.ndarray, gaps_of, reach: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(agents near the plan, gaps G[a, j, k] of those agents' pose j to ego pose k; +inf where the centres are
+    farther apart than ``reach``)."""
+    d = poses[:, :, None, :2] - ego[None, None, :, :2]  # (A, H, n, 2)
+    near = np.einsum("ahkd,ahkd->ahk", d, d) <= reach[:, None, None] ** 2
+    rows = np.nonzero(near.any(axis=(1, 2)))[0]
+    g = np.full((len(rows), poses.shape[1], len(ego)), np.inf)
+    if len(rows):
+        a, j, k = np.nonzero(near[rows])
+        g[a, j, k] = gaps_of(ego[k], rows[a], j)
+    return rows, g
+
+
+def _roll_out(g: np.ndarray, margin: np.ndarray, react: np.ndarray, steps: int, own_n: np.ndarray,
+              hold_last: bool, k0: int) -> tuple[np.ndarray, np.ndarray]:
+    """The recurrence of the module docstring for every agent of ``g`` at once: (k, agent row) of every meeting."""
+    a_n, h, n = g.shape
+    if a_n == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    cols = np.arange(a_n)
+    j = np.full(a_n, -1)
+    offs = np.arange(1, steps + 1)
+    hit_k, hit_a = [], []
+    for k in range(1, n):
+        ahead = np.minimum(j[:, None] + offs[None, :], h - 1)
+        brake = (g[cols[:, None], ahead, k - 1] <= react[:, None]).any(axis=1)
+        j = np.where(brake, j, np.minimum(j + 1, h - 1))
+        if k < k0:
+            continue
+        hit = g[cols, np.maximum(j, 0), k] <= margin
+        if not hold_last:
+            hit &= j < own_n
+        if hit.any():
+            hit_k.append(np.full(int(hit.sum()), k)), hit_a.append(cols[hit])
+    if not hit_k:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    return np.concatenate(hit_k), np.concatenate(hit_a)
+
+
+def reactive_hits(dyn, ego: np.ndarray, vm: np.ndarray, pm: np.ndarray, k0: int):
+    """Every meeting of the ego poses ``ego`` (already extended, :meth:`DynamicObstacles._extend`) with the agents
+    of ``dyn`` when they stop for the ego (module docstring): (time indices, is a pedestrian, row in its kind's
+    arrays, probability), sorted by time, the most probable hypothesis first."""
+    ks, peds, rows_out, probs = [], [], [], []
+    steps, extra = dyn.react_steps, dyn.react_margin
+    if len(dyn.veh_poses):
+        reach = dyn.circum + np.hypot(dyn.veh_half[:, 0], dyn.veh_half[:, 1]) + np.maximum(vm, dyn.vm) + extra
+
+        def veh_gaps(e, a, j):
+            o = dyn.veh_poses[a, j]
+            return rect_gaps(e, o, dyn.half_l, dyn.half_w, dyn.veh_half[a, 0], dyn.veh_half[a, 1])
+
+        rows, g = _gap_table(ego, dyn.veh_poses, veh_gaps, reach)
+        k, a = _roll_out(g, vm[rows], vm[rows] + extra, steps, dyn.veh_n[rows], dyn.hold_last, k0)
+        ks.append(k), peds.append(np.zeros(len(k), bool)), rows_out.append(rows[a]), probs.append(dyn.veh_prob[rows[a]])
+    if len(dyn.ped_pos):
+        reach = dyn.circum + dyn.ped_radius + np.maximum(pm, dyn.pm) + extra
+
+        def ped_gaps(e, a, j):
+            return disc_gaps(e, dyn.ped_pos[a, j], dyn.half_l, dyn.half_w, dyn.ped_radius[a])
+
+        rows, g = _gap_table(ego, dyn.ped_pos, ped_gaps, reach)
+        k, a = _roll_out(g, pm[rows], pm[rows] + extra, steps, dyn.ped_n[rows], dyn.hold_last, k0)
+        ks.append(k), peds.append(np.ones(len(k), bool)), rows_out.append(rows[a]), probs.append(dyn.ped_prob[rows[a]])
+    if not ks:
+        return np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int64), np.zeros(0)
+    k, ped, a, pr = (np.concatenate(x) for x in (ks, peds, rows_out, probs))
+    order = np.lexsort((-pr, k))
+    return k[order], ped[order], a[order], pr[order]

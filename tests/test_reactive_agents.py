@@ -1,0 +1,64 @@
+"""Issue #28: collision checking against agents that stop for the ego (``collision.reactive_steps``,
+avp_search.reactive), with shapely as the independent oracle of the geometry."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from shapely.geometry import Polygon
+
+from avp_search.dynamic import DynamicObstacles
+from avp_world.geometry import rect_corners
+from avp_world.types import PredictedTrajectory
+
+L, W = 4.6, 1.85
+
+
+def _car_north(y0: float = 5.0, speed: float = 2.0, n: int = 120) -> PredictedTrajectory:
+    ys = y0 + 0.1 * speed * np.arange(1, n + 1)
+    return PredictedTrajectory(agent_id=3, poses=np.column_stack([np.full(n, 21.5), ys, np.full(n, math.pi / 2)]),
+                               dt=0.1, length=L, width=W)
+
+
+def _ego_line(y0: float, speed: float, n: int) -> np.ndarray:
+    return np.column_stack([np.full(n, 21.5), y0 + 0.1 * speed * np.arange(n), np.full(n, -math.pi / 2)])
+
+
+def _gap(a: np.ndarray, b: np.ndarray) -> float:
+    return Polygon(rect_corners(a, L, W)).distance(Polygon(rect_corners(b, L, W)))
+
+
+def test_a_car_stops_short_of_the_standing_ego():
+    """Head-on in one lane: the paper's check says standing still is hit (when the car's hypothesis reaches the
+    ego); with the agents' reaction it is never hit, for any look-ahead; a plan driving at the car meets it."""
+    car = _car_north()
+    standing = np.repeat(_ego_line(25.0, 0.0, 1), 80, axis=0)
+    paper = DynamicObstacles([car], L, W)
+    k_paper = paper.first_collision(standing)
+    assert k_paper > 0 and _gap(car.poses[k_paper - 1], standing[0]) <= 0.3 + 1e-9  # shapely agrees
+    for steps in (1, 2, 6):
+        react = DynamicObstacles([car], L, W, react_steps=steps)
+        assert react.first_collision(standing) == -1
+        assert len(react.collision_steps(standing)) == 0
+    towards = _ego_line(25.0, -2.0, 80)  # the ego drives south at 2 m/s, at the car
+    react = DynamicObstacles([car], L, W, react_steps=2)
+    k = react.first_collision(towards)
+    assert k > 0
+    # the car stood still from some step on; where the ego meets it, it is within the margin of the car's pose
+    # (shapely), and the car had stopped more than the margin short of where the ego stood one step before
+    assert min(_gap(towards[k], q) for q in car.poses[:k]) <= 0.3 + 1e-9
+    away = _ego_line(25.0, 2.0, 80)  # the ego drives north, ahead of the car: the car follows, never meets it
+    assert DynamicObstacles([car], L, W, react_steps=2).first_collision(away) == -1
+
+
+def test_an_agent_far_from_the_plan_is_checked_as_before():
+    """An agent that never comes within reach of the ego's plan: the same meetings with and without the rule."""
+    car = _car_north()
+    crossing = np.column_stack([14.5 + 0.2 * np.arange(80), np.full(80, 12.0), np.zeros(80)])  # drives east at y = 12
+    paper = DynamicObstacles([car], L, W).collision_steps(crossing)
+    react = DynamicObstacles([car], L, W, react_steps=2).collision_steps(crossing)
+    assert len(paper)  # the crossing meets the car
+    far = np.column_stack([5.0 + 0.2 * np.arange(80), np.full(80, 60.0), np.zeros(80)])
+    assert len(DynamicObstacles([car], L, W, react_steps=2).collision_steps(far)) == 0
+    assert len(react) <= len(paper)
