@@ -10,7 +10,8 @@ p95 of each over all steps, per episode and in all, with the episodes' outcomes 
 
 Usage:
     python bench/bench_closed_loop.py --lot src/avp_world/avp_world/maps/dlp_lot.yaml --scenario busy \\
-        [--method bezier] [--seeds 0-4] [--t-final 60] [--json out/bench_closed_loop.json]
+        [--method bezier] [--seeds 0-4] [--t-final 60] [--json out/bench_closed_loop.json] \\
+        [--planner-param KEY=VALUE ...]
 """
 
 from __future__ import annotations
@@ -75,24 +76,29 @@ def main() -> int:
     ap.add_argument("--modes", default="reactive", choices=("reactive", "non-reactive", "both"))
     ap.add_argument("--t-final", type=float, default=60.0)
     ap.add_argument("--json", default="", help="also write the figures here")
+    ap.add_argument("--planner-param", action="append", metavar="KEY=VALUE",
+                    help="an avp_planner parameter for the method (as `avp experiment --planner-param`)")
     args = ap.parse_args()
 
     import torch
 
     from avp_bringup.experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_bringup.experiment.runner import parse_planner_params
     from avp_sim.core.factory import load_lot_param
 
     torch.set_num_threads(1)
     over = {"scenario.family": args.scenario}
     if args.lot:
         over["lot_file"] = str(Path(args.lot).resolve())
-    cfg = RunConfig(t_final=args.t_final, sim_overrides=over)
+    cfg = RunConfig(t_final=args.t_final, sim_overrides=over,
+                    planner_overrides=parse_planner_params(args.planner_param))
     sim = sim_values(cfg)
     lot = load_lot_param(sim["lot_file"])
     profile = run_profile(args.method, cfg)
     modes = {"reactive": (True,), "non-reactive": (False,), "both": (True, False)}[args.modes]
     load0 = os.getloadavg()
-    print(f"# {lot.name} ({lot.n_spots} spots), scenario {args.scenario}, method {args.method}, t_f {args.t_final} s; "
+    print(f"# {lot.name} ({lot.n_spots} spots), scenario {args.scenario}, method {args.method} "
+          f"{cfg.planner_overrides or ''}, t_f {args.t_final} s; "
           f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, 1 torch thread, load average "
           f"{load0[0]:.2f} before")
     print("| seed | mode | outcome | steps | moving cars | pedestrians | loop median / p95 ms | sense | belief | "

@@ -214,3 +214,43 @@ def test_commit_window_hold_keeps_a_likely_late_conflict_where_the_window_ends(p
     d = _planner(paper_lot, commit_horizon=1.0, beyond_commit="hold").decide(obs, predictions=[fast])
     assert d.command[0] == 0.0 and d.trace.get("agent_id") == 8, d.trace
 
+
+
+def test_wait_anywhere_stops_on_the_way_for_a_slow_walker(paper_lot):
+    """Mechanism c: a pedestrian crosses the aisle 11 m ahead of the ego slowly (0.6 m/s from t = 1 s). Starting
+    later by up to max_wait (3 s) still meets them, so the paper's planner idles; with ``wait_anywhere`` the ego
+    drives on, stops short of the crossing, waits there (the trace says wait_and_go while it stands) and goes on
+    after the walker — a plan whose every pose keeps the pedestrian margin (shapely)."""
+    from shapely.geometry import Point, Polygon
+
+    from avp_world.geometry import rect_corners
+
+    n = 100
+    t = np.arange(1, n + 1) * 0.1
+    x = np.where(t < 1.0, 17.0, 17.0 + 0.6 * (t - 1.0))
+    walker = PredictedTrajectory(agent_id=5, poses=np.column_stack([x, np.full(n, 14.0), np.zeros(n)]), dt=0.1,
+                                 is_pedestrian=True, radius=0.3)
+    obs = make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vacant=[])
+    paper = _planner(paper_lot).decide(obs, predictions=[walker])
+    assert paper.mode == "idle" and paper.trace.get("agent_id") == 5, paper.trace
+    planner = _planner(paper_lot, wait_anywhere=True)
+    d = planner.decide(obs, predictions=[walker])
+    assert d.mode == "explore" and d.command[0] != 0.0, d.trace
+    plan = planner._plan
+    assert plan.wait_from > 10 and plan.wait_steps > 0
+    stand = plan.traj.controls[plan.wait_from: plan.wait_from + plan.wait_steps]
+    assert np.all(stand == 0.0) and np.all(plan.traj.controls[: plan.wait_from - 1, 0] != 0.0)
+    for k, q in enumerate(plan.traj.states[1:], start=1):  # pose k against the walker at t + k dt
+        p = walker.poses[min(k - 1, n - 1)]
+        assert Polygon(rect_corners(q, L, W)).distance(Point(p[0], p[1])) - 0.3 > 0.4 - 1e-6, k
+    traces = []
+    for k in range(1, plan.wait_from + 2):
+        traces.append(planner.decide(replace(obs, step=k, ego_pose=tuple(plan.traj.states[k])),
+                                     predictions=[_shift(walker, k)]).trace["mode"])
+    assert traces[-1] == "wait_and_go" and traces[0] == "explore", traces
+
+
+def _shift(p: PredictedTrajectory, k: int) -> PredictedTrajectory:
+    """The same prediction made k steps later (its first k poses gone, the last held)."""
+    poses = np.concatenate([p.poses[k:], np.repeat(p.poses[-1:], k, axis=0)])
+    return replace(p, poses=poses)

@@ -62,3 +62,26 @@ def test_an_agent_far_from_the_plan_is_checked_as_before():
     far = np.column_stack([5.0 + 0.2 * np.arange(80), np.full(80, 60.0), np.zeros(80)])
     assert len(DynamicObstacles([car], L, W, react_steps=2).collision_steps(far)) == 0
     assert len(react) <= len(paper)
+
+
+def test_the_planner_no_longer_flees_a_car_that_will_stop_for_it(paper_lot):
+    """The switch changes the decision: a car rushes at the standing ego. The paper's check predicts that standing
+    still is hit, and the evasive extra drives the ego away; with the agents' reaction the car stops short of the
+    ego, standing is safe, and the ego waits (its plans run into the stopped car)."""
+    from dataclasses import replace
+
+    from test_decision_trace import _rushing_car
+    from test_planner_decision import make_obs
+
+    from avp_planner.core.decision import EgoPlanner
+    from avp_planner.core.settings import PlannerSettings
+
+    car, pred = _rushing_car()
+    obs = make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vehicles=[car])
+    s = PlannerSettings()
+    paper = EgoPlanner(paper_lot, s).decide(obs, predictions=[pred])
+    assert paper.trace["mode"] == "evasive" and paper.command[0] != 0.0
+    react = EgoPlanner(paper_lot, replace(s, collision=replace(s.collision, reactive_steps=2))).decide(
+        obs, predictions=[pred])
+    assert react.trace["mode"] == "idle" and react.command == (0.0, 0.0), react.trace
+    assert react.trace["agent_id"] == 7 and react.trace["motion"] == "towards"

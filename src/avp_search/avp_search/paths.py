@@ -99,6 +99,7 @@ class Path:
 
     start: tuple[float, float, float]
     segments: tuple[tuple[float, float], ...]
+    stops: tuple[float, ...] = ()  # arc lengths where the ego stops (a piece ends) besides the cusps (issue #28 c)
 
     @property
     def length(self) -> float:
@@ -174,16 +175,41 @@ class Path:
         return out
 
     def pieces(self) -> list[Path]:
-        """Split at the cusps into pieces of one driving direction each."""
+        """Split at the cusps (and at ``stops``) into pieces of one driving direction each."""
         out: list[Path] = []
-        starts = self.segment_starts()
+        segments, cut = self._split_at_stops()
+        starts = Path(self.start, segments).segment_starts()
         cur: list[tuple[float, float]] = []
         cur_start = starts[0]
-        for (k, ell), p0 in zip(self.segments, starts, strict=False):
-            if cur and (cur[-1][1] > 0) != (ell > 0):
+        for i, ((k, ell), p0) in enumerate(zip(segments, starts, strict=False)):
+            if cur and ((cur[-1][1] > 0) != (ell > 0) or i in cut):
                 out.append(Path(cur_start, tuple(cur)))
                 cur, cur_start = [], p0
             cur.append((k, ell))
         if cur:
             out.append(Path(cur_start, tuple(cur)))
         return out
+
+    def _split_at_stops(self) -> tuple[tuple[tuple[float, float], ...], set[int]]:
+        """The segments with a joint at each stop strictly inside the path, and the indices of the segments that
+        start at a stop."""
+        stops = sorted(s for s in self.stops if 1e-6 < s < self.length - 1e-6)
+        if not stops:
+            return self.segments, set()
+        out: list[tuple[float, float]] = []
+        cut: set[int] = set()
+        acc = 0.0
+        for k, ell in self.segments:
+            a = abs(ell)
+            sgn = 1.0 if ell > 0 else -1.0
+            done = 0.0
+            for s in stops:
+                if acc + done + 1e-6 < s < acc + a - 1e-6:
+                    out.append((k, sgn * (s - acc - done)))
+                    done = s - acc
+                    cut.add(len(out))
+                elif abs(s - acc) <= 1e-6 and out:
+                    cut.add(len(out))
+            out.append((k, sgn * (a - done)))
+            acc += a
+        return tuple(out), cut

@@ -49,6 +49,8 @@ SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     # "avoids collisions with the predicted trajectories" (§V-D-1) as if each agent went on whatever the ego does:
     # the agents stop for the ego as §III-B's do (look-ahead 2 steps, avp_search.reactive)
     "reactive_agents": {"collision.reactive_steps": (2, 0)},
+    # c) "wait-and-go" (Nawaz et al.) waits before starting only: wait at a stop on the path instead
+    "wait_anywhere": {"decision.wait_anywhere": (True, False)},
 }
 
 

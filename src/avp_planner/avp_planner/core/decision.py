@@ -297,7 +297,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         k = plan.index
         u = plan.traj.controls[k]
         plan.index += 1
-        trace = ({"mode": "wait_and_go", **plan.wait_cause} if k < plan.wait_steps
+        trace = ({"mode": "wait_and_go", **plan.wait_cause} if plan.wait_from <= k < plan.wait_from + plan.wait_steps
                  else {"mode": plan.kind or plan.mode})
         return Decision(plan.mode, spot_id=plan.spot_id, goal=plan.goal.copy(), poses=plan.traj.states[k:].copy(),
                         controls=plan.traj.controls[k:].copy(), command=(float(u[0]), float(u[1])),

@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from avp_planner.core.control import reference_trajectory
+from avp_planner.core.waiting import stop_and_wait
 from avp_search.collision import DynamicObstacles, StaticWorld
 from avp_search.hybrid_astar import EgoHeuristic
 from avp_search.paths import Path, wrap
@@ -87,8 +88,10 @@ class CandidatesMixin:
         return (cs.w_length + cs.w_time / ctl.v_max) * lb
 
     def _price(self, path: Path, world: StaticWorld, dyn: DynamicObstacles, v0: float):
-        """(cost, wait_steps, first_hit) of the path started after the first feasible wait; (inf, -1, k) when
-        every wait meets a predicted agent, k being the first such time index without waiting."""
+        """(cost, wait_steps, first_hit, stop_path) of the path started after the first feasible wait; (inf, -1, k,
+        None) when every wait meets a predicted agent, k being the first such time index without waiting. With
+        ``wait_anywhere`` (issue #28 c) the wait may be at a stop on the way: ``stop_path`` is then the path with
+        that stop (:mod:`avp_planner.core.waiting`), else None."""
         cs, ctl, d = self.settings.cost, self.settings.control, self.settings.decision
         dt = ctl.dt
         poses, speeds = reference_trajectory(path, ctl, v0)
@@ -108,5 +111,11 @@ class CandidatesMixin:
                 continue
             t_total = (len(speeds) + w) * dt
             cost = base + cs.w_time * t_total + cs.w_dynamic * dyn.proximity_cost(ego, dt)
-            return cost, w, -1
-        return math.inf, -1, first_hit
+            return cost, w, -1, None
+        if d.wait_anywhere and first_hit > 0:  # issue #28 c: stop on the way and wait there
+            found = stop_and_wait(path, poses, speeds, first_hit, dyn, ctl, d, v0)
+            if found is not None:
+                stop_path, w, ego = found
+                cost = base + cs.w_time * (len(ego) - 1) * dt + cs.w_dynamic * dyn.proximity_cost(ego, dt)
+                return cost, w, -1, stop_path
+        return math.inf, -1, first_hit, None

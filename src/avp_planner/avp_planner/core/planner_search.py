@@ -20,6 +20,7 @@ from avp_planner.core.planner_types import (
     _Plan,
 )
 from avp_planner.core.trace import blocker_trace
+from avp_planner.core.waiting import insert_wait, stop_index
 from avp_search.collision import DynamicObstacles, StaticWorld
 from avp_search.hybrid_astar import EgoHeuristic, HybridAStar, PlanResult
 from avp_search.paths import wrap
@@ -74,15 +75,16 @@ class SearchMixin:
             if not res.success:
                 continue
             t1 = time.perf_counter()
-            cost, wait, hit = self._price(res.path, world, dyn, v0)
+            cost, wait, hit, stop_path = self._price(res.path, world, dyn, v0)
             timing["spot_selection_time"] += time.perf_counter() - t1
             if wait < 0:
                 blocked_by_agents = True
                 blocked_out.append(_Candidate(mode, int(self.lot.spot_ids[it]) if mode == PARK else -1, res.goal,
                                               res.path, math.inf, 0, True, hit))
                 continue
-            found.append(_Candidate(mode, int(self.lot.spot_ids[it]) if mode == PARK else -1, res.goal, res.path,
-                                    cost, wait, True if mode == PARK else bool(it[1])))
+            found.append(_Candidate(mode, int(self.lot.spot_ids[it]) if mode == PARK else -1, res.goal,
+                                    stop_path or res.path, cost, wait, True if mode == PARK else bool(it[1]),
+                                    wait_on_path=stop_path is not None))
             best = min(best, cost)
         found.sort(key=lambda c: c.cost)
         return found, blocked_by_agents
@@ -95,7 +97,12 @@ class SearchMixin:
             t0 = time.perf_counter()
             traj = track(cand.path, self.settings.control, self.settings.vehicle.max_curvature, obs.ego_speed)
             timing["path_planning_time"] += time.perf_counter() - t0
-            if cand.wait_steps:
+            unwaited, wait_from = traj.states, 0
+            if cand.wait_steps and cand.wait_on_path:  # issue #28 c: stand at the path's stop
+                at = stop_index(traj.controls[:, 0], traj.dt, cand.path.stops[0])
+                st, ctl = insert_wait(traj.states, traj.controls, at, cand.wait_steps)
+                traj, wait_from = Trajectory(ctl, st, traj.dt), at + 1
+            elif cand.wait_steps:
                 z = np.zeros((cand.wait_steps, 2))
                 st = np.repeat(traj.states[:1], cand.wait_steps, axis=0)
                 traj = Trajectory(np.concatenate([z, traj.controls]), np.concatenate([st, traj.states]), traj.dt)
@@ -107,9 +114,10 @@ class SearchMixin:
                 ok = self._parked_in(traj.states[-1], cand.goal, cand.spot_id, obs)
             if ok and (not require_dynamic or dyn.first_collision(traj.states) < 0):
                 plan = _Plan(cand.mode, cand.spot_id, cand.goal, traj, cand.cost, margins, 0, cand.path.length,
-                             wait_steps=int(cand.wait_steps))
+                             wait_steps=int(cand.wait_steps), wait_from=wait_from)
                 if cand.wait_steps:  # who it waits for: the first agent met if it went at once
-                    plan.wait_cause = blocker_trace(dyn, traj.states[cand.wait_steps:], obs)
+                    plan.wait_cause = blocker_trace(dyn, unwaited if cand.wait_on_path
+                                                    else traj.states[cand.wait_steps:], obs)
                 return plan
         return None
 

@@ -82,6 +82,10 @@ class DecisionSettings:
     stuck_time: float = 3.0  # s stopped (idle or waiting) before creeping
     creep_speed: float = 0.5  # m/s
     creep_check_time: float = 2.0  # s of the creep checked hard against every hypothesis, each step
+    # issue #28 mechanism c (beyond §V-D-1's wait before starting, after Nawaz et al.): when every start wait fails,
+    # stop on the path wait_stop_offsets m short of the first meeting and wait there 0 .. max_wait
+    wait_anywhere: bool = False  # #28 c: wait at a stop on the path, not only before starting (§V-D-1: no)
+    wait_stop_offsets: tuple[float, ...] = (1.0, 2.5, 4.0)  # m of arc length short of the first meeting
 
 
 @dataclass(frozen=True)
@@ -112,6 +116,7 @@ class PlannerSettings(SearchConfig):
             ("decision.creep_speed", 0 < d.creep_speed <= k.v_max),
             ("decision.creep_check_time", d.creep_check_time > 0),
             ("decision.yield_margin", d.yield_margin >= 0),
+            ("decision.wait_stop_offsets", all(o > 0 for o in d.wait_stop_offsets)),
             ("collision.commit_horizon", self.collision.commit_horizon >= 0),
             ("collision.risk_bound", 0.0 <= self.collision.risk_bound <= 1.0),
         ]
