@@ -85,3 +85,17 @@ def test_the_planner_no_longer_flees_a_car_that_will_stop_for_it(paper_lot):
         obs, predictions=[pred])
     assert react.trace["mode"] == "idle" and react.command == (0.0, 0.0), react.trace
     assert react.trace["agent_id"] == 7 and react.trace["motion"] == "towards"
+
+
+def test_every_shipped_planner_profile_validates():
+    """The planner profiles of avp_planner/config/profiles (among them issue #28's `interactive`) load as the node
+    will load them: known keys, right types and ranges."""
+    from pathlib import Path
+
+    from avp_bringup.lifecycle import validate_profile
+
+    d = Path(__file__).resolve().parents[1] / "src/avp_planner/config/profiles"
+    names = sorted(p.stem for p in d.glob("*.yaml"))
+    assert {"default", "cautious", "interactive"} <= set(names)
+    for p in d.glob("*.yaml"):
+        validate_profile(p)

@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from avp_search.reactive import reactive_hits
+from avp_search.reactive import disc_gaps, reactive_hits, rect_gaps
 from avp_world.types import PredictedTrajectory
 
 
@@ -91,30 +91,12 @@ class DynamicObstacles:
 
     def _vehicle_gaps(self, ego: np.ndarray, k: np.ndarray, a: np.ndarray) -> np.ndarray:
         """SAT separation (max over the 4 axes of the projected gap) of ego pose k vs vehicle a at index k-1."""
-        j = np.clip(k - 1, 0, self.horizon - 1)
-        o = self.veh_poses[a, j]
-        tx, ty = o[:, 0] - ego[k, 0], o[:, 1] - ego[k, 1]
-        c, s = np.cos(ego[k, 2]), np.sin(ego[k, 2])
-        oc, os_ = np.cos(o[:, 2]), np.sin(o[:, 2])
-        bl, bw = self.veh_half[a, 0], self.veh_half[a, 1]
-        al, aw = self.half_l, self.half_w
-        cd = np.abs(c * oc + s * os_)
-        sd = np.abs(s * oc - c * os_)
-        return np.maximum.reduce([
-            np.abs(tx * c + ty * s) - (al + bl * cd + bw * sd),
-            np.abs(-tx * s + ty * c) - (aw + bl * sd + bw * cd),
-            np.abs(tx * oc + ty * os_) - (bl + al * cd + aw * sd),
-            np.abs(-tx * os_ + ty * oc) - (bw + al * sd + aw * cd),
-        ])
+        o = self.veh_poses[a, np.clip(k - 1, 0, self.horizon - 1)]
+        return rect_gaps(ego[k], o, self.half_l, self.half_w, self.veh_half[a, 0], self.veh_half[a, 1])
 
     def _ped_gaps(self, ego: np.ndarray, k: np.ndarray, a: np.ndarray) -> np.ndarray:
-        j = np.clip(k - 1, 0, self.horizon - 1)
-        q = self.ped_pos[a, j]
-        dx, dy = q[:, 0] - ego[k, 0], q[:, 1] - ego[k, 1]
-        c, s = np.cos(ego[k, 2]), np.sin(ego[k, 2])
-        lx = np.maximum(np.abs(dx * c + dy * s) - self.half_l, 0.0)
-        ly = np.maximum(np.abs(-dx * s + dy * c) - self.half_w, 0.0)
-        return np.hypot(lx, ly) - self.ped_radius[a]
+        q = self.ped_pos[a, np.clip(k - 1, 0, self.horizon - 1)]
+        return disc_gaps(ego[k], q, self.half_l, self.half_w, self.ped_radius[a])
 
     def _pairs(self, ego: np.ndarray, centres: np.ndarray, reach: np.ndarray, k0: int, own_n: np.ndarray):
         """Candidate (k, agent) pairs whose centres are within reach (k >= k0). With ``hold_last`` an agent
