@@ -141,7 +141,8 @@ class DynamicObstacles:
             pm = np.where(g < self.pm, np.maximum(g - 0.05, 0.0), self.pm)
         return vm, pm
 
-    def _hits(self, ego_poses: np.ndarray, k0: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _hits(self, ego_poses: np.ndarray, k0: int = 1,
+              first_only: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Every meeting (k >= k0, the ego holding its last pose) of the ego with a predicted agent, i.e. within
         the margin of it (see :meth:`_margins` for agents already that close at k = 0): (time indices, is a
         pedestrian, row in its kind's arrays, probability of that hypothesis), sorted by k."""
@@ -153,7 +154,7 @@ class DynamicObstacles:
         if self.react_steps <= 0:
             return self._plain_hits(ego, vm, pm, k0)
         # agents stop for the ego (avp_search.reactive), after a commit window in which they are assumed not to
-        late = reactive_hits(self, ego, vm, pm, max(k0, self.commit_steps + 1))
+        late = reactive_hits(self, ego, vm, pm, max(k0, self.commit_steps + 1), first_only)
         if self.commit_steps <= 0 or k0 > self.commit_steps:
             return late
         early = self._plain_hits(ego[: self.commit_steps + 1], vm, pm, k0)
@@ -216,7 +217,7 @@ class DynamicObstacles:
     def blocker(self, ego_poses: np.ndarray, k0: int = 1) -> tuple[int, bool, int, float] | None:
         """Who blocks the ego's poses (issue #28's decision trace): (time index k, is a pedestrian, agent id,
         probability of that hypothesis) of the meeting that makes :meth:`first_collision` fail, or None."""
-        hits = self._hits(ego_poses, k0)
+        hits = self._hits(ego_poses, k0, first_only=True)
         k, i = self._violation(hits)
         if k < 0:
             return None
@@ -226,7 +227,7 @@ class DynamicObstacles:
 
     def first_collision(self, ego_poses: np.ndarray, k0: int = 1) -> int:
         """First time index (>= k0) at which the poses are blocked (see :meth:`_violation`), or -1."""
-        return self._violation(self._hits(ego_poses, k0))[0]
+        return self._violation(self._hits(ego_poses, k0, first_only=True))[0]
 
     def proximity_cost(self, ego_poses: np.ndarray, dt: float, decay: float = 2.0, reach: float = 3.0) -> float:
         """sum_k sum_agents exp(-decay * gap) dt over pairs closer than ``reach`` (gap: SAT lower bound)."""

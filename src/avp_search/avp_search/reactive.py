@@ -50,28 +50,37 @@ def disc_gaps(e: np.ndarray, q: np.ndarray, al: float, aw: float, r: np.ndarray)
 
 def _gap_table(ego: np.ndarray, poses: np.ndarray, gaps_of, reach: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(agents near the plan, gaps G[a, j, k] of those agents' pose j to ego pose k; +inf where the centres are
-    farther apart than ``reach``)."""
-    d = poses[:, :, None, :2] - ego[None, None, :, :2]  # (A, H, n, 2)
-    near = np.einsum("ahkd,ahkd->ahk", d, d) <= reach[:, None, None] ** 2
-    rows = np.nonzero(near.any(axis=(1, 2)))[0]
+    farther apart than ``reach``). Agents whose bounding box, grown by ``reach``, misses the plan's are left out
+    before any pair is formed."""
+    lo, hi = ego[:, :2].min(axis=0), ego[:, :2].max(axis=0)
+    alo, ahi = poses[:, :, :2].min(axis=1), poses[:, :, :2].max(axis=1)
+    cand = np.nonzero(((alo - reach[:, None] <= hi) & (ahi + reach[:, None] >= lo)).all(axis=1))[0]
+    d = poses[cand, :, None, :2] - ego[None, None, :, :2]  # (A', H, n, 2)
+    near = np.einsum("ahkd,ahkd->ahk", d, d) <= reach[cand, None, None] ** 2
+    keep = near.any(axis=(1, 2))
+    rows, near = cand[keep], near[keep]
     g = np.full((len(rows), poses.shape[1], len(ego)), np.inf)
     if len(rows):
-        a, j, k = np.nonzero(near[rows])
+        a, j, k = np.nonzero(near)
         g[a, j, k] = gaps_of(ego[k], rows[a], j)
     return rows, g
 
 
 def _roll_out(g: np.ndarray, margin: np.ndarray, react: np.ndarray, steps: int, own_n: np.ndarray,
-              hold_last: bool, k0: int) -> tuple[np.ndarray, np.ndarray]:
-    """The recurrence of the module docstring for every agent of ``g`` at once: (k, agent row) of every meeting."""
+              hold_last: bool, k0: int, first_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The recurrence of the module docstring for every agent of ``g`` at once: (k, agent row) of every meeting
+    (``first_only``: of the first). Only the steps where some gap is finite can brake or meet: before them every
+    agent follows its hypothesis (j_k = k - 1), after them nothing happens."""
     a_n, h, n = g.shape
-    if a_n == 0:
+    live = np.nonzero(np.isfinite(g).any(axis=(0, 1)))[0]
+    if a_n == 0 or not len(live):
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    start = max(1, int(live[0]))
     cols = np.arange(a_n)
-    j = np.full(a_n, -1)
+    j = np.full(a_n, min(start - 2, h - 1))
     offs = np.arange(1, steps + 1)
     hit_k, hit_a = [], []
-    for k in range(1, n):
+    for k in range(start, min(n, int(live[-1]) + 1)):
         ahead = np.minimum(j[:, None] + offs[None, :], h - 1)
         brake = (g[cols[:, None], ahead, k - 1] <= react[:, None]).any(axis=1)
         j = np.where(brake, j, np.minimum(j + 1, h - 1))
@@ -82,15 +91,18 @@ def _roll_out(g: np.ndarray, margin: np.ndarray, react: np.ndarray, steps: int, 
             hit &= j < own_n
         if hit.any():
             hit_k.append(np.full(int(hit.sum()), k)), hit_a.append(cols[hit])
+            if first_only:
+                break
     if not hit_k:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     return np.concatenate(hit_k), np.concatenate(hit_a)
 
 
-def reactive_hits(dyn, ego: np.ndarray, vm: np.ndarray, pm: np.ndarray, k0: int):
+def reactive_hits(dyn, ego: np.ndarray, vm: np.ndarray, pm: np.ndarray, k0: int, first_only: bool = False):
     """Every meeting of the ego poses ``ego`` (already extended, :meth:`DynamicObstacles._extend`) with the agents
     of ``dyn`` when they stop for the ego (module docstring): (time indices, is a pedestrian, row in its kind's
-    arrays, probability), sorted by time, the most probable hypothesis first."""
+    arrays, probability), sorted by time, the most probable hypothesis first. ``first_only``: the meetings of the
+    first such time of each kind of agent (enough for the first blocking time)."""
     ks, peds, rows_out, probs = [], [], [], []
     steps, extra = dyn.react_steps, dyn.react_margin
     if len(dyn.veh_poses):
@@ -101,7 +113,7 @@ def reactive_hits(dyn, ego: np.ndarray, vm: np.ndarray, pm: np.ndarray, k0: int)
             return rect_gaps(e, o, dyn.half_l, dyn.half_w, dyn.veh_half[a, 0], dyn.veh_half[a, 1])
 
         rows, g = _gap_table(ego, dyn.veh_poses, veh_gaps, reach)
-        k, a = _roll_out(g, vm[rows], vm[rows] + extra, steps, dyn.veh_n[rows], dyn.hold_last, k0)
+        k, a = _roll_out(g, vm[rows], vm[rows] + extra, steps, dyn.veh_n[rows], dyn.hold_last, k0, first_only)
         ks.append(k), peds.append(np.zeros(len(k), bool)), rows_out.append(rows[a]), probs.append(dyn.veh_prob[rows[a]])
     if len(dyn.ped_pos):
         reach = dyn.circum + dyn.ped_radius + np.maximum(pm, dyn.pm) + extra
@@ -110,7 +122,7 @@ def reactive_hits(dyn, ego: np.ndarray, vm: np.ndarray, pm: np.ndarray, k0: int)
             return disc_gaps(e, dyn.ped_pos[a, j], dyn.half_l, dyn.half_w, dyn.ped_radius[a])
 
         rows, g = _gap_table(ego, dyn.ped_pos, ped_gaps, reach)
-        k, a = _roll_out(g, pm[rows], pm[rows] + extra, steps, dyn.ped_n[rows], dyn.hold_last, k0)
+        k, a = _roll_out(g, pm[rows], pm[rows] + extra, steps, dyn.ped_n[rows], dyn.hold_last, k0, first_only)
         ks.append(k), peds.append(np.ones(len(k), bool)), rows_out.append(rows[a]), probs.append(dyn.ped_prob[rows[a]])
     if not ks:
         return np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int64), np.zeros(0)
