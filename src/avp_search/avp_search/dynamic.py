@@ -76,6 +76,7 @@ class DynamicObstacles:
         self.veh_n = np.array([len(p.poses) for p in veh], dtype=np.int64)  # own horizons (hold_last=False)
         self.ped_n = np.array([len(p.poses) for p in ped], dtype=np.int64)
         self._margin_cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}  # by the ego's pose at k = 0
+        self._react_cache: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  # avp_search.reactive's gap tables
 
     @property
     def empty(self) -> bool:

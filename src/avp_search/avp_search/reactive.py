@@ -66,6 +66,21 @@ def _gap_table(ego: np.ndarray, poses: np.ndarray, gaps_of, reach: np.ndarray) -
     return rows, g
 
 
+def _cached_gap_table(dyn, kind: str, ego: np.ndarray, poses: np.ndarray, gaps_of,
+                      reach: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_gap_table` over the plan's distinct poses, memoised on ``dyn`` by them: one decision prices a path
+    with several waits (the same poses, repeated) and re-checks it when adopting it."""
+    u, inv = np.unique(ego, axis=0, return_inverse=True)
+    key = (kind, u.tobytes(), reach.tobytes())
+    hit = dyn._react_cache.get(key)
+    if hit is None:
+        if len(dyn._react_cache) >= 32:
+            dyn._react_cache.clear()
+        hit = dyn._react_cache[key] = _gap_table(u, poses, gaps_of, reach)
+    rows, g = hit
+    return rows, g[:, :, inv.reshape(-1)]
+
+
 def _roll_out(g: np.ndarray, margin: np.ndarray, react: np.ndarray, steps: int, own_n: np.ndarray,
               hold_last: bool, k0: int, first_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The recurrence of the module docstring for every agent of ``g`` at once: (k, agent row) of every meeting
@@ -112,7 +127,7 @@ def reactive_hits(dyn, ego: np.ndarray, vm: np.ndarray, pm: np.ndarray, k0: int,
             o = dyn.veh_poses[a, j]
             return rect_gaps(e, o, dyn.half_l, dyn.half_w, dyn.veh_half[a, 0], dyn.veh_half[a, 1])
 
-        rows, g = _gap_table(ego, dyn.veh_poses, veh_gaps, reach)
+        rows, g = _cached_gap_table(dyn, "vehicle", ego, dyn.veh_poses, veh_gaps, reach)
         k, a = _roll_out(g, vm[rows], vm[rows] + extra, steps, dyn.veh_n[rows], dyn.hold_last, k0, first_only)
         ks.append(k), peds.append(np.zeros(len(k), bool)), rows_out.append(rows[a]), probs.append(dyn.veh_prob[rows[a]])
     if len(dyn.ped_pos):
@@ -121,7 +136,7 @@ def reactive_hits(dyn, ego: np.ndarray, vm: np.ndarray, pm: np.ndarray, k0: int,
         def ped_gaps(e, a, j):
             return disc_gaps(e, dyn.ped_pos[a, j], dyn.half_l, dyn.half_w, dyn.ped_radius[a])
 
-        rows, g = _gap_table(ego, dyn.ped_pos, ped_gaps, reach)
+        rows, g = _cached_gap_table(dyn, "pedestrian", ego, dyn.ped_pos, ped_gaps, reach)
         k, a = _roll_out(g, pm[rows], pm[rows] + extra, steps, dyn.ped_n[rows], dyn.hold_last, k0, first_only)
         ks.append(k), peds.append(np.ones(len(k), bool)), rows_out.append(rows[a]), probs.append(dyn.ped_prob[rows[a]])
     if not ks:
