@@ -113,7 +113,7 @@ class CandidatesMixin:
             cost = base + cs.w_time * t_total + cs.w_dynamic * dyn.proximity_cost(ego, dt)
             return cost, w, -1, None
         if d.wait_anywhere and first_hit > 0:  # issue #28 c: stop on the way and wait there
-            found = stop_and_wait(path, poses, speeds, first_hit, dyn, ctl, d, v0)
+            found = stop_and_wait(path, speeds, first_hit, dyn, ctl, d, v0)
             if found is not None:
                 stop_path, w, ego = found
                 cost = base + cs.w_time * (len(ego) - 1) * dt + cs.w_dynamic * dyn.proximity_cost(ego, dt)

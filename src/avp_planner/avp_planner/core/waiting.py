@@ -32,7 +32,7 @@ def insert_wait(states: np.ndarray, controls: np.ndarray | None, at: int, wait: 
     return st, np.concatenate([controls[: at + 1], np.zeros((wait, controls.shape[1])), controls[at + 1:]])
 
 
-def stop_and_wait(path: Path, poses: np.ndarray, speeds: np.ndarray, first_hit: int, dyn, control, decision,
+def stop_and_wait(path: Path, speeds: np.ndarray, first_hit: int, dyn, control, decision,
                   v0: float) -> tuple[Path, int, np.ndarray] | None:
     """The quickest (path with one stop, steps waited there, ego poses) that meets no prediction, trying the waits
     0, wait_step, .. max_wait at each stop offset; None if none does (module docstring)."""
