@@ -155,3 +155,94 @@ def test_the_vectorised_roll_out_equals_the_recurrence_written_out():
         assert dyn.first_collision(ego) == ref
         checked += ref > 0
     assert checked >= 10  # enough scenes where an agent is met
+
+
+def _stopping_car(speeds: list[float], y_end: float = 16.0, vid: int = 7):
+    """A car driving north up the middle aisle at the given speeds (m/s, one per 0.1 s step, the last = now),
+    ending at y = ``y_end``, and its prediction: it drives on north at 5 m/s."""
+    from avp_world.types import ObservedVehicle
+
+    ys = y_end - 0.1 * np.concatenate([np.cumsum(np.asarray(speeds, float)[::-1])[::-1], [0.0]])
+    hist = np.column_stack([np.full(len(ys), 21.5), ys, np.full(len(ys), math.pi / 2)])
+    n = 40
+    ys_pred = y_end + 0.5 * np.arange(1, n + 1)
+    poses = np.column_stack([np.full(n, 21.5), ys_pred, np.full(n, math.pi / 2)])
+    pred = PredictedTrajectory(agent_id=vid, poses=poses, dt=0.1, length=L, width=W, probability=0.75)
+    return ObservedVehicle(id=vid, length=L, width=W, is_static=False, history=hist), pred
+
+
+def test_evidence_is_a_hard_stop_with_the_ego_ahead(paper_lot):
+    """``collision.reactive_evidence``'s test (avp_planner.core.yielding.ReactionEvidence): a car that stops at once
+    with the ego 9 m ahead is seen to react; one that slows as a planned stop does (1.5 m/s², ParkSim's), one that
+    stops with the ego behind it, or one that stops with the ego beyond the look-ahead, is not. A pedestrian is
+    judged on the speed remembered from the step before."""
+    from test_planner_decision import make_obs
+
+    from avp_planner.core.yielding import ReactionEvidence
+    from avp_world.types import ObservedPedestrian
+
+    ego = (21.5, 25.0, -math.pi / 2)
+    hard, _ = _stopping_car([2.0, 2.0, 2.0, 0.0], vid=1)
+    gentle, _ = _stopping_car([0.6, 0.45, 0.3, 0.15], vid=2)
+    ev = ReactionEvidence(lookahead=10.0, decel=3.0)
+    assert ev.update(make_obs(paper_lot, ego, vehicles=[hard, gentle])) == {(False, 1)}
+    for pose in ((21.5, 10.0, 0.0), (21.5, 28.0, 0.0)):  # behind it; 12 m ahead
+        assert ReactionEvidence(10.0, 3.0).update(make_obs(paper_lot, pose, vehicles=[hard])) == set()
+    # the threshold is what tells them apart: at 0.5 m/s² the planned stop counts too
+    assert ReactionEvidence(10.0, 0.5).update(make_obs(paper_lot, ego, vehicles=[gentle])) == {(False, 2)}
+    ev = ReactionEvidence(10.0, 3.0)
+    walk = ObservedPedestrian(id=4, radius=0.3, position=np.array([21.5, 20.0]),
+                              previous_position=np.array([21.5, 19.88]))
+    stop = ObservedPedestrian(id=4, radius=0.3, position=np.array([21.5, 20.0]),
+                              previous_position=np.array([21.5, 20.0]))
+    ev.update(replace_peds(make_obs(paper_lot, ego), [walk], 0))
+    assert ev.update(replace_peds(make_obs(paper_lot, ego), [stop], 1)) == {(True, 4)}
+    ev2 = ReactionEvidence(10.0, 3.0)  # a step missed in between: no evidence
+    ev2.update(replace_peds(make_obs(paper_lot, ego), [walk], 0))
+    assert ev2.update(replace_peds(make_obs(paper_lot, ego), [stop], 2)) == set()
+
+
+def replace_peds(obs, peds, step):
+    from dataclasses import replace
+
+    return replace(obs, pedestrians=tuple(peds), step=step)
+
+
+def test_the_evidence_switch_changes_the_decision(paper_lot):
+    """With ``reactive_evidence: agent`` a car is assumed to stop for the ego only once it has been seen to: while
+    it drives at the ego the planner flees it as the paper's check does; once it has stopped hard in front of the
+    ego (and is still predicted to drive on), the ego waits for it as under ``assumed``. With ``lot``, another car
+    seen stopping is enough."""
+    from dataclasses import replace
+
+    from test_planner_decision import make_obs
+
+    from avp_planner.core.decision import EgoPlanner
+    from avp_planner.core.settings import PlannerSettings
+
+    ego = (21.5, 25.0, -math.pi / 2)
+    s = PlannerSettings()
+
+    def planner(evidence: str) -> EgoPlanner:
+        return EgoPlanner(paper_lot, replace(s, collision=replace(s.collision, reactive_steps=2,
+                                                                   reactive_evidence=evidence)))
+
+    moving, pred = _stopping_car([5.0] * 6)
+    stopped, pred_stopped = _stopping_car([5.0] * 5 + [0.0])
+    assert planner("agent").decide(make_obs(paper_lot, ego, vehicles=[moving]), predictions=[pred]).trace["mode"] \
+        == "evasive"
+    assert planner("assumed").decide(make_obs(paper_lot, ego, vehicles=[moving]),
+                                     predictions=[pred]).trace["mode"] == "idle"
+    p = planner("agent")
+    d = p.decide(make_obs(paper_lot, ego, vehicles=[stopped]), predictions=[pred_stopped])
+    assert d.trace["mode"] == "idle" and d.command == (0.0, 0.0), d.trace
+    assert p._evidence.seen == {(False, 7)}
+    # the paper's check, on the same scene: the car's hypothesis still drives through the ego
+    assert EgoPlanner(paper_lot, s).decide(make_obs(paper_lot, ego, vehicles=[stopped]),
+                                           predictions=[pred_stopped]).trace["mode"] == "evasive"
+    # lot: another car (9) seen stopping for the ego makes car 7 reactive too; agent: it does not
+    for evidence, mode in (("lot", "idle"), ("agent", "evasive")):
+        p = planner(evidence)
+        p._evidence.seen.add((False, 9))
+        d = p.decide(make_obs(paper_lot, ego, vehicles=[moving]), predictions=[pred])
+        assert d.trace["mode"] == mode, (evidence, d.trace)

@@ -45,6 +45,7 @@ class DynamicObstacles:
         hold_after_commit: bool = False,
         react_steps: int = 0,
         react_margin: float = 0.0,
+        react_keys: frozenset | set | None = None,
     ):
         self.half_l, self.half_w = 0.5 * float(length), 0.5 * float(width)
         self.circum = math.hypot(self.half_l, self.half_w)
@@ -75,6 +76,9 @@ class DynamicObstacles:
         self.ped_prob = np.array([float(p.probability) for p in ped])
         self.veh_n = np.array([len(p.poses) for p in veh], dtype=np.int64)  # own horizons (hold_last=False)
         self.ped_n = np.array([len(p.poses) for p in ped], dtype=np.int64)
+        keys = react_keys
+        self.veh_react = np.array([keys is None or (False, int(i)) in keys for i in self.veh_ids], dtype=bool)
+        self.ped_react = np.array([keys is None or (True, int(i)) in keys for i in self.ped_ids], dtype=bool)
         self._margin_cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}  # by the ego's pose at k = 0
         self._react_cache: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  # avp_search.reactive's gap tables
 
@@ -152,7 +156,7 @@ class DynamicObstacles:
             return empty
         ego = self._extend(ego_poses)
         vm, pm = self._margins(ego[0])
-        if self.react_steps <= 0:
+        if self.react_steps <= 0 or not (self.veh_react.any() or self.ped_react.any()):
             return self._plain_hits(ego, vm, pm, k0)
         # agents stop for the ego (avp_search.reactive), after a commit window in which they are assumed not to
         late = reactive_hits(self, ego, vm, pm, max(k0, self.commit_steps + 1), first_only)

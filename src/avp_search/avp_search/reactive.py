@@ -15,7 +15,8 @@ that reacts late) and a reaction distance of the check's margin plus ``reactive_
 
 and the ego's pose k meets the agent if it comes within the margin of the agent's pose j_k. An agent on its way to
 where the ego stands therefore stops short of it; the ego may not drive into an agent, standing or moving. Agents
-that never come within reach of the plan are checked as before (j_k = k - 1).
+that never come within reach of the plan are checked as before (j_k = k - 1), and so are agents outside
+``dyn.veh_react`` / ``dyn.ped_react`` (the agents the planner has evidence of, ``collision.reactive_evidence``).
 """
 
 from __future__ import annotations
@@ -128,7 +129,8 @@ def reactive_hits(dyn, ego: np.ndarray, vm: np.ndarray, pm: np.ndarray, k0: int,
             return rect_gaps(e, o, dyn.half_l, dyn.half_w, dyn.veh_half[a, 0], dyn.veh_half[a, 1])
 
         rows, g = _cached_gap_table(dyn, "vehicle", ego, dyn.veh_poses, veh_gaps, reach)
-        k, a = _roll_out(g, vm[rows], vm[rows] + extra, steps, dyn.veh_n[rows], dyn.hold_last, k0, first_only)
+        react = np.where(dyn.veh_react[rows], vm[rows] + extra, -np.inf)  # -inf: never brakes (react_keys)
+        k, a = _roll_out(g, vm[rows], react, steps, dyn.veh_n[rows], dyn.hold_last, k0, first_only)
         ks.append(k), peds.append(np.zeros(len(k), bool)), rows_out.append(rows[a]), probs.append(dyn.veh_prob[rows[a]])
     if len(dyn.ped_pos):
         reach = dyn.circum + dyn.ped_radius + np.maximum(pm, dyn.pm) + extra
@@ -137,7 +139,8 @@ def reactive_hits(dyn, ego: np.ndarray, vm: np.ndarray, pm: np.ndarray, k0: int,
             return disc_gaps(e, dyn.ped_pos[a, j], dyn.half_l, dyn.half_w, dyn.ped_radius[a])
 
         rows, g = _cached_gap_table(dyn, "pedestrian", ego, dyn.ped_pos, ped_gaps, reach)
-        k, a = _roll_out(g, pm[rows], pm[rows] + extra, steps, dyn.ped_n[rows], dyn.hold_last, k0, first_only)
+        react = np.where(dyn.ped_react[rows], pm[rows] + extra, -np.inf)
+        k, a = _roll_out(g, pm[rows], react, steps, dyn.ped_n[rows], dyn.hold_last, k0, first_only)
         ks.append(k), peds.append(np.ones(len(k), bool)), rows_out.append(rows[a]), probs.append(dyn.ped_prob[rows[a]])
     if not ks:
         return np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int64), np.zeros(0)

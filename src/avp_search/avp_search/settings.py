@@ -43,6 +43,11 @@ class CollisionSettings:
     # (avp_search.reactive); 0 = the paper
     reactive_steps: int = 0  # #28: agents stop for the ego, look-ahead L in steps (avp_search.reactive); 0 = off
     reactive_margin: float = 0.0  # #28: m beyond the margin at which an agent is assumed to brake for the ego
+    # which agents reactive_steps applies to: "assumed" (every agent), "agent" (only agents seen to brake hard,
+    # harder than reactive_decel, with the ego ahead of them within decision.yield_lookahead; remembered for the
+    # episode), "lot" (every agent, once any has been seen to do so)
+    reactive_evidence: str = "assumed"  # #28: whose reaction is assumed: assumed (all), agent (seen), lot (once seen)
+    reactive_decel: float = 3.0  # #28: m/s^2 of braking (2x ParkSim's 1.5) that counts as stopping for the ego
 
 
 @dataclass(frozen=True)
@@ -100,6 +105,8 @@ class SearchConfig:
             ("collision.beyond_commit", c.beyond_commit in ("risk", "hold")),
             ("collision.reactive_steps", c.reactive_steps >= 0),
             ("collision.reactive_margin", c.reactive_margin >= 0),
+            ("collision.reactive_evidence", c.reactive_evidence in ("assumed", "agent", "lot")),
+            ("collision.reactive_decel", c.reactive_decel > 0),
             ("search.xy_resolution", s.xy_resolution > 0),
             ("search.heading_bins", s.heading_bins >= 8),
             ("search.primitive_length", s.primitive_length > s.sample_step > 0),

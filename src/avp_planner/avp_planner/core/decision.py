@@ -83,6 +83,7 @@ from avp_planner.core.planner_types import (
 from avp_planner.core.settings import PlannerSettings
 from avp_planner.core.spot_selection import SelectionContext, make_spot_selector
 from avp_planner.core.trace import idle_cause
+from avp_planner.core.yielding import ReactionEvidence
 from avp_search.collision import DynamicObstacles, StaticWorld
 from avp_search.hybrid_astar import PlanResult
 from avp_search.paths import wrap
@@ -124,6 +125,8 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         self._failed_searches: dict[tuple, PlanResult] = {}  # see FAILED_SEARCH_CACHE
         self._last_cause: dict = {"cause": "unknown"}  # why the last idle decision was idle (decision trace)
         self._stuck_steps = 0  # consecutive steps stood idle or waiting (creep steps keep the count)
+        self._evidence = ReactionEvidence(self.settings.decision.yield_lookahead,
+                                          self.settings.collision.reactive_decel)  # collision.reactive_evidence
 
     def decide(self, obs: Observation, beliefs: np.ndarray | None = None,
                predictions: Sequence[PredictedTrajectory] = (), spot_priority: Sequence[int] | None = None,
@@ -154,6 +157,8 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
             self._plan = None
             return self._finish(Decision(IDLE, reason=bad, trace={"mode": IDLE, "cause": "invalid_input"}), timing,
                                 t_start)
+        if self.settings.collision.reactive_steps > 0 and self.settings.collision.reactive_evidence != "assumed":
+            self._evidence.update(obs)
         if self._plan is None and obs.step < self._idle_until:  # stay put until the next idle re-plan (§V-D-3)
             if beliefs is None:
                 self.update_beliefs(obs)

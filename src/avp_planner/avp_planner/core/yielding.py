@@ -45,3 +45,53 @@ def yielding_predictions(obs: Observation, predictions: list[PredictedTrajectory
         out.append(PredictedTrajectory(agent_id=vid, poses=np.tile([cx, cy, th], (n, 1)), dt=dt, probability=1.0,
                                        length=float(v.length) + margin, width=float(v.width)))
     return out
+
+
+class ReactionEvidence:
+    """Agents seen to stop for the ego (``collision.reactive_evidence``, issue #28).
+
+    ``collision.reactive_steps`` assumes §III-B's braking rule of every agent. That is a bet: where the agents do
+    not react (the non-reactive protocol, a driver who has not seen the ego) the ego drives into their way. Here the
+    bet is made only on evidence: an agent that has been seen to brake harder than ``decel`` (m/s²: harder than a
+    planned stop) while the ego lay ahead of it — within ``lookahead`` m of it and within 60° of the direction it
+    moved in — is taken to react for the rest of the episode. The speeds are those between the last two observations
+    of it (vehicles: their history; pedestrians: the speed remembered from the step before).
+    """
+
+    def __init__(self, lookahead: float, decel: float):
+        self.lookahead, self.decel = float(lookahead), float(decel)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every agent (a new episode)."""
+        self.seen: set[tuple[bool, int]] = set()
+        self._ped_vel: dict[int, tuple[int, np.ndarray]] = {}  # id -> (step, velocity) at its last observation
+
+    def _stopped_for_ego(self, obs: Observation, pos: np.ndarray, v_before: np.ndarray, v_now: np.ndarray) -> bool:
+        s_before = float(np.hypot(*v_before))
+        if s_before - float(np.hypot(*v_now)) < self.decel * obs.dt or s_before <= 0.0:
+            return False
+        d = np.asarray(obs.ego_pose[:2], dtype=float) - pos
+        dist = float(np.hypot(*d))
+        ahead = float(np.dot(d, v_before)) / s_before
+        return 0.0 < dist <= self.lookahead and ahead >= 0.5 * dist
+
+    def update(self, obs: Observation) -> set[tuple[bool, int]]:
+        """Add the agents of ``obs`` that stop for the ego now; the keys (is a pedestrian, id) of all seen so far."""
+        for v in obs.vehicles:
+            h = np.asarray(v.history, dtype=float).reshape(-1, 3)
+            if v.is_static or len(h) < 3 or (False, int(v.id)) in self.seen:
+                continue
+            v_before, v_now = (h[-2, :2] - h[-3, :2]) / obs.dt, (h[-1, :2] - h[-2, :2]) / obs.dt
+            if self._stopped_for_ego(obs, h[-1, :2], v_before, v_now):
+                self.seen.add((False, int(v.id)))
+        vel = {}
+        for p in obs.pedestrians:
+            pos = np.asarray(p.position, dtype=float)
+            vel[int(p.id)] = (pos - np.asarray(p.previous_position, dtype=float)) / obs.dt
+            last = self._ped_vel.get(int(p.id))
+            fresh = last is not None and last[0] == obs.step - 1
+            if fresh and self._stopped_for_ego(obs, pos, last[1], vel[int(p.id)]):
+                self.seen.add((True, int(p.id)))
+        self._ped_vel = {i: (obs.step, w) for i, w in vel.items()}
+        return self.seen
