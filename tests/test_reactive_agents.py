@@ -185,7 +185,8 @@ def test_evidence_is_a_hard_stop_with_the_ego_ahead(paper_lot):
     hard, _ = _stopping_car([2.0, 2.0, 2.0, 0.0], vid=1)
     gentle, _ = _stopping_car([0.6, 0.45, 0.3, 0.15], vid=2)
     ev = ReactionEvidence(lookahead=10.0, decel=3.0)
-    assert ev.update(make_obs(paper_lot, ego, vehicles=[hard, gentle])) == {(False, 1)}
+    crawl, _ = _stopping_car([1.1, 1.1, 1.1, 0.5], vid=3)  # a manoeuvre's slow-down: hard, but not to a stop
+    assert ev.update(make_obs(paper_lot, ego, vehicles=[hard, gentle, crawl])) == {(False, 1)}
     for pose in ((21.5, 10.0, 0.0), (21.5, 28.0, 0.0)):  # behind it; 12 m ahead
         assert ReactionEvidence(10.0, 3.0).update(make_obs(paper_lot, pose, vehicles=[hard])) == set()
     # the threshold is what tells them apart: at 0.5 m/s² the planned stop counts too

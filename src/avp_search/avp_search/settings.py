@@ -43,7 +43,7 @@ class CollisionSettings:
     # (avp_search.reactive); 0 = the paper
     reactive_steps: int = 0  # #28: agents stop for the ego, look-ahead L in steps (avp_search.reactive); 0 = off
     reactive_margin: float = 0.0  # #28: m beyond the margin at which an agent is assumed to brake for the ego
-    # which agents reactive_steps applies to: "assumed" (every agent), "agent" (only agents seen to brake hard,
+    # which agents reactive_steps applies to: "assumed" (every agent), "agent" (only agents seen to stop hard,
     # harder than reactive_decel, with the ego ahead of them within decision.yield_lookahead; remembered for the
     # episode), "lot" (every agent, once any has been seen to do so)
     reactive_evidence: str = "assumed"  # #28: whose reaction is assumed: assumed (all), agent (seen), lot (once seen)

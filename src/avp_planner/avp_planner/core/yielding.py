@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from avp_planner.core.trace import agent_motion
+from avp_planner.core.trace import STANDING_SPEED, agent_motion
 from avp_world.types import Observation, PredictedTrajectory
 
 
@@ -52,10 +52,12 @@ class ReactionEvidence:
 
     ``collision.reactive_steps`` assumes §III-B's braking rule of every agent. That is a bet: where the agents do
     not react (the non-reactive protocol, a driver who has not seen the ego) the ego drives into their way. Here the
-    bet is made only on evidence: an agent that has been seen to brake harder than ``decel`` (m/s²: harder than a
-    planned stop) while the ego lay ahead of it — within ``lookahead`` m of it and within 60° of the direction it
-    moved in — is taken to react for the rest of the episode. The speeds are those between the last two observations
-    of it (vehicles: their history; pedestrians: the speed remembered from the step before).
+    bet is made only on evidence: an agent seen to stop (to below 0.3 m/s) braking harder than ``decel`` (m/s²:
+    harder than a planned stop) while the ego lay ahead of it — within ``lookahead`` m of it and within 60° of the
+    direction it moved in — is taken to react for the rest of the episode. The speeds are those between the last two
+    observations of it (vehicles: their history; pedestrians: the speed remembered from the step before). A stop to
+    a crawl that is not a standstill does not count: the simulator's manoeuvres slow from 1.1 m/s to 0.5 m/s
+    within one step.
     """
 
     def __init__(self, lookahead: float, decel: float):
@@ -68,8 +70,8 @@ class ReactionEvidence:
         self._ped_vel: dict[int, tuple[int, np.ndarray]] = {}  # id -> (step, velocity) at its last observation
 
     def _stopped_for_ego(self, obs: Observation, pos: np.ndarray, v_before: np.ndarray, v_now: np.ndarray) -> bool:
-        s_before = float(np.hypot(*v_before))
-        if s_before - float(np.hypot(*v_now)) < self.decel * obs.dt or s_before <= 0.0:
+        s_before, s_now = float(np.hypot(*v_before)), float(np.hypot(*v_now))
+        if s_now >= STANDING_SPEED or s_before - s_now < self.decel * obs.dt:
             return False
         d = np.asarray(obs.ego_pose[:2], dtype=float) - pos
         dist = float(np.hypot(*d))
