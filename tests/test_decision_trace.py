@@ -133,9 +133,11 @@ def _standing_car_and_its_moving_hypothesis(y0: float = 13.0, probability: float
 
 
 def _planner(lot, **kw):
+    """The planner with ``evasive`` and the agents' reaction (``collision.reactive_steps``) off unless given: the
+    mechanisms are tested against the paper's check."""
     s = PlannerSettings()
     dec = {k: v for k, v in kw.items() if hasattr(s.decision, k)}
-    col = {k: v for k, v in kw.items() if hasattr(s.collision, k)}
+    col = {"reactive_steps": 0, **{k: v for k, v in kw.items() if hasattr(s.collision, k)}}
     return EgoPlanner(lot, replace(s, decision=replace(s.decision, evasive=False, **dec),
                                    collision=replace(s.collision, **col)))
 

@@ -79,9 +79,11 @@ def test_the_planner_no_longer_flees_a_car_that_will_stop_for_it(paper_lot):
     car, pred = _rushing_car()
     obs = make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vehicles=[car])
     s = PlannerSettings()
+    s = replace(s, collision=replace(s.collision, reactive_steps=0))  # the paper's check, whatever the default
     paper = EgoPlanner(paper_lot, s).decide(obs, predictions=[pred])
     assert paper.trace["mode"] == "evasive" and paper.command[0] != 0.0
-    react = EgoPlanner(paper_lot, replace(s, collision=replace(s.collision, reactive_steps=2))).decide(
+    react = EgoPlanner(paper_lot, replace(s, collision=replace(s.collision, reactive_steps=2,
+                                                                reactive_evidence="assumed"))).decide(
         obs, predictions=[pred])
     assert react.trace["mode"] == "idle" and react.command == (0.0, 0.0), react.trace
     assert react.trace["agent_id"] == 7 and react.trace["motion"] == "towards"
@@ -223,6 +225,7 @@ def test_the_evidence_switch_changes_the_decision(paper_lot):
 
     ego = (21.5, 25.0, -math.pi / 2)
     s = PlannerSettings()
+    s = replace(s, collision=replace(s.collision, reactive_steps=0))  # the paper's check, whatever the default
 
     def planner(evidence: str) -> EgoPlanner:
         return EgoPlanner(paper_lot, replace(s, collision=replace(s.collision, reactive_steps=2,
