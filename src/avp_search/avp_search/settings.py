@@ -41,12 +41,12 @@ class CollisionSettings:
     # agent went on whatever the ego does): > 0 = each hypothesis is rolled out against the ego's plan with §III-B's
     # rule, the agent braking while its next reactive_steps steps come within the margin + reactive_margin of the ego
     # (avp_search.reactive); 0 = the paper
-    reactive_steps: int = 0  # #28: agents stop for the ego, look-ahead L in steps (avp_search.reactive); 0 = off
+    reactive_steps: int = 2  # #28: agents stop for the ego, look-ahead L [steps] (avp_search.reactive); 0 = the paper
     reactive_margin: float = 0.0  # #28: m beyond the margin at which an agent is assumed to brake for the ego
     # which agents reactive_steps applies to: "assumed" (every agent), "agent" (only agents seen to stop hard,
     # harder than reactive_decel, with the ego ahead of them within decision.yield_lookahead; remembered for the
     # episode), "lot" (every agent, once any has been seen to do so)
-    reactive_evidence: str = "assumed"  # #28: whose reaction is assumed: assumed (all), agent (seen), lot (once seen)
+    reactive_evidence: str = "lot"  # #28: whose reaction is assumed: assumed (all), agent (seen), lot (once seen)
     reactive_decel: float = 3.0  # #28: m/s^2 of braking (2x ParkSim's 1.5) that counts as stopping for the ego
 
 

@@ -28,7 +28,8 @@ from typing import Any
 from avp_bringup.experiment.profiles import MethodProfile, ProfileError
 
 #: planner behaviours beyond §V-D, each {parameter: (on value, off value)}; "off" is the paper's rule. The
-#: defaults of planner.param.yaml have the first three on, issue #28's two off (until their ablation decides).
+#: defaults of planner.param.yaml have the first three on and, of issue #28's, ``reactive_agents`` (with
+#: ``collision.reactive_evidence: lot``: assumed once an agent has been seen to stop for the ego); the others off.
 SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     # "If no safe plans were found ... the ego would stay put" (§V-D-3): no escape manoeuvre when standing still
     # is predicted to be hit
@@ -38,7 +39,7 @@ SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     # "avoids collisions with the predicted trajectories" (§V-D-1): the same margin to every agent, also to one
     # already nearer than it
     "keep_gap": {"collision.keep_current_gap": (True, False)},
-    # issue #28 (unfreezing; off in planner.param.yaml until the ablation picks the default): "the ego would stay
+    # issue #28 (unfreezing; off in planner.param.yaml, the ablation did not pick them): "the ego would stay
     # put" while any prediction blocks — a) a car that stands or brakes with the ego ahead of it is predicted to keep
     # standing (§III-B's reactive agents); b) beyond a 1 s commit window a plan is blocked only by hypotheses whose
     # probabilities sum to more than collision.risk_bound
@@ -47,7 +48,8 @@ SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     # d) after standing decision.stuck_time, creep along the best blocked plan while its next 2 s are clear
     "deadlock_breaker": {"decision.deadlock_breaker": (True, False)},
     # "avoids collisions with the predicted trajectories" (§V-D-1) as if each agent went on whatever the ego does:
-    # the agents stop for the ego as §III-B's do (look-ahead 2 steps, avp_search.reactive)
+    # the agents stop for the ego as §III-B's do (look-ahead 2 steps, avp_search.reactive), on in planner.param.yaml
+    # once one has been seen to (collision.reactive_evidence: lot)
     "reactive_agents": {"collision.reactive_steps": (2, 0)},
     # c) "wait-and-go" (Nawaz et al.) waits before starting only: wait at a stop on the path instead
     "wait_anywhere": {"decision.wait_anywhere": (True, False)},
