@@ -3,7 +3,7 @@
     python tools/run_seeds.py OUT.jsonl METHOD SEEDS [KEY=VALUE ...] [--lot FILE] [--family busy] [--t-final 60]
         [--mode reactive] [--workers 2]
 
-SEEDS: ``0-49`` or ``1,4,8``. KEY=VALUE are avp_planner parameters (as ``avp experiment --planner-param``); METHOD
+SEEDS: ``0-49``, ``1,4,8`` or ``0-49,150-199``. KEY=VALUE are avp_planner parameters (as ``avp experiment --planner-param``); METHOD
 is a method name or a method profile's path. Each record is the one ``avp experiment`` writes (same runner, same
 worker set-up), less its per-step timings and ego poses; a line per episode is printed as it ends. Unlike ``avp
 experiment`` it does not check that the seeds are valid scenarios, keep a run folder, resume or summarise: it is
@@ -22,10 +22,12 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def seeds_of(spec: str) -> list[int]:
-    if "-" in spec and "," not in spec:
-        a, b = spec.split("-")
-        return list(range(int(a), int(b) + 1))
-    return [int(s) for s in spec.split(",")]
+    """``0-49``, ``1,4,8`` or a mix such as ``0-49,150-199,61``."""
+    out: list[int] = []
+    for part in spec.split(","):
+        a, _, b = part.partition("-")
+        out.extend(range(int(a), int(b or a) + 1))
+    return out
 
 
 def main(argv: list[str]) -> int:
