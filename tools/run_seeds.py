@@ -3,11 +3,11 @@
     python tools/run_seeds.py OUT.jsonl METHOD SEEDS [KEY=VALUE ...] [--lot FILE] [--family busy] [--t-final 60]
         [--mode reactive] [--workers 2]
 
-SEEDS: ``0-49``, ``1,4,8`` or ``0-49,150-199``. KEY=VALUE are avp_planner parameters (as ``avp experiment --planner-
-param``); METHOD is a method name or a method profile's path. Each record is the one ``avp experiment`` writes (same
-runner, same worker set-up), less its per-step timings and ego poses; a line per episode is printed as it ends.
-Unlike ``avp experiment`` it does not check that the seeds are valid scenarios, keep a run folder, resume or
-summarise: it is for re-running the same few seeds under several settings.
+SEEDS: ``0-49``, ``1,4,8`` or ``0-49,150-199``. KEY=VALUE are avp_planner parameters (as ``avp experiment
+--planner-param``); METHOD is a method name or a method profile's path. Each record is the one ``avp experiment``
+writes (same runner, same worker set-up), less its per-step timings and ego poses; a line per episode is printed as
+it ends. Unlike ``avp experiment`` it does not check that the seeds are valid scenarios, keep a run folder, resume
+or summarise: it is for re-running the same few seeds under several settings.
 """
 
 from __future__ import annotations
