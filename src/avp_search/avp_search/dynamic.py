@@ -76,9 +76,8 @@ class DynamicObstacles:
         self.ped_prob = np.array([float(p.probability) for p in ped])
         self.veh_n = np.array([len(p.poses) for p in veh], dtype=np.int64)  # own horizons (hold_last=False)
         self.ped_n = np.array([len(p.poses) for p in ped], dtype=np.int64)
-        keys = react_keys
-        self.veh_react = np.array([keys is None or (False, int(i)) in keys for i in self.veh_ids], dtype=bool)
-        self.ped_react = np.array([keys is None or (True, int(i)) in keys for i in self.ped_ids], dtype=bool)
+        self.veh_react = np.array([react_keys is None or (False, int(i)) in react_keys for i in self.veh_ids], bool)
+        self.ped_react = np.array([react_keys is None or (True, int(i)) in react_keys for i in self.ped_ids], bool)
         self._margin_cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}  # by the ego's pose at k = 0
         self._react_cache: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  # avp_search.reactive's gap tables
 
