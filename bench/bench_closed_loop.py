@@ -36,7 +36,7 @@ def _seeds(spec: str) -> list[int]:
 
 
 def run_episode(lot, sim: dict, profile, seed: int, reactive: bool) -> tuple[dict, dict[str, list[float]]]:
-    from avp_bringup.experiment.ego import MethodEgo
+    from avp_experiment.ego import MethodEgo
     from avp_sim.core.factory import make_world
 
     world = make_world(lot, sim, seed, reactive)
@@ -82,8 +82,8 @@ def main() -> int:
 
     import torch
 
-    from avp_bringup.experiment.run_config import RunConfig, run_profile, sim_values
-    from avp_bringup.experiment.runner import parse_planner_params
+    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_experiment.runner import parse_planner_params
     from avp_sim.core.factory import load_lot_param
 
     torch.set_num_threads(1)

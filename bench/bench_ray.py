@@ -34,8 +34,8 @@ from pathlib import Path
 
 def run(out: Path, args: argparse.Namespace, *extra: str, env: dict | None = None) -> dict:
     """One ``avp experiment`` invocation; its wall time, the episodes' own wall times and its records."""
-    from avp_bringup.experiment.metrics import comparable
-    from avp_bringup.experiment.runner import RESULTS_FILE, read_results, record_key
+    from avp_experiment.metrics import comparable
+    from avp_experiment.runner import RESULTS_FILE, read_results, record_key
 
     shutil.rmtree(out, ignore_errors=True)
     cmd = [sys.executable, "-m", "avp_bringup.cli", "experiment", "--methods", args.methods, "--scenarios",
@@ -55,8 +55,8 @@ def main() -> int:
     p.add_argument("--out", default="out/bench_ray")
     p.add_argument("--json", default="")
     args = p.parse_args()
-    from avp_bringup.experiment.ray_backend import LocalRayCluster
-    from avp_bringup.experiment.results import code_commit
+    from avp_experiment.ray_backend import LocalRayCluster
+    from avp_experiment.results import code_commit
 
     out = Path(args.out)
     runs: dict[str, dict] = {}

@@ -64,7 +64,7 @@ def main() -> int:
     import rclpy
 
     from avp_bringup.graph import Graph, NodeSpec
-    from avp_bringup.services import call_idempotent
+    from avp_common.services import call_idempotent
     from avp_msgs.srv import ResetEpisode
     from avp_sim.core.factory import make_world
     from avp_sim.core.scenario_source import requested_scenario

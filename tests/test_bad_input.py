@@ -99,7 +99,7 @@ def test_scenario_file_not_yaml_or_missing(paper_lot, tmp_path):
 rclpy = pytest.importorskip("rclpy")
 
 from avp_bringup.graph import Graph, NodeSpec  # noqa: E402
-from avp_bringup.services import call_idempotent  # noqa: E402
+from avp_common.services import call_idempotent  # noqa: E402
 
 
 def _sim(**extra) -> NodeSpec:

@@ -25,8 +25,9 @@ def _rewrite(src: Path, dst: Path, chunk_size: int, extra_topic: tuple[str, str,
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import get_types_from_msg
 
-    from avp_bringup.bag import _qos, make_typestore
-    from avp_bringup.bagwriter import SplitBagWriter
+    from avp_bag.recorder import _qos
+    from avp_bag.typestore import make_typestore
+    from avp_bag.writer import SplitBagWriter
 
     ts = make_typestore()
     w = SplitBagWriter(dst, split_period=1e9, chunk_size=chunk_size)
@@ -104,7 +105,7 @@ def test_metrics_and_replay_of_a_bag_cut_mid_chunk(chunked, tmp_path, ros_env):
     m = _run(["metrics", str(bag)], env=ros_env)
     assert f"{f}: cut short" in m.stderr and f"read {expected} messages" in m.stderr, m.stderr
     assert m.returncode in (0, 1, 2) and "Traceback" not in m.stderr
-    from avp_bringup.bagread import BagReader
+    from avp_bag.reader import BagReader
 
     got = list(BagReader(bag, warn=lambda _t: None).messages())
     assert len(got) == expected
@@ -180,8 +181,8 @@ def test_disk_full_while_recording_stops_the_recorder_not_the_episode(small_fs, 
     its end with the same metrics as the committed recording of that episode, the bag reads back a prefix."""
     import json
 
-    from avp_bringup.bag import metrics_from_bag
-    from avp_bringup.bagread import BagReader
+    from avp_bag.episode import metrics_from_bag
+    from avp_bag.reader import BagReader
 
     bag, out = small_fs / "bag", tmp_path / "out"
     r = _run(["demo", "--seed", "4", "--t-final", "4", "--no-gif", "--bag", str(bag), "--out", str(out)],

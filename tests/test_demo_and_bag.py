@@ -138,7 +138,7 @@ def test_demo_parks_on_a_lot_without_a_scenario_block(ros_env, tmp_path):
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["state"] == "success" and metrics["parked_spot_id"] >= 0, metrics
     assert metrics["lot"] == {"name": "side_lot", "sha256": load_lot(lot_file).sha256}
-    from avp_bringup.bagread import BagReader
+    from avp_bag.reader import BagReader
 
     reader = BagReader(bag)
     lots = [reader.deserialize(raw, msgtype) for _, msgtype, _, raw in reader.messages(["/avp/lot_map"])]
@@ -149,7 +149,7 @@ def test_busy_demo_on_the_dlp_lot_records_pedestrians_and_recomputes(ros_env, tm
     """Issue #18: the whole graph over DDS on the DLP lot with the busy family: pedestrians and 20+ moving cars in
     the ground truth, the planner answering every step, and `avp metrics` recomputing the live metrics (pedestrian
     collisions included) from the bag."""
-    from avp_bringup.bagread import BagReader
+    from avp_bag.reader import BagReader
     from avp_world.lot import bundled_lot_path
 
     out, bag = tmp_path / "demo", tmp_path / "bag"
@@ -209,7 +209,7 @@ def test_realtime_demo_measures_the_step_time(ros_env, tmp_path):
     check_step_time(metrics, "realtime", 20)  # real time: a command may come too late to be answered at all
     assert "closed-loop step time" in r.stdout and "p95" in r.stdout
     check_gif(out / "episode.gif", min_frames=20)
-    from avp_bringup.episode_video import read_recording
+    from avp_viz.episode_video import read_recording
 
     rec = read_recording(bag)  # the implicit method's ego intention went over the graph and into the bag
     assert len(rec.ego_intention) >= 20 and all(not its for its in rec.intentions.values())
@@ -224,7 +224,7 @@ def test_gif_frame_draws_the_recorded_beliefs_plan_and_ego(paper_lot):
 
     import numpy as np
 
-    from avp_bringup.episode_video import EGO, FREE, PARK, TAKEN, UNSEEN, EpisodeRecording, render_frame
+    from avp_viz.episode_video import EGO, FREE, PARK, TAKEN, UNSEEN, EpisodeRecording, render_frame
     from avp_world.types import Observation
 
     lot = paper_lot
@@ -303,7 +303,7 @@ def test_replay_republishes_the_recorded_bytes(ros_env, monkeypatch):
 
 
 def test_metrics_of_the_committed_bag():
-    from avp_bringup.bag import metrics_from_bag
+    from avp_bag.episode import metrics_from_bag
 
     recomputed, live = metrics_from_bag(EXAMPLE)
     assert recomputed == live and live["steps"] == 40

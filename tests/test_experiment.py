@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 import yaml
 
-from avp_bringup.experiment.metrics import comparable, prediction_errors, wilson
-from avp_bringup.experiment.profiles import (
+from avp_experiment.metrics import comparable, prediction_errors, wilson
+from avp_experiment.profiles import (
     TABLE_ORDER,
     ProfileError,
     available_names,
@@ -22,7 +22,7 @@ from avp_bringup.experiment.profiles import (
     planner_profile_yaml,
     planner_settings,
 )
-from avp_bringup.experiment.runner import RESULTS_FILE, add_arguments, main, read_results, record_key, run_experiment
+from avp_experiment.runner import RESULTS_FILE, add_arguments, main, read_results, record_key, run_experiment
 from avp_world.types import PredictedTrajectory
 
 T_FINAL = 6.0  # short episodes: the runner's logic, not the method's success, is under test here
@@ -79,8 +79,8 @@ def unavailable_learned(tmp_path: Path) -> Path:
 def test_profiles_map_onto_the_four_node_graph(tmp_path):
     """One mapping (method_node_params) puts a profile on the same 4 nodes as the default graph: written out here
     for the implicit and Nawaz rows; the Bézier row changes nothing the node defaults do not already say."""
-    from avp_bringup.experiment.profiles import BELIEF_SOURCES, method_node_params
     from avp_bringup.graph import default_graph, method_graph
+    from avp_experiment.profiles import BELIEF_SOURCES, method_node_params
     from avp_perception.core.pipeline import BELIEF_SOURCES as NODE_SOURCES
 
     assert BELIEF_SOURCES == NODE_SOURCES
@@ -160,7 +160,7 @@ def test_min_ade_and_min_fde_by_hand():
 
 def test_motion_counts_by_hand():
     """Reversals and U-turns (issue #21) on hand-made ego paths."""
-    from avp_bringup.experiment.metrics import motion_counts
+    from avp_experiment.metrics import motion_counts
 
     straight = np.array([[0.2 * k, 0.0, 0.0] for k in range(50)])
     assert motion_counts(straight) == {"reversals": 0, "u_turns": 0}
@@ -185,8 +185,8 @@ def test_the_demo_seed_no_longer_backs_away_while_a_stopped_car_blocks_the_road_
     detour round (stopped agents as static obstacles) used to back away at once and explore the long way round
     (6 reversals of direction, parked after 38.9 s). With ``decision.detour_waits_to_turn_back`` the road ahead must
     stay blocked for 3 s first (§V-D-2), the car moves on and the ego parks ahead of it, sooner."""
-    from avp_bringup.experiment.run_config import RunConfig, run_profile, sim_values
-    from avp_bringup.experiment.runner import run_episode_inproc
+    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_experiment.runner import run_episode_inproc
     from avp_sim.core.factory import load_lot_param
 
     out = {}
@@ -245,7 +245,7 @@ def test_resumable_and_summary(tmp_path):
 
 
 def test_summary_lists_every_failed_episode():
-    from avp_bringup.experiment.summary import compute_section, failures_section
+    from avp_experiment.summary import compute_section, failures_section
 
     def rec(method, seed, mode, status, with_="", wall=1.0):
         return {"method": method, "seed": seed, "mode": mode, "status": status, "success": status == "success",
@@ -267,10 +267,10 @@ def test_summary_lists_every_failed_episode():
 
 
 def test_failure_analysis_reruns_failed_episodes(tmp_path):
-    """``python -m avp_bringup.experiment.failures OUT`` re-runs every failed episode of a run and says whether it
+    """``python -m avp_experiment.failures OUT`` re-runs every failed episode of a run and says whether it
     came out the same, which maneuvers the agents did, and how close they came."""
-    from avp_bringup.experiment import failures
-    from avp_bringup.experiment.runner import RunConfig, sim_values
+    from avp_experiment import failures
+    from avp_experiment.runner import RunConfig, sim_values
     from avp_sim.core.factory import scenario_params
     from avp_sim.core.scenario import generate_paper_scenario
     from avp_world.lot import load_bundled_lot
@@ -302,7 +302,7 @@ def test_failure_analysis_reruns_failed_episodes(tmp_path):
 def test_an_episode_that_raises_is_reported_and_the_others_recorded(tmp_path, monkeypatch, capsys):
     """One episode's bug must not stop (or silently hang) the sweep: it is named on stderr, left out of the
     results so the same command retries it, the other episodes are recorded and the exit status is 1."""
-    import avp_bringup.experiment.runner as runner
+    import avp_experiment.runner as runner
 
     real = runner._worker_episode
 
@@ -322,8 +322,8 @@ def test_an_episode_that_raises_is_reported_and_the_others_recorded(tmp_path, mo
 
 
 def test_sim_param_overrides_are_checked_and_part_of_the_run_identity(tmp_path):
-    from avp_bringup.experiment.profiles import load_profile
-    from avp_bringup.experiment.runner import RunConfig, check_run_file, parse_sim_params, run_identity
+    from avp_experiment.profiles import load_profile
+    from avp_experiment.runner import RunConfig, check_run_file, parse_sim_params, run_identity
 
     old = parse_sim_params(["scenario.maneuver_max_speed=2.0", "scenario.outer_row_max=9"])
     assert old == {"scenario.maneuver_max_speed": 2.0, "scenario.outer_row_max": 9}
@@ -385,7 +385,7 @@ def test_intent_identity_names_the_weights_without_machine_paths(tmp_path):
     by this machine's absolute path, so results made on two machines compare."""
     import hashlib
 
-    from avp_bringup.experiment.runner import RunConfig, intent_identity
+    from avp_experiment.runner import RunConfig, intent_identity
     from avp_perception.core.pipeline import shipped_weights_path
 
     shipped = shipped_weights_path()
@@ -404,7 +404,7 @@ def test_a_second_invocation_on_a_folder_being_written_is_refused(tmp_path):
     import subprocess
     import sys
 
-    from avp_bringup.experiment.results import lock_folder
+    from avp_experiment.results import lock_folder
 
     held = lock_folder(tmp_path)
     try:

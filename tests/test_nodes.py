@@ -15,10 +15,10 @@ rclpy = pytest.importorskip("rclpy")
 from geometry_msgs.msg import TwistStamped  # noqa: E402
 
 from avp_bringup.graph import Graph, NodeSpec  # noqa: E402
-from avp_bringup.services import call_idempotent, call_once  # noqa: E402
 from avp_common.conversions import step_to_time  # noqa: E402
 from avp_common.msg_auth import episode_of, load_key, sign  # noqa: E402
 from avp_common.qos import STATUS, STEP  # noqa: E402
+from avp_common.services import call_idempotent, call_once  # noqa: E402
 from avp_msgs.msg import EpisodeStatus, GroundTruth, Observation  # noqa: E402
 from avp_msgs.srv import ResetEpisode  # noqa: E402
 

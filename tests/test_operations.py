@@ -19,7 +19,7 @@ import yaml
 
 rclpy = pytest.importorskip("rclpy")
 
-from avp_bringup.bagwriter import SplitBagWriter  # noqa: E402
+from avp_bag.writer import SplitBagWriter  # noqa: E402
 from avp_bringup.graph import Graph, NodeSpec, default_graph  # noqa: E402
 
 
@@ -51,8 +51,8 @@ def _clock_writer_script(bag: Path) -> str:
     return f"""
 import time
 from rosbags.typesys import Stores, get_typestore
-from avp_bringup.bag import _qos
-from avp_bringup.bagwriter import SplitBagWriter
+from avp_bag.recorder import _qos
+from avp_bag.writer import SplitBagWriter
 ts = get_typestore(Stores.ROS2_JAZZY)
 C, T = ts.types['rosgraph_msgs/msg/Clock'], ts.types['builtin_interfaces/msg/Time']
 w = SplitBagWriter({str(bag)!r}, split_period=0.2)
@@ -91,8 +91,8 @@ def test_writer_close_keeps_everything_and_refuses_existing_dir(tmp_path):
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
-    from avp_bringup.bag import _qos
-    from avp_bringup.bagwriter import BagWriteError
+    from avp_bag.recorder import _qos
+    from avp_bag.writer import BagWriteError
 
     ts = get_typestore(Stores.ROS2_JAZZY)
     clock, t = ts.types["rosgraph_msgs/msg/Clock"], ts.types["builtin_interfaces/msg/Time"]

@@ -1,6 +1,7 @@
 """Plugins the ROS way in Python (issue #17 item 4): a predictor and a spot selector from a package outside src/,
 found through the ``avp.predictors`` and ``avp.spot_selectors`` entry-point groups, run episodes through
-``avp experiment --methods <their profiles>``.
+``avp experiment --methods <their profiles>``; an experiment transport (``avp.experiment_transports``, issue #29: the
+DDS one is avp_bringup's) runs them through ``avp experiment --transport <its name>``.
 
 The toy package is built and installed by pip (``--target``, so the workspace's environment is left as it was);
 the experiment's worker process finds it on PYTHONPATH, like any installed package.
@@ -50,6 +51,19 @@ class FarthestFirst:
         with open(os.environ["TOY_SELECTOR_LOG"], "a") as f:
             f.write(" ".join(str(int(self.lot.spot_ids[r])) for r in rows) + "\\n")
         return Selection(rows, True)
+
+
+def run_toy_transport(keys, cfg, on_record, log_dir, timeout=600.0):
+    """A toy experiment transport: the episodes in this process, each key written to $TOY_TRANSPORT_LOG."""
+    from avp_experiment.episodes import _init_worker, _worker_episode
+
+    _init_worker(cfg)
+    for key in keys:
+        with open(os.environ["TOY_TRANSPORT_LOG"], "a") as f:
+            f.write(" ".join(map(str, key)) + "\\n")
+        record = _worker_episode(key)
+        record["transport"] = "toy"
+        on_record(record)
 '''
 
 TOY_SETUP = '''
@@ -57,7 +71,8 @@ from setuptools import setup
 
 setup(name="toy-predictor", version="0.1.0", py_modules=["toy_predictor"],
       entry_points={"avp.predictors": ["toy = toy_predictor:ToyPredictor"],
-                    "avp.spot_selectors": ["farthest = toy_predictor:FarthestFirst"]})
+                    "avp.spot_selectors": ["farthest = toy_predictor:FarthestFirst"],
+                    "avp.experiment_transports": ["toy = toy_predictor:run_toy_transport"]})
 '''
 
 TOY_PROFILE = """
@@ -107,6 +122,7 @@ def toy(tmp_path_factory) -> dict:
     env["PYTHONPATH"] = os.pathsep.join([str(root / "site"), env.get("PYTHONPATH", "")])
     env["TOY_PREDICTOR_LOG"] = str(root / "calls.log")
     env["TOY_SELECTOR_LOG"] = str(root / "selector.log")
+    env["TOY_TRANSPORT_LOG"] = str(root / "transport.log")
     return {"root": root, "env": env}
 
 
@@ -173,3 +189,26 @@ def test_a_spot_selector_plugin_chooses_the_spot(toy, tmp_path):
             "except ValueError as e:\n    print(e)\n")
     r = subprocess.run([sys.executable, "-c", code], env=toy["env"], capture_output=True, text=True)
     assert "unknown spot selector 'nope'" in r.stdout and "'farthest'" in r.stdout and "'c_park'" in r.stdout
+
+
+def test_an_experiment_transport_plugin_runs_the_episodes(toy, tmp_path):
+    """``--transport`` takes the transports installed as plugins: avp_bringup's ``ros`` and the toy one here, which
+    alone runs the episodes of this command (its log names each key; its records say so)."""
+    code = "from avp_experiment.transports import transport_names\nprint(transport_names())"
+    r = subprocess.run([sys.executable, "-c", code], env=toy["env"], capture_output=True, text=True)
+    assert r.returncode == 0 and r.stdout.strip() == "['inproc', 'ros', 'toy']", r.stdout + r.stderr
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.stdout.strip() == "['inproc', 'ros']"
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "experiment", "--methods", "bezier",
+                        "--transport", "toy", "--scenarios", "2", "--mode", "non-reactive", "--t-final", "10",
+                        "--no-progress", "--out", str(out)], env=toy["env"], capture_output=True, text=True,
+                       timeout=600)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    records = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
+    assert len(records) == 2 and {x["transport"] for x in records} == {"toy"}
+    logged = (toy["root"] / "transport.log").read_text().splitlines()
+    assert sorted(logged) == sorted(f"bezier {x['seed']} non_reactive" for x in records)
+    r = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "experiment", "--transport", "nope", "--out",
+                        str(tmp_path / "x")], env=toy["env"], capture_output=True, text=True)
+    assert r.returncode == 2 and "invalid choice: 'nope'" in r.stderr and "'toy'" in r.stderr

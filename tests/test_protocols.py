@@ -14,9 +14,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from avp_bringup.experiment.oracle import apply_targets, ground_truth
-from avp_bringup.experiment.profiles import ProfileError, load_profile, method_node_params
-from avp_bringup.experiment.protocols import SAFETY_EXTRAS, ablation_variants, apply_planner, load_protocol
+from avp_experiment.oracle import apply_targets, ground_truth
+from avp_experiment.profiles import ProfileError, load_profile, method_node_params
+from avp_experiment.protocols import SAFETY_EXTRAS, ablation_variants, apply_planner, load_protocol
 from avp_perception.core.prediction import make_predictor
 from avp_search.collision import DynamicObstacles
 from avp_sim.core.observation import SensorConfig
@@ -206,7 +206,7 @@ def test_oracle_never_reaches_the_live_graph():
     assert prof.ground_truth
     with pytest.raises(ProfileError, match="oracle bound"):
         method_node_params(prof)
-    from avp_bringup.experiment.runner import resolve_methods
+    from avp_experiment.runner import resolve_methods
 
     run, skipped = resolve_methods("oracle,blind", transport="ros")
     assert [p.name for p in run] == ["blind"] and "in-process only" in skipped["oracle"]
@@ -229,8 +229,8 @@ def test_blind_sees_agents_where_they_are(paper_lot):
 
 
 def test_sweep_runs_one_table_per_value(tmp_path):
-    from avp_bringup.experiment.runner import add_arguments, run_experiment
-    from avp_bringup.experiment.sweep import parse_sweep
+    from avp_experiment.runner import add_arguments, run_experiment
+    from avp_experiment.sweep import parse_sweep
 
     with pytest.raises(ValueError, match="neither"):
         parse_sweep("no.such.key=1,2")

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import pytest
 
-from avp_bringup.experiment.metrics import comparable
-from avp_bringup.experiment.ray_backend import LocalRayCluster
-from avp_bringup.experiment.runner import RESULTS_FILE, main, read_results, record_key
+from avp_experiment.metrics import comparable
+from avp_experiment.ray_backend import LocalRayCluster
+from avp_experiment.runner import RESULTS_FILE, main, read_results, record_key
 
 ray = pytest.importorskip("ray", reason="make setup installs Ray (requirements-ray.txt) unless AVP_WITH_RAY=0")
 

@@ -21,10 +21,10 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa:
 from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
 
 from avp_bringup.graph import Graph, NodeSpec  # noqa: E402
-from avp_bringup.services import call_idempotent  # noqa: E402
 from avp_common.conversions import step_to_time  # noqa: E402
 from avp_common.msg_auth import episode_of, load_key, sign  # noqa: E402
 from avp_common.qos import GROUND_TRUTH, STEP  # noqa: E402
+from avp_common.services import call_idempotent  # noqa: E402
 from avp_msgs.msg import GroundTruth, Observation  # noqa: E402
 from avp_msgs.srv import ResetEpisode  # noqa: E402
 
@@ -248,7 +248,7 @@ def test_two_demos_at_once_do_not_cross_talk(ros_env, tmp_path):
 
     import numpy as np
 
-    from avp_bringup.bag import read_episode
+    from avp_bag.episode import read_episode
 
     env = {k: v for k, v in ros_env.items() if k != "ROS_DOMAIN_ID"}
     env["TMPDIR"] = str(tmp_path)  # the lock files of this test's own, away from any graph the user runs

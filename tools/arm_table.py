@@ -18,7 +18,7 @@ from pathlib import Path
 
 from motion_table import mcnemar
 
-from avp_bringup.experiment.metrics import wilson
+from avp_experiment.metrics import wilson
 
 
 def load(spec: str, mode: str) -> tuple[str, dict[int, dict]]:

@@ -17,7 +17,7 @@ import math
 import sys
 from pathlib import Path
 
-from avp_bringup.experiment.metrics import wilson
+from avp_experiment.metrics import wilson
 
 
 def _records(folder: str, method: str) -> dict:

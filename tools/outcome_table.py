@@ -15,7 +15,7 @@ import statistics
 import sys
 from pathlib import Path
 
-from avp_bringup.experiment.metrics import wilson
+from avp_experiment.metrics import wilson
 
 
 def _collisions(rs: list[dict], prefix: str) -> str:

@@ -37,7 +37,7 @@ from pathlib import Path
 
 
 def cmd_experiment(args: argparse.Namespace) -> int:
-    from avp_bringup.experiment.runner import run_command
+    from avp_experiment.runner import run_command
 
     return run_command(args)
 
@@ -97,7 +97,7 @@ def _foxglove(args: argparse.Namespace):
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
-    from avp_bringup import foxglove_cli
+    from avp_viz import foxglove_cli
 
     if not rclpy.ok():
         rclpy.init()
@@ -108,7 +108,7 @@ def _foxglove(args: argparse.Namespace):
 
 
 def cmd_merge_bag(args: argparse.Namespace) -> int:
-    from avp_bringup.bagmerge import merge_bag
+    from avp_bag.merge import merge_bag
 
     try:
         n = merge_bag(args.bag, args.out)
@@ -122,7 +122,7 @@ def cmd_merge_bag(args: argparse.Namespace) -> int:
 def cmd_record(args: argparse.Namespace) -> int:
     import rclpy
 
-    from avp_bringup.bag import GRAPH_TOPICS, OPTIONAL_TOPICS, BagRecorder
+    from avp_bag.recorder import GRAPH_TOPICS, OPTIONAL_TOPICS, BagRecorder
 
     known = {**GRAPH_TOPICS, **OPTIONAL_TOPICS}
     topics = GRAPH_TOPICS
@@ -133,7 +133,7 @@ def cmd_record(args: argparse.Namespace) -> int:
             return 2
         topics = {t: known[t] for t in args.topics}
     rclpy.init()
-    from avp_bringup.bagwriter import BagWriteError
+    from avp_bag.writer import BagWriteError
 
     try:
         rec = BagRecorder(Path(args.out), topics, storage=args.storage, split_period=args.split_period,
@@ -167,7 +167,7 @@ def cmd_record(args: argparse.Namespace) -> int:
 def cmd_replay(args: argparse.Namespace) -> int:
     import rclpy
 
-    from avp_bringup.replay import BagReplayer
+    from avp_bag.replay import BagReplayer
 
     rclpy.init()
     try:
@@ -199,7 +199,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
 def cmd_metrics(args: argparse.Namespace) -> int:
     import json
 
-    from avp_bringup.bag import metrics_from_bag
+    from avp_bag.episode import metrics_from_bag
 
     try:
         recomputed, live = metrics_from_bag(Path(args.bag))
@@ -259,13 +259,13 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_params(args: argparse.Namespace) -> int:
-    from avp_bringup.scene_node import SCENE_PARAMS
     from avp_common.params import markdown_table
     from avp_perception.params import BELIEF_PARAMS, PREDICTION_PARAMS
     from avp_planner.examples.minimal_planner import MINIMAL_PARAMS
     from avp_planner.params import PLANNER_PARAMS
     from avp_planner.scripted_driver_node import DRIVER_PARAMS
     from avp_sim.params import SIM_PARAMS
+    from avp_viz.scene_node import SCENE_PARAMS
 
     tables = {"avp_sim": SIM_PARAMS, "avp_belief": BELIEF_PARAMS, "avp_prediction": PREDICTION_PARAMS,
               "avp_planner": PLANNER_PARAMS, "scripted_driver": DRIVER_PARAMS, "minimal_planner": MINIMAL_PARAMS,
@@ -302,7 +302,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``avp`` argument parser: one sub-command per tool (see the module docstring)."""
-    from avp_bringup import demo, foxglove_cli
+    from avp_bringup import demo
+    from avp_viz import foxglove_cli
 
     parser = argparse.ArgumentParser(prog="avp", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -375,7 +376,7 @@ def _add_bag_commands(sub) -> None:
 def _add_offline_commands(sub) -> None:
     """experiment, bench, params and the training commands."""
     p = sub.add_parser("experiment", help="the Table I runner (episodes x methods x modes, resumable)")
-    from avp_bringup.experiment.runner import add_arguments
+    from avp_experiment.runner import add_arguments
 
     add_arguments(p)
     p.set_defaults(func=cmd_experiment)

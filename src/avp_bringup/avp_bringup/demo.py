@@ -12,8 +12,8 @@ import sys
 import time
 from pathlib import Path
 
-from avp_bringup import foxglove_cli
 from avp_bringup.graph import avp_root
+from avp_viz import foxglove_cli
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -44,8 +44,8 @@ def run(args: argparse.Namespace) -> int:
     """One seeded episode through the live graph; exit code 0 when it ran to its end."""
     import rclpy
 
-    from avp_bringup.bag import BagRecorder
-    from avp_bringup.bagwriter import BagWriteError
+    from avp_bag.recorder import BagRecorder
+    from avp_bag.writer import BagWriteError
 
     try:
         nodes = _demo_nodes(args)
@@ -119,9 +119,9 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
-    from avp_bringup.experiment.metrics import lot_record
     from avp_bringup.graph import Graph
     from avp_bringup.monitor import EpisodeMonitor
+    from avp_experiment.metrics import lot_record
     from avp_msgs.srv import ResetEpisode
 
     out = Path(args.out)
@@ -181,7 +181,7 @@ def _report(args: argparse.Namespace, bag: Path, metrics: dict, latency: dict, w
           f"wrote {out / 'metrics.json'} and {out / 'episode.png'}")
     print(f"[avp demo] {latency_line(latency)}")
     if not args.no_gif:
-        from avp_bringup.episode_video import episode_gif
+        from avp_viz.episode_video import episode_gif
 
         gif = out / "episode.gif"
         info = episode_gif(bag, gif, title=f"{_method(args)} seed {args.seed}")
@@ -203,7 +203,7 @@ def _start_episode(monitor, executor, graph, srv_type, args, n_obs_subs: int, lo
                    timeout: float = 60.0) -> None:
     """Wait until every node is up (observation subscribers, the ego's cmd publisher, the reset service) and a
     second for discovery to settle, then start the episode with reset_episode (RuntimeError when that fails)."""
-    from avp_bringup.services import call_once
+    from avp_common.services import call_once
 
     client = monitor.create_client(srv_type, "reset_episode")
     t0 = time.monotonic()

@@ -68,7 +68,7 @@ def default_graph(ego: str = "planner") -> list[NodeSpec]:
 
 
 #: the viewers' node (issue #21): /tf, /tf_static and viz/scene from the pipeline's messages; a sink, never an input
-SCENE_NODE = NodeSpec("avp_scene", "avp_bringup", "scene_node", "config/scene.param.yaml")
+SCENE_NODE = NodeSpec("avp_scene", "avp_viz", "scene_node", "config/scene.param.yaml")
 
 
 def with_scene(nodes: list[NodeSpec]) -> list[NodeSpec]:
@@ -87,12 +87,12 @@ def with_params(spec: NodeSpec, **extra) -> NodeSpec:
 def method_graph(method, *, deterministic: bool = False, intent_weights: str | None = None,
                  intent_seed: int | None = None, sim_extra: dict | None = None) -> list[NodeSpec]:
     """The live graph of one Table I method (issue #6): :func:`default_graph` ("planner") — the same four nodes
-    — with the parameters of the method profile ``method`` (a name of avp_bringup/config/methods/, a profile
-    file or a :class:`~avp_bringup.experiment.profiles.MethodProfile`) on its pipeline nodes
-    (:func:`~avp_bringup.experiment.profiles.method_node_params`, also for ``deterministic`` and the intent
+    — with the parameters of the method profile ``method`` (a name of avp_experiment/config/methods/, a profile
+    file or a :class:`~avp_experiment.profiles.MethodProfile`) on its pipeline nodes
+    (:func:`~avp_experiment.profiles.method_node_params`, also for ``deterministic`` and the intent
     weights) and ``sim_extra`` on the simulator. ProfileError (a ValueError) for an unknown or unavailable
     method."""
-    from avp_bringup.experiment.profiles import MethodProfile, load_profile, method_node_params
+    from avp_experiment.profiles import MethodProfile, load_profile, method_node_params
 
     profile = method if isinstance(method, MethodProfile) else load_profile(method)
     params = method_node_params(profile, deterministic=deterministic, intent_weights=intent_weights,

@@ -27,7 +27,7 @@ from pathlib import Path
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 
-from avp_bringup.services import call_idempotent, call_once
+from avp_common.services import call_idempotent, call_once
 
 TRANSITIONS = {"configure": Transition.TRANSITION_CONFIGURE, "cleanup": Transition.TRANSITION_CLEANUP,
                "activate": Transition.TRANSITION_ACTIVATE, "deactivate": Transition.TRANSITION_DEACTIVATE,
@@ -142,7 +142,7 @@ class LifecycleClient:
 
     def state(self, target: str, timeout: float = 10.0) -> str:
         """The lifecycle state's label; get_state is safe to repeat, so it is re-sent while unanswered (a response
-        can be lost while discovery settles: avp_bringup/services.py)."""
+        can be lost while discovery settles: avp_common/services.py)."""
         res = call_idempotent(self._ready(target, "get_state", timeout), GetState.Request(), self._spin_once, timeout)
         if res is None:
             raise SwapError(f"{target}: get_state did not answer within {timeout} s")

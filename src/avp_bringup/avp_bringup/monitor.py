@@ -186,7 +186,7 @@ class EpisodeMonitor(Node):
         }
 
     def write(self, lot, out_dir: Path, extra: dict | None = None) -> dict:
-        from avp_bringup.render import render_episode
+        from avp_viz.render import render_episode
 
         out_dir.mkdir(parents=True, exist_ok=True)
         metrics = {**self.metrics_dict(), **(extra or {})}

@@ -18,7 +18,7 @@ TRACE_TOPIC = "/avp/avp_planner/debug/decision"
 
 def trace_from_bag(bag: Path) -> tuple[dict, float]:
     """(trace summary, dt) of the last episode in ``bag``; ValueError when it holds no decision trace."""
-    from avp_bringup.bagread import BagReader
+    from avp_bag.reader import BagReader
     from avp_planner.trace_msg import trace_from_msg
 
     reader = BagReader(bag)

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from avp_world.geometry import rect_corners, rects_overlap
+from avp_world.lot_scenario_block import parse_scenario_block
 
 MAPS_DIR = Path(__file__).resolve().parent / "maps"
 
@@ -235,8 +236,6 @@ def lot_from_dict(data: Any, source: str = "<memory>") -> LotMap:
     lot = LotMap(name=name, boundary=boundary, entrance=entrance, spots=tuple(spots), roads=tuple(roads), source=src)
     _validate_geometry(lot)
     if data.get("scenario") is not None:
-        from avp_world.lot_scenario import parse_scenario_block
-
         try:
             object.__setattr__(lot, "scenario", parse_scenario_block(data["scenario"], lot, f"{src}: scenario"))
         except ValueError as exc:

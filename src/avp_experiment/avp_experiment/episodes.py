@@ -1,0 +1,95 @@
+"""One episode in process (paper §VI-B): the simulator core and one method's ego, and the worker processes that run
+them for :mod:`.runner` (a local pool) and :mod:`.ray_backend` (Ray tasks). A worker is set up once
+(:func:`_init_worker`: the run's configuration, the lot, the method profiles it has loaded), then runs keys
+``(method, seed, mode)`` (:func:`_worker_episode`)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from avp_experiment.profiles import MethodProfile
+from avp_experiment.run_config import Key, RunConfig, run_profile, sim_values
+
+ORACLE_HORIZON = 10.0  # s of true future given to the oracle bound (.oracle)
+
+
+def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reactive: bool, cfg: RunConfig,
+                       on_step: Callable | None = None) -> dict:
+    """One episode on the simulator core with the method's :class:`~.ego.MethodEgo`; returns its record.
+
+    ``on_step(world, ego_step)``, if given, is called after every step (the failure analysis watches episodes)."""
+    from avp_experiment.ego import MethodEgo
+    from avp_experiment.metrics import episode_record, lot_record, prediction_errors
+    from avp_experiment.oracle import OracleEgo, ground_truth
+    from avp_sim.core.factory import make_world
+
+    t0 = time.perf_counter()
+    world = make_world(lot, sim_p, seed, reactive)
+    ego = (OracleEgo if profile.ground_truth else MethodEgo)(
+        lot, profile, deterministic=True, intent_weights=cfg.intent_weights, intent_seed=cfg.intent_seed,
+        message_precision=cfg.message_precision)
+    from avp_planner.core.trace import DecisionTrace
+
+    preds: dict[int, list] = {}
+    timings: list[dict] = []
+    trace = DecisionTrace(world.dt)
+    while not world.done:
+        obs = world.observe()
+        if profile.ground_truth:  # the oracle bound, and only it, is told the simulator's state (.oracle)
+            ego.tell(ground_truth(world, ORACLE_HORIZON))
+        out = ego.step(obs)
+        preds[out.step] = [p for p in out.predictions if not p.is_pedestrian]
+        timings.append(out.timings)
+        if out.decision is not None:
+            trace.add(out.step, out.decision)
+        world.step(*out.command)
+        if on_step is not None:
+            on_step(world, out)
+    ade, fde = prediction_errors(preds, world.log_vehicles, world.vehicle_ids, world.dt, cfg.ade_horizon)
+    return episode_record(method=profile.name, seed=seed, reactive=reactive, status=world.status,
+                          metrics=world.metrics.as_dict(), min_ade=ade, min_fde=fde, step_timings=timings,
+                          horizon=cfg.ade_horizon, transport="inproc", wall_s=time.perf_counter() - t0,
+                          lot=lot_record(lot), ego_poses=np.asarray(world.log_ego), decision_trace=trace.summary())
+
+
+_WORKER: dict[str, Any] = {}
+
+
+def _init_worker(cfg: RunConfig, pool_worker: bool = False, sources: dict[str, str] | None = None) -> None:
+    import signal
+
+    import torch
+
+    if pool_worker:  # Ctrl-C is the parent's: it lets the running episodes finish and records them
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    torch.set_num_threads(1)
+    from avp_sim.core.factory import load_lot_param
+
+    sim = sim_values(cfg)
+    # sources: profile name -> its file, so a profile given by path (a plugin's) loads in a worker too
+    _WORKER.update(cfg=cfg, lot=load_lot_param(sim["lot_file"]), sim=sim, profiles={}, sources=sources or {})
+
+
+def _worker_episode(key: Key) -> dict:
+    method, seed, mode = key
+    profiles = _WORKER["profiles"]
+    if method not in profiles:
+        profiles[method] = run_profile(_WORKER["sources"].get(method, method), _WORKER["cfg"])
+    return run_episode_inproc(_WORKER["lot"], _WORKER["sim"], profiles[method], seed, mode == "reactive",
+                              _WORKER["cfg"])
+
+
+def episode_in_worker(key: Key, cfg: RunConfig, sources: dict[str, str]) -> dict:
+    """One episode in a long-lived worker process of another backend (a Ray task): the worker is set up as
+    :func:`run_inproc`'s are, once per (cfg, sources), then runs ``key``."""
+    ident = (cfg, sorted(sources.items()))
+    if _WORKER.get("ident") != ident:
+        _WORKER.clear()
+        _init_worker(cfg, sources=sources)
+        _WORKER["ident"] = ident
+    return _worker_episode(key)

@@ -1,0 +1,216 @@
+"""The results folder of ``avp experiment`` (:mod:`.runner`): what the episodes depend on (``OUT/run.json``: run
+config, intent weights, avp_sim values, method profile digests; a mismatch refuses the folder), the episode
+records (``OUT/episodes.jsonl``: one fsync'ed JSON line each, a line cut by an interruption dropped) and the log
+of invocations (``OUT/runs.jsonl``)."""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+from collections.abc import Iterable
+from dataclasses import asdict
+from pathlib import Path
+
+from avp_experiment.profiles import MethodProfile, load_profile
+from avp_experiment.run_config import Key, RunConfig, sim_values
+
+LOCK_FILE = ".lock"
+RESULTS_FILE = "episodes.jsonl"
+RUN_FILE = "run.json"
+RUNS_LOG = "runs.jsonl"
+
+
+def mode_name(reactive: bool) -> str:
+    return "reactive" if reactive else "non_reactive"
+
+
+def record_key(r: dict) -> Key:
+    return (str(r["method"]), int(r["seed"]), str(r["mode"]))
+
+
+def intent_identity(cfg: RunConfig) -> str:
+    """Which intent weights the episodes use: 'sha256:<hex> (shipped)', 'sha256:<hex> (<path as given>)' or
+    'random seed N' (no machine-specific path: summaries made on two machines compare)."""
+    from avp_perception.core.pipeline import shipped_weights_path
+
+    path = Path(cfg.intent_weights) if cfg.intent_weights else shipped_weights_path()
+    if path is None:
+        return f"random seed {cfg.intent_seed}"
+    if not path.is_file():
+        raise ValueError(f"--intent-weights {path}: no such file")
+    return f"sha256:{hashlib.sha256(path.read_bytes()).hexdigest()} ({cfg.intent_weights or 'shipped'})"
+
+
+def check_method(profile: MethodProfile) -> str:
+    """'' if the method can run in this build, else why not."""
+    if not profile.available:
+        return profile.unavailable_reason or "not available"
+    from avp_perception.core.prediction import make_predictor
+    from avp_world.lot import load_bundled_lot
+
+    try:
+        make_predictor(profile.predictor, load_bundled_lot())
+    except (ValueError, ImportError) as exc:
+        return f"predictor {profile.predictor!r} is not in this build ({exc})"
+    return ""
+
+
+def profile_digest(profile: MethodProfile) -> str:
+    """Hash of the profile file; for the learned predictor also of the shipped trajectory weights it loads (so
+    episodes of other weights are never mixed into one results folder)."""
+    h = hashlib.sha256(Path(profile.source).read_bytes())
+    if profile.planner != load_profile(profile.source).planner:  # protocol / --planner-param values on top
+        h.update(json.dumps(profile.planner, sort_keys=True).encode())
+    if profile.predictor == "learned":
+        from avp_perception.core.learned_prediction import default_weights_path
+
+        w = default_weights_path()
+        h.update(w.read_bytes() if w.is_file() else b"random weights")
+    return h.hexdigest()[:16]
+
+
+def portable_path(path: str) -> str:
+    """A lot file as run.json and the summary name it: relative to the clone when it lies in one (a results folder
+    moves with the repository and must not name this machine's paths), else as given."""
+    if not path or not Path(path).is_absolute():
+        return path
+    marker = "/src/avp_"  # a file of the clone's packages, wherever the clone was (also for run.json written before)
+    i = path.rfind(marker)
+    return path[i + 1:] if i >= 0 else path
+
+
+def _portable_sim(d: dict) -> dict:
+    return {**d, "lot_file": portable_path(d["lot_file"])} if isinstance(d, dict) and d.get("lot_file") else d
+
+
+def run_identity(cfg: RunConfig, profiles: Iterable[MethodProfile]) -> dict:
+    """What OUT/run.json must match: the run config, the intent weights, every avp_sim parameter value (so that
+    a change of the shipped scenario defaults is not mixed with earlier episodes), the lot (name and file hash)
+    and the method profiles."""
+    from avp_experiment.metrics import lot_record
+    from avp_sim.core.factory import load_lot_param
+
+    sim = sim_values(cfg)
+    config = asdict(cfg)
+    config["sim_overrides"] = _portable_sim(config["sim_overrides"])
+    return {"config": config, "intent": intent_identity(cfg), "sim": _portable_sim(sim),
+            "lot": lot_record(load_lot_param(sim["lot_file"])),
+            "methods": {p.name: profile_digest(p) for p in profiles}}
+
+
+def check_run_file(out: Path, ident: dict) -> dict:
+    """Merge ``ident`` into OUT/run.json; ValueError if the folder holds results of other settings."""
+    path = out / RUN_FILE
+    if path.is_file():
+        old = json.loads(path.read_text())
+        if isinstance(old.get("config"), dict):  # fields added since (protocol, ...) read as their defaults
+            old["config"] = {**asdict(RunConfig()), **old["config"]}
+            old["config"]["sim_overrides"] = _portable_sim(old["config"]["sim_overrides"])
+        old["sim"] = _portable_sim(old.get("sim"))
+        if isinstance(old.get("sim"), dict):  # avp_sim parameters added since read as their defaults
+            from avp_sim.params import SIM_PARAMS
+
+            old["sim"] = {**{s.name: s.default for s in SIM_PARAMS if s.name not in old["sim"]}, **old["sim"]}
+        if "lot" not in old:  # results made before records named their lot were made on the bundled paper lot
+            from avp_experiment.metrics import lot_record
+            from avp_world.lot import load_bundled_lot
+
+            old["lot"] = lot_record(load_bundled_lot())
+        for k in ("sim", "lot", "intent", "config"):  # sim first: it names the parameters that differ
+            if old.get(k) != ident[k]:
+                if k == "sim" and isinstance(old.get(k), dict):
+                    diff = sorted(n for n in set(old[k]) | set(ident[k]) if old[k].get(n) != ident[k].get(n))
+                    what = f"other avp_sim parameters ({', '.join(diff)})"
+                elif k == "sim":
+                    what = "avp_sim parameters that were not recorded (an older run)"
+                else:
+                    what = f"{k} = {old.get(k)!r}, this command uses {ident[k]!r}"
+                raise ValueError(f"{path}: the results there were made with {what}; use another --out "
+                                 f"(or delete {out})")
+        for name, digest in ident["methods"].items():
+            if old.get("methods", {}).get(name, digest) != digest:
+                raise ValueError(f"{path}: method profile {name!r} changed since its episodes there were run; "
+                                 f"use another --out")
+        ident = {**old, "methods": {**old.get("methods", {}), **ident["methods"]}}
+    out.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(ident, indent=2) + "\n")
+    return ident
+
+
+# ------------------------------------------------------------------------------------------ results file
+
+
+def read_results(path: Path) -> list[dict]:
+    """Records of a JSONL file; a last line cut off by an interruption is removed from the file."""
+    if not path.is_file():
+        return []
+    data = path.read_bytes()
+    if data and not data.endswith(b"\n"):  # an interrupted write: drop the partial line
+        cut = data.rfind(b"\n") + 1
+        with path.open("r+b") as f:
+            f.truncate(cut)
+        data = data[:cut]
+    out = []
+    for n, line in enumerate(data.decode().splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"{path}:{n}: not a JSON line ({exc})") from None
+    return out
+
+
+class ResultsWriter:
+    """Appends records as JSON lines, each flushed and fsync'ed (an interruption loses at most one line)."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.f = path.open("a")
+
+    def write(self, record: dict) -> None:
+        self.f.write(json.dumps(record, sort_keys=True, allow_nan=False) + "\n")
+        self.f.flush()
+        os.fsync(self.f.fileno())
+
+    def close(self) -> None:
+        self.f.close()
+
+
+def code_commit() -> str:
+    """The checked-out commit of the code this process runs (read when the run starts)."""
+    from avp_common.provenance import git_commit
+
+    return git_commit(Path(__file__).resolve().parents[4])
+
+
+def log_invocation(out: Path, args: argparse.Namespace, started: str, wall_s: float, ran: int, todo: int,
+                   commit: str) -> None:
+    """Append this invocation to ``OUT/runs.jsonl`` (see the module docstring)."""
+    line = {"started": started, "wall_s": round(wall_s, 1), "episodes_run": ran, "episodes_todo": todo,
+            "workers": args.workers, "transport": args.transport, "cpu_count": os.cpu_count(),
+            "loadavg_end": [round(x, 2) for x in os.getloadavg()],
+            "commit": commit,
+            "options": {k: portable_path(v) if k == "lot" else v for k, v in sorted(vars(args).items())
+                        if isinstance(v, (str, int, float, bool, list))}}
+    with open(out / RUNS_LOG, "a") as f:
+        f.write(json.dumps(line) + "\n")
+
+
+def lock_folder(out: Path):
+    """Hold an exclusive lock on the results folder while this invocation writes it (released when the returned
+    file is closed or the process ends); ValueError when another ``avp experiment`` holds it. Two invocations on one
+    folder would each run the episodes the other is running and record them twice."""
+    import fcntl
+
+    out.mkdir(parents=True, exist_ok=True)
+    f = open(out / LOCK_FILE, "a")  # noqa: SIM115 - held open: the lock lives as long as the file
+    try:
+        fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        f.close()
+        raise ValueError(f"{out}: another avp experiment is writing this folder; wait for it or use another --out") \
+            from None
+    return f

@@ -1,0 +1,361 @@
+"""``avp experiment``: the Table I runner (paper §VI-B, issue #6).
+
+Episodes are (method, seed, mode) triples: the first ``scenarios`` seeds >= ``seed_base`` that the §VI-A
+scenario generator can build (:func:`valid_seeds`; a seed's reactive and non-reactive runs share the same
+setup), reactive and/or non-reactive agents, and the chosen method profiles. Each finished episode is appended to
+``OUT/episodes.jsonl`` as one JSON line (:func:`~.metrics.episode_record`) and flushed, so a run can be
+interrupted and the same command continues where it stopped (episodes already in the file are skipped; a
+line cut off by the interruption is dropped). ``OUT/run.json`` records what the results depend on (t_f, the
+minADE horizon, the intent weights, the method profiles); re-running into the same folder with different
+values is refused. Each invocation appends a line to ``OUT/runs.jsonl`` (start, wall time, episodes run, workers,
+commit, options, load average) so that the wall time of a run split over several invocations can be stated. At
+the end ``OUT/summary.md``, ``OUT/summary.json`` and ``OUT/plots/*.png`` are written
+(:mod:`.summary`). The results folder itself (run.json, episodes.jsonl, runs.jsonl) is :mod:`.results`.
+
+Transports: ``inproc`` runs each episode in a worker process (``concurrent.futures``, spawn, one torch
+thread per worker; :mod:`.episodes`) on the simulator core and :class:`~.ego.MethodEgo`; ``ros`` runs them
+through the live DDS graph (``avp_bringup.ros_transport``, a plugin of :mod:`.transports`; one episode at a
+time). The planner's wall-clock caps are lifted in both (:data:`~.profiles.DETERMINISTIC_PLANNER`), so the same
+command gives the same episodes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+from avp_experiment.arguments import MODES, add_arguments  # noqa: E402 F401 - re-exported: the runner's API
+from avp_experiment.episodes import (  # noqa: F401 - re-exported: the runner's API
+    _WORKER,
+    ORACLE_HORIZON,
+    _init_worker,
+    _worker_episode,
+    episode_in_worker,
+    run_episode_inproc,
+)
+from avp_experiment.profiles import (
+    MethodProfile,
+    ProfileError,
+    available_names,
+)
+from avp_experiment.results import (  # noqa: F401 - re-exported: the runner's API
+    RESULTS_FILE,
+    RUN_FILE,
+    RUNS_LOG,
+    ResultsWriter,
+    check_method,
+    check_run_file,
+    code_commit,
+    intent_identity,
+    lock_folder,
+    log_invocation,
+    mode_name,
+    profile_digest,
+    read_results,
+    record_key,
+    run_identity,
+)
+from avp_experiment.run_config import (  # noqa: F401 - re-exported: the runner's API
+    DEFAULT_HORIZON,
+    Key,
+    RunConfig,
+    run_profile,
+    sim_values,
+)
+
+SEEDS_FILE = "seeds.json"
+
+
+# ------------------------------------------------------------------------------------------ episodes
+
+
+def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callable[[dict], None],
+               sources: dict[str, str] | None = None) -> list[str]:
+    """Run ``keys`` in ``workers`` processes (0: in this process), calling ``on_record`` as each finishes.
+
+    An episode that raises is reported on stderr (method, seed, mode and the error, one line) and left out of
+    the results, so the same command retries it; the others go on. Returns those error lines.
+    """
+    errors: list[str] = []
+
+    def failed(key: Key, exc: BaseException) -> None:
+        line = f"episode {key[0]} seed {key[1]} {key[2]} raised {type(exc).__name__}: {exc}"
+        errors.append(line)
+        print(f"[avp experiment] {line}", file=sys.stderr, flush=True)
+
+    if workers <= 0:
+        _init_worker(cfg, sources=sources)
+        for k in keys:
+            try:
+                r = _worker_episode(k)
+            except Exception as exc:  # noqa: BLE001 - one episode's bug must not stop the sweep
+                failed(k, exc)
+                continue
+            on_record(r)
+        return errors
+    ctx = get_context("spawn")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
+                             initargs=(cfg, True, sources)) as pool:
+        pending = {pool.submit(_worker_episode, k): k for k in keys}
+        try:
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for f in done:
+                    key = pending.pop(f)
+                    try:
+                        r = f.result()
+                    except BrokenProcessPool:
+                        raise
+                    except Exception as exc:  # noqa: BLE001 - see the docstring
+                        failed(key, exc)
+                        continue
+                    on_record(r)
+        except KeyboardInterrupt:
+            running = {f for f in pending if not f.cancel()}
+            print(f"\n[avp experiment] interrupted: finishing the {len(running)} running episode(s)", file=sys.stderr)
+            for f in running:
+                try:
+                    on_record(f.result())
+                except Exception:  # noqa: BLE001 - keep what finished, report the interruption
+                    pass
+            raise
+        except BaseException:
+            pool.shutdown(wait=False, cancel_futures=True)  # never wait for the whole queue to run unrecorded
+            raise
+    return errors
+
+
+# ------------------------------------------------------------------------------------------ command
+
+
+def valid_seeds(n: int, seed_base: int, sim_p: dict, cache: Path | None = None) -> tuple[list[int], list[int]]:
+    """The first ``n`` seeds >= ``seed_base`` for which the §VI-A generator builds a scenario, and the seeds
+    skipped on the way (no collision-free plans for the dynamic vehicles, e.g. 53, 162, 253, 448 and 476 below 500).
+    ``cache`` (a JSON file {seed: valid}) saves the ~40 ms per seed of a re-run."""
+    from avp_sim.core.factory import generate_scenario, load_lot_param
+    from avp_sim.core.scenario import ScenarioError
+
+    known: dict[str, bool] = json.loads(cache.read_text()) if cache is not None and cache.is_file() else {}
+    lot = None
+    seeds, bad = [], []
+    s = seed_base
+    while len(seeds) < n:
+        if str(s) not in known:
+            lot = lot or load_lot_param(sim_p["lot_file"])
+            try:
+                generate_scenario(lot, sim_p, s, False)
+                known[str(s)] = True
+            except ScenarioError:
+                known[str(s)] = False
+        (seeds if known[str(s)] else bad).append(s)
+        s += 1
+    if cache is not None:
+        cache.write_text(json.dumps(known, sort_keys=True))
+    return seeds, bad
+
+
+def episode_keys(methods: list[str], seeds: list[int], modes: tuple[bool, ...]) -> list[Key]:
+    """Seed-major order, so that an interrupted run covers every method and mode for its first seeds."""
+    return [(m, s, mode_name(r)) for s in seeds for r in modes for m in methods]
+
+
+def resolve_methods(spec: str, cfg: RunConfig = RunConfig(), transport: str = "inproc"
+                    ) -> tuple[list[MethodProfile], dict[str, str]]:
+    """(runnable profiles, {name: why skipped}) for 'all' or a comma-separated list of names / files."""
+    names = available_names() if spec == "all" else [s.strip() for s in spec.split(",") if s.strip()]
+    run, skipped = [], {}
+    for n in names:
+        prof = run_profile(n, cfg)
+        why = check_method(prof)
+        if not why and prof.ground_truth and transport != "inproc":
+            why = "an oracle bound: ground truth reaches the ego in-process only (--transport inproc)"
+        if why:
+            skipped[prof.name] = why
+        else:
+            run.append(prof)
+    return run, skipped
+
+
+def run_experiment(args: argparse.Namespace) -> dict:
+    """The ``avp experiment`` command (see :func:`add_arguments`); returns a small report."""
+    if args.scenarios < 1:
+        raise ValueError(f"--scenarios must be >= 1, got {args.scenarios}")
+    if getattr(args, "backend", "local") == "ray":
+        if args.transport != "inproc":
+            raise ValueError("--backend ray runs in-process episodes: it takes --transport inproc")
+        from avp_experiment.ray_backend import import_ray
+
+        import_ray()  # one line saying how to install it, before anything is written
+    elif getattr(args, "address", None):
+        raise ValueError("--address is for --backend ray")
+    if getattr(args, "sweep", None) or getattr(args, "ablation", False):
+        from avp_experiment.sweep import run_ablation, run_sweep
+
+        if args.sweep and args.ablation:
+            raise ValueError("--sweep and --ablation: one at a time")
+        return (run_sweep if args.sweep else run_ablation)(args, run_experiment)
+    out = Path(args.out)
+    cfg = RunConfig(t_final=args.t_final, ade_horizon=args.ade_horizon, intent_weights=args.intent_weights,
+                    intent_seed=args.intent_seed, message_precision=not args.float64_messages,
+                    sim_overrides=_with_lot(parse_sim_params(args.sim_param), args.lot), protocol=args.protocol,
+                    planner_overrides=parse_planner_params(args.planner_param))
+    profiles, skipped = resolve_methods(args.methods, cfg, args.transport)
+    for name, why in skipped.items():
+        print(f"[avp experiment] skipping method {name!r}: {why}", file=sys.stderr)
+    if not profiles:
+        raise ValueError(f"no runnable method in --methods {args.methods!r}")
+    ident = run_identity(cfg, profiles)
+    if cfg.intent_weights:  # one clear error here rather than one per episode in the workers
+        from avp_perception.core.bev import BEVConfig
+        from avp_perception.core.pipeline import make_intent_predictor
+        from avp_world.lot import load_bundled_lot
+
+        make_intent_predictor(load_bundled_lot(), BEVConfig(), cfg.intent_weights, cfg.intent_seed)
+    lock = lock_folder(out)
+    try:
+        return _run_locked(args, out, cfg, profiles, skipped, ident)
+    finally:
+        lock.close()
+
+
+def _run_locked(args: argparse.Namespace, out: Path, cfg: RunConfig, profiles: list[MethodProfile],
+                skipped: dict[str, str], ident: dict) -> dict:
+    """The part of :func:`run_experiment` that writes the results folder (which it holds locked)."""
+    from avp_experiment.summary import write_summary
+
+    check_run_file(out, ident)
+    path = out / RESULTS_FILE
+    records = read_results(path)
+    done = {record_key(r) for r in records}
+    seeds, bad_seeds = valid_seeds(args.scenarios, args.seed_base, sim_values(cfg), out / SEEDS_FILE)
+    keys = episode_keys([p.name for p in profiles], seeds, MODES[args.mode])
+    todo = [k for k in keys if k not in done]
+    print(f"[avp experiment] {len(keys)} episodes ({len(profiles)} methods x {args.scenarios} scenarios x "
+          f"{len(MODES[args.mode])} modes; seeds {seeds[0]}..{seeds[-1]}"
+          f"{', without ' + str(bad_seeds) + ' (no scenario)' if bad_seeds else ''}), {len(keys) - len(todo)} "
+          f"already in {path}, {len(todo)} to run over --transport {args.transport}; intent CNN: {ident['intent']}",
+          flush=True)
+    n_run = 0
+    errors: list[str] = []
+    started, t0, commit = time.strftime("%Y-%m-%dT%H:%M:%S%z"), time.perf_counter(), code_commit()
+    if todo and not args.summary_only:
+        from tqdm import tqdm
+
+        writer = ResultsWriter(path)
+        bar = tqdm(total=len(todo), unit="ep", desc="episodes", disable=args.no_progress, smoothing=0.05)
+
+        def on_record(r: dict) -> None:
+            nonlocal n_run
+            writer.write(r)
+            records.append(r)
+            n_run += 1
+            bar.set_postfix_str(f"{r['method']} seed {r['seed']} {r['mode']}: {r['status']}", refresh=False)
+            bar.update(1)
+
+        try:
+            sources = {p.name: p.source for p in profiles}
+            if args.transport == "inproc" and getattr(args, "backend", "local") == "ray":
+                from avp_experiment.ray_backend import run_ray
+
+                errors = run_ray(todo, cfg, on_record, getattr(args, "address", None), args.workers, sources)
+            elif args.transport == "inproc":
+                errors = run_inproc(todo, cfg, args.workers, on_record, sources)
+            else:  # a plugin transport (.transports): the live DDS graph's is avp_bringup's
+                from avp_experiment.transports import load_transport
+
+                load_transport(args.transport)(todo, cfg, on_record, out / "logs", timeout=args.episode_timeout)
+        finally:
+            bar.close()
+            writer.close()
+            log_invocation(out, args, started, time.perf_counter() - t0, n_run, len(todo), commit)
+    wanted = set(keys)
+    summary = write_summary(out, [r for r in records if record_key(r) in wanted], skipped,
+                            {"ade_horizon": cfg.ade_horizon, "t_final": cfg.t_final, "intent": ident["intent"],
+                             "seeds_without_scenario": bad_seeds, "sim_overrides": ident["config"]["sim_overrides"],
+                             "protocol": cfg.protocol, "planner_overrides": cfg.planner_overrides},
+                            {p.name: (p.group, p.label) for p in profiles})
+    print(f"[avp experiment] ran {n_run} episodes; summary: {out / 'summary.md'}, plots in {out / 'plots'}/")
+    if errors:
+        print(f"[avp experiment] {len(errors)} episode(s) raised and are not in the results (listed above); "
+              "run the same command to retry them", file=sys.stderr)
+    return {"ran": n_run, "skipped_methods": skipped, "summary": summary, "errors": errors}
+
+
+def _parse_params(items: list[str] | None, specs: dict, flag: str, node: str) -> dict[str, Any]:
+    """``KEY=VALUE`` items (VALUE parsed as YAML) -> {key: value}, checked against ``specs`` (ValueError naming
+    the item)."""
+    import yaml
+
+    from avp_common.params import ParameterError, check_value
+
+    out: dict[str, Any] = {}
+    for item in items or []:
+        key, sep, raw = item.partition("=")
+        key = key.strip()
+        if not sep or key not in specs:
+            raise ValueError(f"{flag} {item!r}: expected KEY=VALUE with KEY an {node} parameter (`avp params {node}`)")
+        try:
+            out[key] = check_value(specs[key], yaml.safe_load(raw), flag)
+        except (ParameterError, yaml.YAMLError) as exc:
+            raise ValueError(f"{flag} {item!r}: {exc}") from None
+    return out
+
+
+def parse_sim_params(items: list[str] | None) -> dict[str, Any]:
+    """``--sim-param`` items, checked against the avp_sim parameter specs."""
+    from avp_sim.params import SIM_PARAMS
+
+    return _parse_params(items, {s.name: s for s in SIM_PARAMS}, "--sim-param", "avp_sim")
+
+
+def _with_lot(sim_overrides: dict[str, Any], lot: str) -> dict[str, Any]:
+    """``--lot FILE`` as the avp_sim parameter lot_file (an absolute path, so the workers and the graph find it);
+    the file is loaded here once so that a bad lot is one error naming its field before any episode runs."""
+    if not lot:
+        return sim_overrides
+    from avp_world.lot import load_lot
+
+    path = str(Path(lot).resolve())
+    load_lot(path)
+    return {**sim_overrides, "lot_file": path}
+
+
+def parse_planner_params(items: list[str] | None) -> dict[str, Any]:
+    """``--planner-param`` items, checked against the avp_planner specs."""
+    from avp_experiment.profiles import _planner_specs
+
+    return _parse_params(items, _planner_specs(), "--planner-param", "avp_planner")
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """``avp experiment`` with its exit status: 0 done, 1 some episodes raised (not recorded; the same command
+    retries them), 2 bad arguments or run folder (one line naming what), 130 interrupted."""
+    try:
+        report = run_experiment(args)
+    except (ValueError, ProfileError, RuntimeError) as exc:
+        print(f"[avp experiment] {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"[avp experiment] interrupted; the finished episodes are in {args.out}/{RESULTS_FILE}: run the same "
+              "command to continue", file=sys.stderr)
+        return 130
+    return 1 if report["errors"] else 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="avp experiment", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_arguments(p)
+    return run_command(p.parse_args(argv))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
