@@ -28,7 +28,7 @@ def test_demo_writes_results_and_a_readable_bag(ros_env, tmp_path):
     assert metrics["steps"] == 40 or metrics["state"] != "timeout"
     img = cv2.imread(str(out / "episode.png"))
     assert img is not None and img.shape[0] > 400 and img.shape[1] > 400
-    assert metrics["method"] == "bezier"
+    assert metrics["method"] == "bezier" and metrics["ego_node"] == "avp_planner"  # not the scene node, a viewer
     check_step_time(metrics, "lockstep", 40)
     check_gif(out / "episode.gif", min_frames=41)  # t_f = 4 s: every step of 0..40 (stride 1)
     # independent reader: rosbags' AnyReader builds the types from the definitions stored in the bag

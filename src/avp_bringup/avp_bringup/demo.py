@@ -12,7 +12,7 @@ import sys
 import time
 from pathlib import Path
 
-from avp_bringup.graph import avp_root
+from avp_bringup.graph import EGO_NODES, avp_root
 from avp_viz import foxglove_cli
 
 
@@ -79,6 +79,13 @@ def run(args: argparse.Namespace) -> int:
 
 def _mode(args: argparse.Namespace) -> str:
     return "realtime" if args.realtime else "lockstep"
+
+
+def _ego_node(nodes) -> str:
+    """The name of the graph's ego node (the planner or the scripted driver; the scene node, a viewer, comes
+    after it in the graph)."""
+    egos = {spec.name for spec in EGO_NODES.values()}
+    return next((n.name for n in reversed(nodes) if n.name in egos), nodes[-1].name)
 
 
 def _method(args: argparse.Namespace) -> str:
@@ -156,7 +163,7 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
             executor.spin_once(timeout_sec=0.05)
         latency = monitor.latency_dict(_mode(args))
         metrics = monitor.write(lot, out, {"wall_time_s": round(wall, 2), "method": _method(args),
-                                           "lot": lot_record(lot), "ego_node": nodes[-1].name,
+                                           "lot": lot_record(lot), "ego_node": _ego_node(nodes),
                                            "closed_loop_step_time": latency})
     except RuntimeError as exc:
         print(f"[avp demo] {exc}", file=sys.stderr)
