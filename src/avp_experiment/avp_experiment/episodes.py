@@ -86,7 +86,7 @@ def _worker_episode(key: Key) -> dict:
 
 def episode_in_worker(key: Key, cfg: RunConfig, sources: dict[str, str]) -> dict:
     """One episode in a long-lived worker process of another backend (a Ray task): the worker is set up as
-    :func:`run_inproc`'s are, once per (cfg, sources), then runs ``key``."""
+    :func:`~.runner.run_inproc`'s are, once per (cfg, sources), then runs ``key``."""
     ident = (cfg, sorted(sources.items()))
     if _WORKER.get("ident") != ident:
         _WORKER.clear()

@@ -23,17 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
+from avp_experiment.episodes import _WORKER, _init_worker, run_episode_inproc
 from avp_experiment.metrics import comparable
-from avp_experiment.runner import (
-    _WORKER,
-    RESULTS_FILE,
-    RUN_FILE,
-    RunConfig,
-    _init_worker,
-    read_results,
-    run_episode_inproc,
-    run_profile,
-)
+from avp_experiment.results import RESULTS_FILE, RUN_FILE, read_results
+from avp_experiment.run_config import RunConfig, run_profile
 
 
 def _config(out: Path) -> RunConfig:
@@ -44,7 +37,7 @@ def _config(out: Path) -> RunConfig:
 
 
 def replay_failure(lot, sim_p: dict, record: dict, cfg: RunConfig) -> dict:
-    """Run the record's episode again as the runner does (:func:`~.runner.run_episode_inproc`), watching the ego's
+    """Run the record's episode again as the runner does (:func:`~.episodes.run_episode_inproc`), watching the ego's
     decisions and its distance to the dynamic vehicles; returns what :func:`main` reports."""
     from avp_sim.core.factory import make_world
 
