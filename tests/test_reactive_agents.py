@@ -250,3 +250,56 @@ def test_the_evidence_switch_changes_the_decision(paper_lot):
         p._evidence.seen.add((False, 9))
         d = p.decide(make_obs(paper_lot, ego, vehicles=[moving]), predictions=[pred])
         assert d.trace["mode"] == mode, (evidence, d.trace)
+
+
+def test_told_reactions_change_the_decision_and_nothing_else(paper_lot):
+    """``reactive_evidence: told`` (the oracle bound's: ground truth names the agents that react): a car told to
+    react is assumed to stop for the ego, so the ego no longer flees it; told nothing, or told of another agent, the
+    check is the paper's; what the car does in front of the ego (stopping hard) is not evidence under ``told``."""
+    from dataclasses import replace
+
+    from test_planner_decision import make_obs
+
+    from avp_planner.core.decision import EgoPlanner
+    from avp_planner.core.settings import PlannerSettings
+
+    ego = (21.5, 25.0, -math.pi / 2)
+    s = PlannerSettings()
+    s = replace(s, collision=replace(s.collision, reactive_steps=2, reactive_evidence="told"))
+    moving, pred = _stopping_car([5.0] * 6)
+    stopped, pred_stopped = _stopping_car([5.0] * 5 + [0.0])
+    p = EgoPlanner(paper_lot, s)
+    assert p.decide(make_obs(paper_lot, ego, vehicles=[moving]), predictions=[pred]).trace["mode"] == "evasive"
+    p.tell_reacting({(True, 7), (False, 9)})  # a pedestrian 7 and car 9 react; car 7 does not
+    assert p.decide(make_obs(paper_lot, ego, vehicles=[moving]), predictions=[pred]).trace["mode"] == "evasive"
+    assert p.decide(make_obs(paper_lot, ego, vehicles=[stopped]),
+                    predictions=[pred_stopped]).trace["mode"] == "evasive"  # a hard stop is no evidence here
+    p.tell_reacting([(False, 7)])
+    d = p.decide(make_obs(paper_lot, ego, vehicles=[moving]), predictions=[pred])
+    assert d.trace["mode"] == "idle" and d.command == (0.0, 0.0), d.trace
+    p.reset()  # a new episode forgets what it was told
+    assert p.decide(make_obs(paper_lot, ego, vehicles=[moving]), predictions=[pred]).trace["mode"] == "evasive"
+
+
+def test_the_oracle_is_told_which_agents_react():
+    """avp_experiment.oracle.ground_truth names every dynamic vehicle and pedestrian with n_pass > 0 in the
+    reactive mode, and none in the non-reactive mode (the simulator's passiveness read independently here)."""
+    from pathlib import Path
+
+    import avp_sim.params
+    from avp_common.params import load_yaml_params
+    from avp_experiment.oracle import ground_truth
+    from avp_sim.core.factory import load_lot_param, make_world
+
+    root = Path(__file__).resolve().parents[1] / "src"
+    p = load_yaml_params(root / "avp_sim/config/sim.param.yaml", "avp_sim", avp_sim.params.SIM_PARAMS)
+    p["scenario.family"] = "busy"  # cars and pedestrians
+    lot = load_lot_param(str(root / "avp_world/avp_world/maps/dlp_lot.yaml"))
+    for reactive in (True, False):
+        world = make_world(lot, p, 3, reactive)
+        truth = ground_truth(world, 2.0)
+        sc = world.scenario
+        want = {(False, int(v.id)) for v in sc.vehicles if not v.parked and v.passiveness > 0}
+        want |= {(True, int(q.id)) for q in sc.pedestrians if q.passiveness > 0}
+        assert truth.reacting == frozenset(want)
+        assert bool(want) == reactive and (not reactive or any(k[0] for k in want))

@@ -11,7 +11,11 @@ What the oracle knows at step t, for every dynamic vehicle (observed or not):
 
 * its target spot: the spot's belief is set to 1 ("taken") until the vehicle is parked, after eq. (7);
 * its future: the states its predefined plan (§III-B) gives from its current state and plan index over
-  ``horizon`` seconds, unobstructed — the plan a reactive agent follows unless the ego makes it brake.
+  ``horizon`` seconds, unobstructed — the plan a reactive agent follows unless the ego makes it brake;
+* whether it reacts (§III-B: n_pass > 0), for every vehicle and pedestrian: the profile's planner takes it with
+  ``collision.reactive_evidence: told`` (:meth:`avp_planner.core.decision.EgoPlanner.tell_reacting`), so the
+  bound checks its plans with the braking rule of every agent that reacts and of no other (issue #28). Its own
+  n_pass stays unknown: the check's look-ahead is ``collision.reactive_steps``.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ class GroundTruth:
 
     target_spots: tuple[int, ...]  # spots some dynamic vehicle is heading for
     trajectories: tuple[PredictedTrajectory, ...]  # each dynamic vehicle's planned future
+    reacting: frozenset = frozenset()  # (is a pedestrian, id) of every agent that brakes for the ego (n_pass > 0)
 
 
 def ground_truth(world, horizon: float) -> GroundTruth:
@@ -50,7 +55,9 @@ def ground_truth(world, horizon: float) -> GroundTruth:
         trajs.append(PredictedTrajectory(agent_id=int(world.vehicle_ids[i]), poses=states, dt=dt,
                                          length=float(world.vehicle_dims[i, 0]), width=float(world.vehicle_dims[i, 1]),
                                          spot_id=int(world.target_spot[i])))
-    return GroundTruth(tuple(targets), tuple(trajs))
+    reacting = {(False, int(world.vehicle_ids[i])) for i in np.nonzero(world.is_dynamic & (world.passiveness > 0))[0]}
+    reacting |= {(True, int(world.ped_ids[j])) for j in np.nonzero(world.ped_pass > 0)[0]}
+    return GroundTruth(tuple(targets), tuple(trajs), frozenset(reacting))
 
 
 def apply_targets(beliefs: np.ndarray, lot, truth: GroundTruth) -> np.ndarray:
@@ -75,4 +82,5 @@ class OracleEgo(MethodEgo):
         if self.truth is None:
             raise ValueError(f"method {self.profile.name!r} is an oracle bound: tell() it the ground truth first")
         truth, self.truth = self.truth, None  # one step's truth is used once
+        self.planner.tell_reacting(truth.reacting)  # read only with collision.reactive_evidence: told
         return apply_targets(b, self.lot, truth), list(truth.trajectories)

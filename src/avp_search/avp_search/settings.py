@@ -45,8 +45,9 @@ class CollisionSettings:
     reactive_margin: float = 0.0  # #28: m beyond the margin at which an agent is assumed to brake for the ego
     # which agents reactive_steps applies to: "assumed" (every agent), "agent" (only agents seen to stop hard,
     # harder than reactive_decel, with the ego ahead of them within decision.yield_lookahead; remembered for the
-    # episode), "lot" (every agent, once any has been seen to do so)
-    reactive_evidence: str = "lot"  # #28: whose reaction is assumed: assumed (all), agent (seen), lot (once seen)
+    # episode), "lot" (every agent, once any has been seen to do so), "told" (the agents the caller names with
+    # EgoPlanner.tell_reacting: the oracle bound's ground truth, avp_experiment.oracle)
+    reactive_evidence: str = "lot"  # #28: whose reaction: assumed (all), agent (seen), lot (once seen), told (caller)
     reactive_decel: float = 3.0  # #28: m/s^2 of braking (2x ParkSim's 1.5) that counts as stopping for the ego
 
 
@@ -105,7 +106,7 @@ class SearchConfig:
             ("collision.beyond_commit", c.beyond_commit in ("risk", "hold")),
             ("collision.reactive_steps", c.reactive_steps >= 0),
             ("collision.reactive_margin", c.reactive_margin >= 0),
-            ("collision.reactive_evidence", c.reactive_evidence in ("assumed", "agent", "lot")),
+            ("collision.reactive_evidence", c.reactive_evidence in ("assumed", "agent", "lot", "told")),
             ("collision.reactive_decel", c.reactive_decel > 0),
             ("search.xy_resolution", s.xy_resolution > 0),
             ("search.heading_bins", s.heading_bins >= 8),

@@ -127,6 +127,13 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         self._stuck_steps = 0  # consecutive steps stood idle or waiting (creep steps keep the count)
         self._evidence = ReactionEvidence(self.settings.decision.yield_lookahead,
                                           self.settings.collision.reactive_decel)  # collision.reactive_evidence
+        self._told_reacting: frozenset = frozenset()  # reactive_evidence: told (tell_reacting)
+
+    def tell_reacting(self, keys) -> None:
+        """With ``collision.reactive_evidence: told``: the agents that stop for the ego (keys (is a pedestrian,
+        id)), as the caller knows them; the rest are checked as §V-D-1 does. Only a reference bound knows this
+        (``avp_experiment.oracle``: the simulator's n_pass > 0); it holds until told again."""
+        self._told_reacting = frozenset((bool(p), int(i)) for p, i in keys)
 
     def decide(self, obs: Observation, beliefs: np.ndarray | None = None,
                predictions: Sequence[PredictedTrajectory] = (), spot_priority: Sequence[int] | None = None,
@@ -157,7 +164,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
             self._plan = None
             return self._finish(Decision(IDLE, reason=bad, trace={"mode": IDLE, "cause": "invalid_input"}), timing,
                                 t_start)
-        if self.settings.collision.reactive_steps > 0 and self.settings.collision.reactive_evidence != "assumed":
+        if self.settings.collision.reactive_steps > 0 and self.settings.collision.reactive_evidence in ("agent", "lot"):
             self._evidence.update(obs)
         if self._plan is None and obs.step < self._idle_until:  # stay put until the next idle re-plan (§V-D-3)
             if beliefs is None:
