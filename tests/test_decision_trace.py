@@ -46,6 +46,31 @@ def test_an_idle_step_names_the_agent_that_blocks_it(paper_lot):
     assert d.trace["mode"] == "evasive" and d.command[0] != 0.0
 
 
+def test_evasive_horizon_evades_only_an_imminent_hit(paper_lot):
+    """``decision.evasive_horizon`` (issue #28): the standing ego is predicted to be hit at step k (read from the
+    planner's own check); a horizon shorter than k·dt leaves it standing (idle, the car named), one at least as long
+    evades, as 0 (the shipped value: any predicted hit) does."""
+    from avp_search.dynamic import DynamicObstacles
+
+    car, pred = _rushing_car()
+    ego = (21.5, 25.0, -math.pi / 2)
+    s = PlannerSettings()
+    s = replace(s, collision=replace(s.collision, reactive_steps=0))  # the paper's check, whatever the default
+    hit = DynamicObstacles([pred], L, W).first_collision(np.repeat(np.array([ego]), 45, axis=0))
+    assert 5 < hit < 40  # the car meets the standing ego later than half a second from now
+    t_hit = hit * s.control.dt
+
+    def mode(horizon: float) -> dict:
+        p = EgoPlanner(paper_lot, replace(s, decision=replace(s.decision, evasive_horizon=horizon)))
+        return p.decide(make_obs(paper_lot, ego, vehicles=[car]), predictions=[pred]).trace
+
+    assert mode(t_hit - 0.3)["mode"] == "idle" and mode(t_hit - 0.3)["agent_id"] == 7
+    assert mode(t_hit + 0.05)["mode"] == "evasive"
+    assert mode(0.0)["mode"] == "evasive"
+    with pytest.raises(ValueError, match="evasive_horizon"):
+        replace(s, decision=replace(s.decision, evasive_horizon=-1.0)).validate()
+
+
 def test_an_idle_step_without_agents_is_static_or_has_no_candidate(paper_lot):
     ego = (21.5, 20.0, -math.pi / 2)
     boxed = [static_car(500, 21.5, 10.0, 0.0, length=5.0), static_car(501, 21.5, 29.0, 0.0, length=5.0)]

@@ -35,7 +35,8 @@ class SafetyMixin:
         if dyn.empty:
             return None
         standing = dyn.first_collision(np.repeat(ego[None], dyn.horizon + 2, axis=0))
-        if standing < 0:
+        limit = self.settings.decision.evasive_horizon  # issue #28: only an imminent hit (0: any)
+        if standing < 0 or (limit > 0 and standing * self.settings.control.dt > limit + 1e-9):
             return None
         t0 = time.perf_counter()
         kap = 1.0 / self.settings.plan_radius

@@ -65,6 +65,7 @@ class DecisionSettings:
     fallback_time_cap: float = 0.05  # seconds for that second round of searches
     fallback_max_iterations: int = 300  # node pops per search in that round
     evasive: bool = True  # if standing still is predicted to be hit, drive the plan that is hit latest
+    evasive_horizon: float = 0.0  # #28: evade only a hit of the standing ego within this many s; 0 = any predicted
     decision_time_cap: float = 0.4  # seconds of searching per decision step (remaining candidates skipped)
     park_retry_steps: int = 5  # while exploring, parking is re-tried at least this often (and on any change)
     idle_replan_steps: int = 1  # after an idle decision (no safe plan) search again only this many steps later
@@ -113,6 +114,7 @@ class PlannerSettings(SearchConfig):
             ("decision.fallback_prediction", d.fallback_prediction in ("constant_velocity", "static", "none")),
             ("decision.yield_lookahead", d.yield_lookahead >= 0),
             ("decision.stuck_time", d.stuck_time >= 0),
+            ("decision.evasive_horizon", d.evasive_horizon >= 0),
             ("decision.creep_speed", 0 < d.creep_speed <= k.v_max),
             ("decision.creep_check_time", d.creep_check_time > 0),
             ("decision.yield_margin", d.yield_margin >= 0),
