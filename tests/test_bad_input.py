@@ -115,6 +115,8 @@ STARTUP_CASES = [  # (case, node, key in its parameter file, value (DROP: remove
     ("sim malformed lot map", _sim(), "lot_file", "BADLOT", "lot.yaml: spots[id=0]: spot lies (partly) outside"),
     ("planner bad type", _PLANNER, "search.max_iterations", "many",
      "parameter 'search.max_iterations': expected an integer"),
+    ("planner told with no source", _PLANNER, "collision.reactive_evidence", "told",
+     "parameter collision.reactive_evidence: 'told' is for an in-process caller"),
 ]
 
 

@@ -103,10 +103,12 @@ def test_every_shipped_planner_profile_validates():
         validate_profile(p)
 
 
-def _reference_meetings(preds, ego, steps, vm=0.3, pm=0.4):
+def _reference_meetings(preds, ego, steps, vm=0.3, pm=0.4, overlap=False):
     """The module docstring's recurrence, written out step by step for one agent at a time (no vectorising, no
     windows, no pre-filters): the first meeting time, or -1. Geometry: the same SAT / disc gaps (shapely checks
-    those elsewhere)."""
+    those elsewhere). ``overlap``: ``collision.reactive_trigger: overlap`` — the agent brakes only where its next
+    poses would overlap the ego, and it meets the ego within the margin only where the ego's own move brought it
+    nearer to the agent's pose, or where they overlap."""
     from avp_search.reactive import disc_gaps, rect_gaps
 
     n = max(len(ego), max(len(p.poses) for p in preds) + 1)
@@ -123,11 +125,16 @@ def _reference_meetings(preds, ego, steps, vm=0.3, pm=0.4):
             return float(rect_gaps(ego[k], q, L / 2, W / 2, np.float64(p.length / 2), np.float64(p.width / 2)))
 
         m = pm if p.is_pedestrian else vm
+        trigger = 0.0 if overlap else m
         j = -1
         for k in range(1, n):
-            if not any(gap(j + i, k - 1) <= m for i in range(1, steps + 1)):
+            brakes = any(gap(j + i, k - 1) <= trigger for i in range(1, steps + 1))
+            if not brakes:
                 j = min(j + 1, h - 1)
-            if gap(j, k) <= m:
+            met = gap(j, k) <= m
+            if overlap and 0.0 < gap(j, k) and gap(j, k) >= gap(j, k - 1) - 1e-9:
+                met = False  # the agent came nearer, not the ego: it brakes before it would overlap
+            if met:
                 first = k if first < 0 else min(first, k)
                 break
     return first
@@ -152,11 +159,12 @@ def test_the_vectorised_roll_out_equals_the_recurrence_written_out():
         t = np.arange(m) * 0.1
         ego = np.column_stack([e0[0] + ev[0] * t, e0[1] + ev[1] * t, np.full(m, math.atan2(ev[1], ev[0]))])
         steps = int(rng.integers(1, 5))
-        dyn = DynamicObstacles(preds, L, W, keep_current_gap=False, react_steps=steps)
-        ref = _reference_meetings(preds, ego, steps)
-        assert dyn.first_collision(ego) == ref
-        checked += ref > 0
-    assert checked >= 10  # enough scenes where an agent is met
+        for trigger in ("margin", "overlap"):
+            dyn = DynamicObstacles(preds, L, W, keep_current_gap=False, react_steps=steps, react_trigger=trigger)
+            ref = _reference_meetings(preds, ego, steps, overlap=trigger == "overlap")
+            assert dyn.first_collision(ego) == ref, trigger
+            checked += ref > 0
+    assert checked >= 20  # enough scenes where an agent is met
 
 
 def _stopping_car(speeds: list[float], y_end: float = 16.0, vid: int = 7):
@@ -303,3 +311,32 @@ def test_the_oracle_is_told_which_agents_react():
         want |= {(True, int(q.id)) for q in sc.pedestrians if q.passiveness > 0}
         assert truth.reacting == frozenset(want)
         assert bool(want) == reactive and (not reactive or any(k[0] for k in want))
+
+
+def test_the_overlap_trigger_does_not_trust_a_car_passing_alongside():
+    """``collision.reactive_trigger`` (issue #28, seed 184 of the busy lot in miniature): a car drives north in the
+    next lane, 0.2 m from the ego's side, while the ego's plan slides into that lane at 0.3 m/s. With the ``margin``
+    trigger the car is assumed to brake as soon as its next poses come within the margin, so the plan is cleared;
+    the simulator's car brakes only where it would overlap the ego (§III-B "meets"), and with the ``overlap``
+    trigger the plan meets the car, as the paper's check does (a step later at most). Head-on, both triggers still
+    let the ego stand (the car stops short of it), and driving at the car still meets it."""
+    n = 60
+    t = np.arange(1, n + 1) * 0.1
+    car = PredictedTrajectory(agent_id=3, poses=np.column_stack([np.full(n, W + 0.2), -6.0 + 2.0 * t,
+                                                                 np.full(n, math.pi / 2)]), dt=0.1, length=L, width=W)
+    k = np.arange(40)
+    slide = np.column_stack([0.03 * k, np.zeros(40), np.full(40, math.pi / 2)])
+    paper = DynamicObstacles([car], L, W).first_collision(slide)
+    assert paper > 0
+    # shapely: the car's hypothesis pose at the meeting is within the margin of the ego's pose there
+    assert _gap(car.poses[paper - 1], slide[paper]) <= 0.3 + 1e-9
+    assert DynamicObstacles([car], L, W, react_steps=2, react_trigger="margin").first_collision(slide) == -1
+    k = DynamicObstacles([car], L, W, react_steps=2, react_trigger="overlap").first_collision(slide)
+    assert paper <= k <= paper + 1  # the car drove on: met where the ego, sliding, closes within the margin
+    assert _gap(car.poses[k - 1], slide[k]) < _gap(car.poses[k - 1], slide[k - 1]) <= 0.3 + 1e-9  # shapely
+    head_on = _car_north()
+    standing = np.repeat(_ego_line(25.0, 0.0, 1), 80, axis=0)
+    for trigger in ("margin", "overlap"):
+        react = DynamicObstacles([head_on], L, W, react_steps=2, react_trigger=trigger)
+        assert react.first_collision(standing) == -1, trigger
+        assert react.first_collision(_ego_line(25.0, -2.0, 80)) > 0, trigger  # driving at it still meets it

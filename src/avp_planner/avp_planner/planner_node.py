@@ -112,6 +112,10 @@ class PlannerNode(LifecycleNode):
             spot_selector_class(self.settings.decision.spot_selector)
         except ValueError as exc:
             raise ValueError(f"parameter decision.spot_selector: {exc}") from None
+        if self.settings.collision.reactive_evidence == "told":  # nothing on the graph names the reacting agents
+            raise ValueError("parameter collision.reactive_evidence: 'told' is for an in-process caller that names "
+                             "the agents that react (EgoPlanner.tell_reacting: the oracle bound); the node has no "
+                             "such source, use lot, agent or assumed")
         self.planner = None
         self.lot = None
         self.configured = False

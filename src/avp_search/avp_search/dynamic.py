@@ -46,6 +46,7 @@ class DynamicObstacles:
         react_steps: int = 0,
         react_margin: float = 0.0,
         react_keys: frozenset | set | None = None,
+        react_trigger: str = "margin",
     ):
         self.half_l, self.half_w = 0.5 * float(length), 0.5 * float(width)
         self.circum = math.hypot(self.half_l, self.half_w)
@@ -53,6 +54,7 @@ class DynamicObstacles:
         self.keep_current_gap, self.hold_last = bool(keep_current_gap), bool(hold_last)
         self.commit_steps, self.risk_bound = int(commit_steps), float(risk_bound)  # 0: every meeting blocks
         self.react_steps, self.react_margin = int(react_steps), float(react_margin)
+        self.react_trigger = str(react_trigger)  # "margin" | "overlap" (avp_search.reactive)
         if self.commit_steps > 0 and hold_after_commit:  # cut every prediction at the window, held there
             predictions = [replace(p, poses=np.asarray(p.poses, dtype=float)[: self.commit_steps])
                            for p in predictions]

@@ -83,16 +83,21 @@ def _cached_gap_table(dyn, kind: str, ego: np.ndarray, poses: np.ndarray, gaps_o
 
 
 def _roll_out(g: np.ndarray, margin: np.ndarray, react: np.ndarray, steps: int, own_n: np.ndarray,
-              hold_last: bool, k0: int, first_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
+              hold_last: bool, k0: int, first_only: bool = False,
+              ego_closes: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The recurrence of the module docstring for every agent of ``g`` at once: (k, agent row) of every meeting
     (``first_only``: of the first). Only the steps where some gap is finite can brake or meet: before them every
-    agent follows its hypothesis (j_k = k - 1), after them nothing happens."""
+    agent follows its hypothesis (j_k = k - 1), after them nothing happens. ``ego_closes`` (the ``overlap``
+    trigger): an agent that reacts meets the ego within the margin only where the ego's own move from step k - 1
+    brought it nearer to the agent's pose j_k, or where they overlap. Its own approach is its business: it brakes
+    before it would overlap, so the ego standing while it comes up is no meeting."""
     a_n, h, n = g.shape
     live = np.nonzero(np.isfinite(g).any(axis=(0, 1)))[0]
     if a_n == 0 or not len(live):
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     start = max(1, int(live[0]))
     cols = np.arange(a_n)
+    reacts = np.isfinite(react)  # -inf: an agent the rule does not apply to (react_keys)
     j = np.full(a_n, min(start - 2, h - 1))
     offs = np.arange(1, steps + 1)
     hit_k, hit_a = [], []
@@ -102,7 +107,11 @@ def _roll_out(g: np.ndarray, margin: np.ndarray, react: np.ndarray, steps: int, 
         j = np.where(brake, j, np.minimum(j + 1, h - 1))
         if k < k0:
             continue
-        hit = g[cols, np.maximum(j, 0), k] <= margin
+        now = g[cols, np.maximum(j, 0), k]
+        hit = now <= margin
+        if ego_closes:
+            before = g[cols, np.maximum(j, 0), k - 1]
+            hit &= ~reacts | (now <= 0.0) | (now < before - 1e-9)
         if not hold_last:
             hit &= j < own_n
         if hit.any():
@@ -120,7 +129,7 @@ def reactive_hits(dyn, ego: np.ndarray, vm: np.ndarray, pm: np.ndarray, k0: int,
     arrays, probability), sorted by time, the most probable hypothesis first. ``first_only``: the meetings of the
     first such time of each kind of agent (enough for the first blocking time)."""
     ks, peds, rows_out, probs = [], [], [], []
-    steps, extra = dyn.react_steps, dyn.react_margin
+    steps, extra, overlap = dyn.react_steps, dyn.react_margin, dyn.react_trigger == "overlap"
     if len(dyn.veh_poses):
         reach = dyn.circum + np.hypot(dyn.veh_half[:, 0], dyn.veh_half[:, 1]) + np.maximum(vm, dyn.vm) + extra
 
@@ -129,8 +138,9 @@ def reactive_hits(dyn, ego: np.ndarray, vm: np.ndarray, pm: np.ndarray, k0: int,
             return rect_gaps(e, o, dyn.half_l, dyn.half_w, dyn.veh_half[a, 0], dyn.veh_half[a, 1])
 
         rows, g = _cached_gap_table(dyn, "vehicle", ego, dyn.veh_poses, veh_gaps, reach)
-        react = np.where(dyn.veh_react[rows], vm[rows] + extra, -np.inf)  # -inf: never brakes (react_keys)
-        k, a = _roll_out(g, vm[rows], react, steps, dyn.veh_n[rows], dyn.hold_last, k0, first_only)
+        base = 0.0 if overlap else vm[rows]  # the trigger: within the margin, or (§III-B "meets") overlap
+        react = np.where(dyn.veh_react[rows], base + extra, -np.inf)  # -inf: never brakes (react_keys)
+        k, a = _roll_out(g, vm[rows], react, steps, dyn.veh_n[rows], dyn.hold_last, k0, first_only, overlap)
         ks.append(k), peds.append(np.zeros(len(k), bool)), rows_out.append(rows[a]), probs.append(dyn.veh_prob[rows[a]])
     if len(dyn.ped_pos):
         reach = dyn.circum + dyn.ped_radius + np.maximum(pm, dyn.pm) + extra
@@ -139,8 +149,9 @@ def reactive_hits(dyn, ego: np.ndarray, vm: np.ndarray, pm: np.ndarray, k0: int,
             return disc_gaps(e, dyn.ped_pos[a, j], dyn.half_l, dyn.half_w, dyn.ped_radius[a])
 
         rows, g = _cached_gap_table(dyn, "pedestrian", ego, dyn.ped_pos, ped_gaps, reach)
-        react = np.where(dyn.ped_react[rows], pm[rows] + extra, -np.inf)
-        k, a = _roll_out(g, pm[rows], react, steps, dyn.ped_n[rows], dyn.hold_last, k0, first_only)
+        base = 0.0 if overlap else pm[rows]
+        react = np.where(dyn.ped_react[rows], base + extra, -np.inf)
+        k, a = _roll_out(g, pm[rows], react, steps, dyn.ped_n[rows], dyn.hold_last, k0, first_only, overlap)
         ks.append(k), peds.append(np.ones(len(k), bool)), rows_out.append(rows[a]), probs.append(dyn.ped_prob[rows[a]])
     if not ks:
         return np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int64), np.zeros(0)

@@ -48,6 +48,10 @@ class CollisionSettings:
     # episode), "lot" (every agent, once any has been seen to do so), "told" (the agents the caller names with
     # EgoPlanner.tell_reacting: the oracle bound's ground truth, avp_experiment.oracle)
     reactive_evidence: str = "lot"  # #28: whose reaction: assumed (all), agent (seen), lot (once seen), told (caller)
+    # when an agent is assumed to brake for the ego: "margin" (its next reactive_steps poses come within the check's
+    # margin + reactive_margin of the ego; session 15) or "overlap" (they would overlap it + reactive_margin: §III-B's
+    # "meets", the simulator's rule; an agent braking for the ego then meets it only if the ego comes nearer)
+    reactive_trigger: str = "margin"  # #28: margin | overlap: when a reacting agent is assumed to brake
     reactive_decel: float = 3.0  # #28: m/s^2 of braking (2x ParkSim's 1.5) that counts as stopping for the ego
 
 
@@ -106,6 +110,7 @@ class SearchConfig:
             ("collision.beyond_commit", c.beyond_commit in ("risk", "hold")),
             ("collision.reactive_steps", c.reactive_steps >= 0),
             ("collision.reactive_margin", c.reactive_margin >= 0),
+            ("collision.reactive_trigger", c.reactive_trigger in ("margin", "overlap")),
             ("collision.reactive_evidence", c.reactive_evidence in ("assumed", "agent", "lot", "told")),
             ("collision.reactive_decel", c.reactive_decel > 0),
             ("search.xy_resolution", s.xy_resolution > 0),

@@ -148,7 +148,8 @@ class InputsMixin:
                                 keep_current_gap=c.keep_current_gap, hold_last=c.beyond_horizon == "hold",
                                 commit_steps=int(round(c.commit_horizon / dt)), risk_bound=c.risk_bound,
                                 hold_after_commit=c.beyond_commit == "hold", react_steps=c.reactive_steps,
-                                react_margin=c.reactive_margin, react_keys=self._reactive_keys())
+                                react_margin=c.reactive_margin, react_keys=self._reactive_keys(),
+                                react_trigger=c.reactive_trigger)
 
     def _reactive_keys(self) -> frozenset | None:
         """The agents ``collision.reactive_steps`` applies to (``collision.reactive_evidence``): None = every one."""
