@@ -17,6 +17,16 @@ and the ego's pose k meets the agent if it comes within the margin of the agent'
 where the ego stands therefore stops short of it; the ego may not drive into an agent, standing or moving. Agents
 that never come within reach of the plan are checked as before (j_k = k - 1), and so are agents outside
 ``dyn.veh_react`` / ``dyn.ped_react`` (the agents the planner has evidence of, ``collision.reactive_evidence``).
+
+``collision.reactive_trigger`` (``dyn.react_trigger``) says what "within the reaction distance" is:
+
+* ``margin`` (as shipped): the check's margin plus ``reactive_margin``. The agent is assumed to brake earlier than
+  the simulator's does, which brakes only where its poses would overlap the ego: a car passing alongside the ego
+  within the margin is assumed to stop, and does not (issue #28, busy seed 184).
+* ``overlap``: ``reactive_margin`` alone (0: overlap, §III-B "meets"). The agent then comes up to the ego closer
+  than the margin before it stops, so within the margin only the ego's own approach is a meeting: the ego's pose
+  k meets the agent's pose j_k if they overlap, or if the gap is within the margin and smaller than from the ego's
+  pose k - 1 to the same pose j_k.
 """
 
 from __future__ import annotations

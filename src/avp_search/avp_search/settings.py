@@ -51,7 +51,7 @@ class CollisionSettings:
     # when an agent is assumed to brake for the ego: "margin" (its next reactive_steps poses come within the check's
     # margin + reactive_margin of the ego; session 15) or "overlap" (they would overlap it + reactive_margin: §III-B's
     # "meets", the simulator's rule; an agent braking for the ego then meets it only if the ego comes nearer)
-    reactive_trigger: str = "margin"  # #28: margin | overlap: when a reacting agent is assumed to brake
+    reactive_trigger: str = "margin"  # #28: when a reacting agent is assumed to brake: margin or overlap (§III-B)
     reactive_decel: float = 3.0  # #28: m/s^2 of braking (2x ParkSim's 1.5) that counts as stopping for the ego
 
 
