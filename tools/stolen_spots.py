@@ -26,13 +26,13 @@ ROOT = Path(__file__).resolve().parents[1]
 LOT = ROOT / "src/avp_world/avp_world/maps/dlp_lot.yaml"
 
 
-def _sim_params(t_final: float) -> dict:
-    import avp_sim.params
-    from avp_common.params import load_yaml_params
+def _config(t_final: float, planner_params: list[str]):
+    """The run configuration of the busy lot's records (as tools/run_seeds.py makes it)."""
+    from avp_experiment import runner
+    from avp_experiment.run_config import RunConfig
 
-    p = load_yaml_params(ROOT / "src/avp_sim/config/sim.param.yaml", "avp_sim", avp_sim.params.SIM_PARAMS)
-    p["scenario.family"], p["t_final"] = "busy", t_final
-    return p
+    sim = runner._with_lot(runner.parse_sim_params(["scenario.family=busy"]), str(LOT))
+    return RunConfig(t_final=t_final, sim_overrides=sim, planner_overrides=runner.parse_planner_params(planner_params))
 
 
 def heading_for(world, lot, spot_id: int, steps: int) -> list[dict]:
@@ -40,42 +40,39 @@ def heading_for(world, lot, spot_id: int, steps: int) -> list[dict]:
     the ego's t = 0), whether that is before ``steps`` (the ego's parking step), and their distance to the spot at
     the start."""
     out = []
+    sx, sy = lot.spot_poses[lot.spot_index(spot_id)][:2]
     for i in np.nonzero(world.is_dynamic & (world.target_spot == spot_id))[0]:
         moving = np.nonzero(np.abs(world.plans[i, :, 0]) > 0)[0]
         start = int(moving[0]) - world.hist if len(moving) else None
-        sx, sy = lot.spot_poses[lot.spot_index(spot_id)][:2]
         out.append({"id": int(world.vehicle_ids[i]), "plan_start_step": start,
                     "started": start is not None and start < steps,
                     "start_distance_m": round(float(np.hypot(world.states[i][0] - sx, world.states[i][1] - sy)), 1)})
     return out
 
 
-def _ego_view(lot, sim: dict, method: str, seed: int, planner_params: list[str], spot_id: int) -> dict:
-    """Re-run the episode: the first step the ego planned to ``spot_id`` and, per car, the first step it had a
-    prediction of it."""
-    from avp_experiment import runner
-    from avp_experiment.ego import MethodEgo
-    from avp_experiment.run_config import RunConfig, run_profile
-    from avp_sim.core.factory import make_world
+def _ego_view(lot, sim: dict, cfg, method: str, seed: int, spot_id: int) -> dict:
+    """Re-run the episode as the runner does (:func:`avp_experiment.episodes.run_episode_inproc`): the first step
+    the ego planned to ``spot_id`` and, per car, the first step it had a prediction of it."""
+    from avp_experiment.episodes import run_episode_inproc
+    from avp_experiment.run_config import run_profile
 
-    cfg = RunConfig(t_final=sim["t_final"], planner_overrides=runner.parse_planner_params(planner_params))
-    world = make_world(lot, sim, seed, True)
-    ego = MethodEgo(lot, run_profile(method, cfg), deterministic=True, intent_weights=cfg.intent_weights,
-                    intent_seed=cfg.intent_seed, message_precision=cfg.message_precision)
     first_aim, seen = None, {}
-    while not world.done:
-        out = ego.step(world.observe())
+
+    def watch(_world, out) -> None:
+        nonlocal first_aim
         if first_aim is None and out.decision.mode == "park" and int(out.decision.spot_id) == spot_id:
             first_aim = out.step
         for p in out.predictions:
             if not p.is_pedestrian:
                 seen.setdefault(int(p.agent_id), out.step)
-        world.step(*out.command)
-    return {"first_aim_step": first_aim, "first_seen": seen, "parked": int(world.metrics.parked_spot_id),
-            "steps": int(world.metrics.steps)}
+
+    record = run_episode_inproc(lot, sim, run_profile(method, cfg), seed, True, cfg, on_step=watch)
+    return {"first_aim_step": first_aim, "first_seen": seen, "parked": int(record["parked_spot_id"]),
+            "steps": int(record["steps"])}
 
 
 def main(argv: list[str]) -> int:
+    from avp_experiment.run_config import sim_values
     from avp_sim.core.factory import load_lot_param, make_world
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -85,7 +82,9 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--t-final", type=float, default=60.0)
     ap.add_argument("--json", help="append one line per stolen episode to this file")
     a = ap.parse_args(argv)
-    lot, sim = load_lot_param(str(LOT)), _sim_params(a.t_final)
+    cfg = _config(a.t_final, a.planner_param)
+    sim = sim_values(cfg)
+    lot = load_lot_param(sim["lot_file"])
     for spec in a.records:
         path, _, method = spec.partition(":")
         recs = [json.loads(line) for line in open(path) if line.strip()]
@@ -99,7 +98,7 @@ def main(argv: list[str]) -> int:
                     "steps": r["steps"], "cars": cars}
             counts["started" if any(c["started"] for c in cars) else "not_started"] += 1
             if a.ego:
-                view = _ego_view(lot, sim, r["method"], r["seed"], a.planner_param, int(r["parked_spot_id"]))
+                view = _ego_view(lot, sim, cfg, r["method"], r["seed"], int(r["parked_spot_id"]))
                 line["rerun_equal"] = view["parked"] == r["parked_spot_id"] and view["steps"] == r["steps"]
                 line["first_aim_step"] = view["first_aim_step"]
                 for c in cars:

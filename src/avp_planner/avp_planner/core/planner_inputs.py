@@ -155,7 +155,7 @@ class InputsMixin:
         """The agents ``collision.reactive_steps`` applies to (``collision.reactive_evidence``): None = every one."""
         c = self.settings.collision
         if c.reactive_evidence == "told":  # named by the caller (tell_reacting), not observed
-            return frozenset(self._told_reacting)
+            return self._told_reacting
         seen = self._evidence.seen
         if c.reactive_evidence == "assumed" or (c.reactive_evidence == "lot" and seen):
             return None
