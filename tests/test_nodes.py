@@ -272,3 +272,35 @@ def test_ctrl_c_inside_a_finaliser_prints_nothing(monkeypatch, capsys):
     gc.collect()
     err = capsys.readouterr().err
     assert "Traceback" in err and "a real fault" in err
+
+
+def test_half_built_rclpy_task_after_a_stop_prints_nothing(monkeypatch, capsys):
+    """CI, session 19: SIGINT under a 1 kHz flood landed inside ``rclpy.task.Task.__init__``, whose ``__del__`` then
+    raised AttributeError (``_exception`` never set) and printed a traceback. Once a stop signal came, that finaliser
+    prints nothing; before one came, it still does, and so does an AttributeError in a finaliser that is not rclpy's."""
+    import gc
+
+    from rclpy.task import Task
+
+    from avp_common import node_main
+
+    class Finaliser:
+        def __del__(self):
+            raise AttributeError("not rclpy")
+
+    def half_built_task():
+        task = Task.__new__(Task)  # what a KeyboardInterrupt in __init__ leaves behind: no attribute set
+        del task
+        gc.collect()
+        return capsys.readouterr().err
+
+    monkeypatch.setattr(sys, "unraisablehook", node_main.ctrl_c_in_finaliser_hook)
+    monkeypatch.setitem(node_main._stopping, "signal", 0)
+    err = half_built_task()
+    assert "Traceback" in err and "_exception" in err  # no stop asked: a real fault, shown
+    monkeypatch.setitem(node_main._stopping, "signal", signal.SIGINT)
+    assert half_built_task() == ""
+    Finaliser()
+    gc.collect()
+    err = capsys.readouterr().err
+    assert "Traceback" in err and "not rclpy" in err

@@ -11,17 +11,29 @@ from rclpy.executors import ExternalShutdownException
 
 from avp_common.params import ParameterError
 
+_stopping = {"signal": 0}  # the signal (SIGINT / SIGTERM) that asked this process to stop, 0 before one came
+
+
+def _half_built_rclpy_object(unraisable) -> bool:
+    """True for an AttributeError in the finaliser of an rclpy object: the KeyboardInterrupt of a stop landed inside
+    its ``__init__`` (e.g. ``rclpy.task.Task`` before ``_exception`` was set, seen under a 1 kHz flood), so its
+    ``__del__`` reads an attribute that was never assigned."""
+    finaliser = unraisable.object
+    module = getattr(finaliser, "__module__", "") or ""
+    return (isinstance(unraisable.exc_value, AttributeError) and module.split(".")[0] == "rclpy"
+            and getattr(finaliser, "__name__", "") == "__del__")
+
 
 def ctrl_c_in_finaliser_hook(unraisable) -> None:
     """``sys.unraisablehook`` of a node process: a Ctrl-C whose KeyboardInterrupt lands in a finaliser
     (``__del__``) is swallowed by Python — rclpy's SIGINT handler has shut the context down, and the node exits
-    through :func:`run_node`; nothing to print. Anything else goes to the default hook."""
+    through :func:`run_node`; nothing to print. So is, once SIGINT/SIGTERM came, the finaliser of an rclpy object
+    whose construction that KeyboardInterrupt cut short. Anything else goes to the default hook."""
     if isinstance(unraisable.exc_value, KeyboardInterrupt):
         return
+    if stopping() and _half_built_rclpy_object(unraisable):
+        return
     sys.__unraisablehook__(unraisable)
-
-
-_stopping = {"signal": 0}  # the signal (SIGINT / SIGTERM) that asked this process to stop, 0 before one came
 
 
 def _mark_stopping(signum: int, frame) -> None:  # noqa: ANN001 - the signal module's signature
