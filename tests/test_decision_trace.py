@@ -281,3 +281,58 @@ def _shift(p: PredictedTrajectory, k: int) -> PredictedTrajectory:
     """The same prediction made k steps later (its first k poses gone, the last held)."""
     poses = np.concatenate([p.poses[k:], np.repeat(p.poses[-1:], k, axis=0)])
     return replace(p, poses=poses)
+
+
+def test_make_way_steps_out_of_the_way_of_a_car_that_waits_for_the_ego(paper_lot):
+    """Mechanism e: a car that drove north stands head-on 1.4 m in front of the ego (it waits for the ego, as §III-B's
+    agents do; its Bézier hypothesis stands too, at speed 0). The paper's planner stays in its way for good. With
+    ``make_way`` the ego stands make_way_after (2 s), drives a short manoeuvre that ends clear of the car's path
+    (shapely: the car's footprint swept 8 m north, grown by the vehicle margin) and keeps the margin to the car on the
+    way, then stands aside, naming the car, until the car has moved 1 m. A car standing there facing away (it last
+    drove south) is not waiting for the ego: the switch changes nothing."""
+    from shapely.affinity import translate
+    from shapely.geometry import Polygon
+    from shapely.ops import unary_union
+
+    from avp_world.geometry import rect_corners
+
+    def scene(heading: float):
+        back = -0.2 * math.sin(heading) * np.arange(6, -1, -1)[:, None] * np.array([[0.0, 1.0]])  # drove to y = 19
+        hist = np.column_stack([np.full(7, 21.5), np.full(7, 19.0), np.full(7, heading)])
+        hist[:, :2] += np.clip(back, -0.6, 0.6) * (np.arange(7) < 3)[:, None]
+        car = ObservedVehicle(id=8, length=L, width=W, is_static=False, history=hist)
+        standing = PredictedTrajectory(agent_id=8, poses=np.tile(hist[-1], (60, 1)), dt=0.1, length=L, width=W)
+        return car, standing
+
+    def run(planner, car, pred, steps):
+        ego, out = np.array([21.5, 25.0, -math.pi / 2]), []
+        for k in range(steps):
+            d = planner.decide(replace(make_obs(paper_lot, ego, vacant=[], vehicles=[car]), step=k),
+                               predictions=[pred])
+            out.append((d, ego.copy()))
+            if len(d.poses) > 1:
+                ego = d.poses[1].copy()
+        return out, ego
+
+    car, pred = scene(math.pi / 2)
+    fp = Polygon(rect_corners(car.pose, L, W))
+    path = unary_union([fp, translate(fp, 0.0, 8.0)]).convex_hull.buffer(0.3, join_style=2)
+    paper, _ = run(_planner(paper_lot), car, pred, 60)
+    assert all(d.trace["mode"] != "make_way" for d, _ in paper) and paper[-1][0].command[0] == 0.0
+    assert Polygon(rect_corners(paper[-1][1], L, W)).intersects(path)  # still in the car's way
+    planner = _planner(paper_lot, make_way=True)
+    steps, ego = run(planner, car, pred, 100)
+    moving = [k for k, (d, _) in enumerate(steps) if d.trace["mode"] == "make_way"]
+    assert moving and moving[0] == 20 and moving == list(range(20, moving[-1] + 1)), moving
+    assert all(Polygon(rect_corners(e, L, W)).distance(fp) >= 0.3 - 1e-6 for _, e in steps)
+    d, _ = steps[-1]
+    assert d.command[0] == 0.0 and d.trace["cause"] == "making_way" and d.trace["agent_id"] == 8, d.trace
+    assert not Polygon(rect_corners(ego, L, W)).intersects(path), ego
+    gone = replace(car, history=np.vstack([car.history[1:], car.history[-1] + [0.0, 1.2, 0.0]]))
+    nxt = planner.decide(replace(make_obs(paper_lot, ego, vacant=[], vehicles=[gone]), step=100),
+                         predictions=[replace(pred, poses=np.tile(gone.history[-1], (60, 1)))])
+    assert nxt.trace.get("cause") != "making_way", nxt.trace
+    away, away_pred = scene(-math.pi / 2)
+    steps, _ = run(_planner(paper_lot, make_way=True), away, away_pred, 40)
+    assert all(d.trace["mode"] != "make_way" for d, _ in steps)
+    assert all(d.trace["mode"] == "idle" for d, _ in steps[:30])  # stood past make_way_after all the same

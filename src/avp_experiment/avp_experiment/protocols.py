@@ -53,6 +53,8 @@ SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     "reactive_agents": {"collision.reactive_steps": (2, 0)},
     # c) "wait-and-go" (Nawaz et al.) waits before starting only: wait at a stop on the path instead
     "wait_anywhere": {"decision.wait_anywhere": (True, False)},
+    # e) "the ego would stay put" (§V-D-3) also where a standing car waits for it: step out of its way
+    "make_way": {"decision.make_way": (True, False)},
 }
 
 

@@ -63,6 +63,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from avp_planner.core.making_way import MakeWayMixin
 from avp_planner.core.planner_candidates import CandidatesMixin
 from avp_planner.core.planner_inputs import InputsMixin
 from avp_planner.core.planner_safety import SafetyMixin
@@ -94,7 +95,7 @@ __all__ = ["EgoPlanner", "Decision", "priority_from_probabilities", "PARK", "EXP
            "EXPLORE_BACK_AFTER", "WORLD_CACHE_SIZE", "FAILED_SEARCH_CACHE", "CONTAINED_MARGIN"]
 
 
-class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
+class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWayMixin):
     """§V-D decision logic; see the module docstring. One instance per episode (or call :meth:`reset`).
 
     Args:
@@ -128,6 +129,10 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         self._evidence = ReactionEvidence(self.settings.decision.yield_lookahead,
                                           self.settings.collision.reactive_decel)  # collision.reactive_evidence
         self._told_reacting: frozenset = frozenset()  # reactive_evidence: told (tell_reacting)
+        self._make_way_for: list = []  # make_way: the cars (id, where they stood) the ego stands aside for ...
+        self._make_way_until = -1  # ... until this step at most
+        self._make_way_retry = -(10**9)  # no new search for a way out before this step
+        self._ped_heading: dict[int, float] = {}  # make_way: the direction each pedestrian last walked in
 
     def tell_reacting(self, keys) -> None:
         """With ``collision.reactive_evidence: told``: the agents that stop for the ego (keys (is a pedestrian,
@@ -166,6 +171,8 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
                                 t_start)
         if self.settings.collision.reactive_steps > 0 and self.settings.collision.reactive_evidence in ("agent", "lot"):
             self._evidence.update(obs)
+        if self.settings.decision.make_way:
+            self._remember_headings(obs)
         if self._plan is None and obs.step < self._idle_until:  # stay put until the next idle re-plan (§V-D-3)
             if beliefs is None:
                 self.update_beliefs(obs)
@@ -173,6 +180,9 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
                                                       "(idle_replan_steps)", poses=np.asarray(obs.ego_pose,
                                                                                              float)[None].copy(),
                                          trace={"mode": IDLE, **self._last_cause}), timing, t_start)
+        aside = self._aside_decision(obs, beliefs)  # make_way: standing aside until the agent has gone
+        if aside is not None:
+            return self._finish(aside, timing, t_start)
         st = self._step_context(obs, beliefs, predictions, spot_priority, timing, t_start, time_budget)
         done, keep_explore = self._follow_current(st)
         if done is None:
@@ -209,7 +219,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
         if self._plan is None:
             return None, None
         ok, st.why = self._still_valid(self._plan, ego, st.world, st.dyn)
-        if ok and self._plan.mode == PARK:
+        if ok and (self._plan.mode == PARK or self._plan.kind == "make_way"):
             return self._finish(self._execute(self._plan, len(st.cands), "executing"), st.timing, st.t_start), None
         if ok:
             return None, self._plan
@@ -276,6 +286,12 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
                 st.stats["evasive"] = True
                 return self._finish(self._execute(plan, len(st.cands), plan.note, True), st.timing, st.t_start,
                                     st.stats)
+        plan = self._make_way(st)
+        if plan is not None:  # make_way: out of the corridor of a car waiting for the ego, then stand aside
+            self._plan = plan
+            st.stats["make_way"] = True
+            return self._finish(self._execute(plan, len(st.cands), plan.note, True), st.timing, st.t_start,
+                                st.stats)
         plan = self._creep(st)
         if plan is not None:  # deadlock_breaker: one step of the creep, re-decided next step
             return self._finish(self._execute(plan, len(st.cands), plan.note, True), st.timing, st.t_start, st.stats)
@@ -299,7 +315,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin):
             return False, "static obstacle on the plan"
         if dyn.first_collision(rest) >= 0:
             return False, "predicted agent on the plan"
-        if plan.mode == EXPLORE:
+        if plan.mode == EXPLORE and plan.kind != "make_way":
             left = np.abs(plan.traj.controls[k:, 0]).sum() * plan.traj.dt
             if left < d.explore_replan_distance:
                 return False, "exploration plan nearly done"

@@ -83,6 +83,15 @@ class DecisionSettings:
     stuck_time: float = 3.0  # s stopped (idle or waiting) before creeping
     creep_speed: float = 0.5  # m/s
     creep_check_time: float = 2.0  # s of the creep checked hard against every hypothesis, each step
+    # issue #28 mechanism e (beyond §V-D-3 "the ego would stay put"): after make_way_after s without moving, if a
+    # standing car's corridor (its footprint swept make_way_reach m along its travel) holds the ego, drive the shortest
+    # short manoeuvre that ends clear of that corridor swept make_way_clear m and meets no prediction, then stand
+    # there until that car has moved 1 m or make_way_hold s have passed (avp_planner.core.making_way)
+    make_way: bool = False  # #28 e: step out of the way of a car waiting for the ego (§V-D-3: no)
+    make_way_after: float = 2.0  # s stopped (idle or waiting) before making way
+    make_way_reach: float = 3.0  # m of a standing car's path in which the ego counts as in its way
+    make_way_clear: float = 8.0  # m of that path the ego's end pose must be clear of
+    make_way_hold: float = 5.0  # s at most to stand aside after the manoeuvre
     # issue #28 mechanism c (beyond §V-D-1's wait before starting, after Nawaz et al.): when every start wait fails,
     # stop on the path wait_stop_offsets m short of the first meeting and wait there 0 .. max_wait
     wait_anywhere: bool = False  # #28 c: wait at a stop on the path, not only before starting (§V-D-1: no)
@@ -118,6 +127,10 @@ class PlannerSettings(SearchConfig):
             ("decision.creep_speed", 0 < d.creep_speed <= k.v_max),
             ("decision.creep_check_time", d.creep_check_time > 0),
             ("decision.yield_margin", d.yield_margin >= 0),
+            ("decision.make_way_after", d.make_way_after >= 0),
+            ("decision.make_way_reach", d.make_way_reach > 0),
+            ("decision.make_way_clear", d.make_way_clear >= d.make_way_reach),
+            ("decision.make_way_hold", d.make_way_hold >= 0),
             ("decision.wait_stop_offsets", all(o > 0 for o in d.wait_stop_offsets)),
             ("collision.commit_horizon", self.collision.commit_horizon >= 0),
             ("collision.risk_bound", 0.0 <= self.collision.risk_bound <= 1.0),

@@ -8,6 +8,7 @@ Every :class:`~avp_planner.core.planner_types.Decision` carries ``trace``: the s
 * ``detour``: driving a plan found with the standing agents as static obstacles (``dynamic_as_static_fallback``);
 * ``evasive``: driving away because standing still is predicted to be hit (``evasive``);
 * ``creep``: inching along the best blocked plan after standing ``stuck_time`` (``deadlock_breaker``, issue #28 d);
+* ``make_way``: stepping out of the way of a standing car that waits for the ego (``make_way``, issue #28 e);
 * ``idle``: u = 0 (§V-D-3); ``parked``: at the end of the parking plan —
 
 and, for every idle or waiting step, the **cause**:
@@ -19,6 +20,7 @@ and, for every idle or waiting step, the **cause**:
 * ``static``: no statically feasible path to any candidate spot or exploration point;
 * ``no_candidate``: no candidate spot and no exploration point to search;
 * ``budget``: the searches ran out of time (``decision_time_cap`` / the real-time deadline);
+* ``making_way``: standing aside after ``make_way`` until the car it made way for has moved (its id named);
 * ``invalid_input``: the inputs were refused.
 
 :class:`DecisionTrace` folds the steps of an episode into counts: steps per mode, idle steps per cause, the longest
@@ -36,7 +38,7 @@ import numpy as np
 from avp_planner.core.control import reference_trajectory
 from avp_world.types import Observation
 
-MODES = ("park", "explore", "wait_and_go", "detour", "evasive", "creep", "idle", "parked")
+MODES = ("park", "explore", "wait_and_go", "detour", "evasive", "creep", "make_way", "idle", "parked")
 STANDING_SPEED = 0.3  # m/s, as planner_types.STILL_SPEED
 BRAKING_DROP = 0.3  # m/s lost over the last BRAKING_WINDOW s: braking
 BRAKING_WINDOW = 0.5  # s
