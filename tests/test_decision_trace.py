@@ -336,3 +336,36 @@ def test_make_way_steps_out_of_the_way_of_a_car_that_waits_for_the_ego(paper_lot
     steps, _ = run(_planner(paper_lot, make_way=True), away, away_pred, 40)
     assert all(d.trace["mode"] != "make_way" for d, _ in steps)
     assert all(d.trace["mode"] == "idle" for d, _ in steps[:30])  # stood past make_way_after all the same
+
+
+def test_keep_plan_window_drives_on_past_a_late_meeting_and_stops_for_a_near_one(paper_lot):
+    """``keep_plan_window`` (debouncing): a pedestrian appears standing in spot 14 after the ego has started its
+    parking manoeuvre there. The paper's re-check drops the plan at once (the meeting is 5 s ahead); with a 2 s
+    window the ego drives on, and drops the plan only as the meeting comes within 2 s — never nearer to the
+    pedestrian than the pedestrian margin (shapely)."""
+    from shapely.geometry import Point, Polygon
+
+    from avp_world.geometry import rect_corners
+
+    spot = paper_lot.spot_poses[paper_lot.spot_index(14)]
+    walker = PredictedTrajectory(agent_id=5, poses=np.tile([spot[0], spot[1], 0.0], (60, 1)), dt=0.1,
+                                 is_pedestrian=True, radius=0.3)
+
+    def run(planner, steps=80):
+        ego, out = np.array([21.5, 25.0, -math.pi / 2]), []
+        for k in range(steps):
+            d = planner.decide(replace(make_obs(paper_lot, ego, vacant=[14]), step=k),
+                               predictions=[] if k == 0 else [walker])
+            out.append((d, ego.copy()))
+            if len(d.poses) > 1:
+                ego = d.poses[1].copy()
+        return out
+
+    paper = run(_planner(paper_lot), 3)
+    assert paper[0][0].mode == "park" and paper[1][0].mode != "park"
+    kept = run(_planner(paper_lot, keep_plan_window=2.0))
+    dropped = next(k for k, (d, _) in enumerate(kept) if d.mode != "park")
+    assert dropped > 20, dropped  # driven on for more than 2 s after the walker appeared
+    assert all(d.reason == "executing" for d, _ in kept[1:dropped])
+    disc = Point(spot[0], spot[1]).buffer(0.3, 64)
+    assert min(Polygon(rect_corners(e, L, W)).distance(disc) for _, e in kept) >= 0.4 - 1e-6

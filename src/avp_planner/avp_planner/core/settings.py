@@ -92,6 +92,10 @@ class DecisionSettings:
     make_way_reach: float = 3.0  # m of a standing car's path in which the ego counts as in its way
     make_way_clear: float = 8.0  # m of that path the ego's end pose must be clear of
     make_way_hold: float = 5.0  # s at most to stand aside after the manoeuvre
+    # issue #28 (debouncing, beyond §V-D's re-check of the whole plan against every prediction at every step): a plan
+    # already being driven is dropped only when a predicted meeting comes within keep_plan_window s; a later one is
+    # tolerated and re-checked next step (a new plan must still meet nothing); 0 = the paper
+    keep_plan_window: float = 0.0  # #28: s of the driven plan that must stay clear to keep it (0: all of it)
     # issue #28 mechanism c (beyond §V-D-1's wait before starting, after Nawaz et al.): when every start wait fails,
     # stop on the path wait_stop_offsets m short of the first meeting and wait there 0 .. max_wait
     wait_anywhere: bool = False  # #28 c: wait at a stop on the path, not only before starting (§V-D-1: no)
@@ -128,6 +132,7 @@ class PlannerSettings(SearchConfig):
             ("decision.creep_check_time", d.creep_check_time > 0),
             ("decision.yield_margin", d.yield_margin >= 0),
             ("decision.make_way_after", d.make_way_after >= 0),
+            ("decision.keep_plan_window", d.keep_plan_window >= 0),
             ("decision.make_way_reach", d.make_way_reach > 0),
             ("decision.make_way_clear", d.make_way_clear >= d.make_way_reach),
             ("decision.make_way_hold", d.make_way_hold >= 0),
