@@ -369,3 +369,19 @@ def test_keep_plan_window_drives_on_past_a_late_meeting_and_stops_for_a_near_one
     assert all(d.reason == "executing" for d, _ in kept[1:dropped])
     disc = Point(spot[0], spot[1]).buffer(0.3, 64)
     assert min(Polygon(rect_corners(e, L, W)).distance(disc) for _, e in kept) >= 0.4 - 1e-6
+
+
+def test_most_likely_hypothesis_checks_only_each_agents_most_probable_trajectory(paper_lot):
+    """``collision.hypotheses: most_likely``: the car south of the ego is predicted to stand (probability 0.6) or to
+    drive north through the ego's manoeuvre into spot 14 (0.4). Every hypothesis blocks the paper's plan; with only
+    the most probable one checked the ego parks. Made the more probable, the moving one blocks again."""
+    car, moving = _standing_car_and_its_moving_hypothesis(probability=0.4)
+    standing = replace(moving, poses=np.tile(car.pose, (60, 1)), probability=0.6)
+    obs = make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vacant=[14], vehicles=[car])
+    paper = _planner(paper_lot).decide(obs, predictions=[moving, standing])
+    assert paper.command[0] == 0.0 and paper.trace.get("agent_id") == 8, paper.trace
+    d = _planner(paper_lot, hypotheses="most_likely").decide(obs, predictions=[moving, standing])
+    assert d.mode == "park" and d.spot_id == 14 and d.command[0] != 0.0, d.trace
+    d = _planner(paper_lot, hypotheses="most_likely").decide(
+        obs, predictions=[replace(moving, probability=0.6), replace(standing, probability=0.4)])
+    assert d.command[0] == 0.0 and d.trace.get("agent_id") == 8, d.trace

@@ -58,6 +58,9 @@ SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     # "If this path also avoids collisions with the predicted trajectories" (§V-D-1), re-checked whole every step:
     # keep driving a plan whose first meeting is more than 2 s ahead (debouncing)
     "keep_plan": {"decision.keep_plan_window": (2.0, 0.0)},
+    # "avoids collisions with the predicted trajectories" (§V-D-1), every hypothesis >= mu: only each agent's most
+    # probable one
+    "most_likely": {"collision.hypotheses": ("most_likely", "all")},
 }
 
 

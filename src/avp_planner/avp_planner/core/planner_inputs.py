@@ -124,6 +124,8 @@ class InputsMixin:
         dt = self.settings.control.dt
         d = self.settings.decision
         preds = [self._resample(p, dt) for p in predictions]
+        if self.settings.collision.hypotheses == "most_likely":
+            preds = most_likely(preds)
         covered = {(bool(p.is_pedestrian), int(p.agent_id)) for p in preds}
         if d.fallback_prediction != "none":
             n = max(1, int(round(d.fallback_horizon / dt)))
@@ -212,3 +214,14 @@ class InputsMixin:
             if np.hypot(*(np.asarray(p.position) - np.asarray(p.previous_position))) / obs.dt < STILL_SPEED:
                 rows.append([*p.position, 0.0, 2 * p.radius + gp, 2 * p.radius + gp])
         return np.array(rows, dtype=float).reshape(-1, 5)
+
+
+def most_likely(preds: list[PredictedTrajectory]) -> list[PredictedTrajectory]:
+    """``collision.hypotheses: most_likely``: of each agent's predicted trajectories only the most probable (the
+    first of equals), in the order the agents came."""
+    best: dict[tuple[bool, int], PredictedTrajectory] = {}
+    for p in preds:
+        key = (bool(p.is_pedestrian), int(p.agent_id))
+        if key not in best or float(p.probability) > float(best[key].probability):
+            best[key] = p
+    return list(best.values())
