@@ -385,3 +385,29 @@ def test_most_likely_hypothesis_checks_only_each_agents_most_probable_trajectory
     d = _planner(paper_lot, hypotheses="most_likely").decide(
         obs, predictions=[replace(moving, probability=0.6), replace(standing, probability=0.4)])
     assert d.command[0] == 0.0 and d.trace.get("agent_id") == 8, d.trace
+
+
+def test_receding_straight_replaces_the_curves_of_a_car_driving_away(paper_lot):
+    """``collision.receding: straight``: a car 10 m south of the ego drives south, away from it, at 2 m/s; one of its
+    hypotheses (0.5) turns back north through the ego's manoeuvre into spot 14. It blocks the paper's plan; predicted
+    straight on instead, the car is gone south and the ego parks. The same car and hypothesis with the car driving
+    north, towards the ego, still block."""
+    def car_and_curve(heading: float):
+        y = 13.0 + 0.2 * math.sin(heading) * np.arange(-6, 1)  # 2 m/s along its heading, at y = 13 now
+        hist = np.column_stack([np.full(7, 21.5), y, np.full(7, heading)])
+        car = ObservedVehicle(id=8, length=L, width=W, is_static=False, history=hist)
+        n = 60
+        back = np.column_stack([np.full(n, 21.5), 13.0 + 0.2 * np.arange(1, n + 1), np.full(n, math.pi / 2)])
+        return car, PredictedTrajectory(agent_id=8, poses=back, dt=0.1, length=L, width=W, probability=0.5)
+
+    away, curve = car_and_curve(-math.pi / 2)
+    obs = make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vacant=[14], vehicles=[away])
+    paper = _planner(paper_lot).decide(obs, predictions=[curve])
+    assert paper.command[0] == 0.0 and paper.trace.get("agent_id") == 8, paper.trace
+    assert paper.trace["motion"] == "away"
+    d = _planner(paper_lot, receding="straight").decide(obs, predictions=[curve])
+    assert d.mode == "park" and d.spot_id == 14 and d.command[0] != 0.0, d.trace
+    towards, curve = car_and_curve(math.pi / 2)
+    obs = make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vacant=[14], vehicles=[towards])
+    d = _planner(paper_lot, receding="straight").decide(obs, predictions=[curve])
+    assert d.command[0] == 0.0 and d.trace.get("agent_id") == 8, d.trace

@@ -61,6 +61,8 @@ SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     # "avoids collisions with the predicted trajectories" (§V-D-1), every hypothesis >= mu: only each agent's most
     # probable one
     "most_likely": {"collision.hypotheses": ("most_likely", "all")},
+    # the same sentence, for a car driving away from the ego: straight on (constant velocity) instead of its curves
+    "receding_straight": {"collision.receding": ("straight", "hypotheses")},
 }
 
 

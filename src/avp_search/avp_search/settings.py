@@ -56,6 +56,10 @@ class CollisionSettings:
     # which predicted trajectories of an agent are obstacles: "all" (every hypothesis >= mu, §V-D-1 "the predicted
     # trajectories") or "most_likely" (only each agent's most probable one; issue #28, session 19)
     hypotheses: str = "all"  # #28: all (§V-D-1) or most_likely (each agent's most probable hypothesis only)
+    # the predicted trajectories of a car driving away from the ego (its velocity pointing away from the ego, faster
+    # than 0.3 m/s): "hypotheses" (as given, §V-C) or "straight" (replaced by one: straight on at its last displacement,
+    # the constant-velocity prediction of §VI-B-1; issue #28 b "hypotheses of agents moving away dropped", session 19)
+    receding: str = "hypotheses"  # #28: a car driving away keeps its hypotheses (§V-C) or goes straight on
 
 
 @dataclass(frozen=True)
@@ -115,6 +119,7 @@ class SearchConfig:
             ("collision.reactive_margin", c.reactive_margin >= 0),
             ("collision.reactive_trigger", c.reactive_trigger in ("margin", "overlap")),
             ("collision.hypotheses", c.hypotheses in ("all", "most_likely")),
+            ("collision.receding", c.receding in ("hypotheses", "straight")),
             ("collision.reactive_evidence", c.reactive_evidence in ("assumed", "agent", "lot", "told")),
             ("collision.reactive_decel", c.reactive_decel > 0),
             ("search.xy_resolution", s.xy_resolution > 0),

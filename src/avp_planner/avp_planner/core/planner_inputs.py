@@ -126,6 +126,8 @@ class InputsMixin:
         preds = [self._resample(p, dt) for p in predictions]
         if self.settings.collision.hypotheses == "most_likely":
             preds = most_likely(preds)
+        if self.settings.collision.receding == "straight":
+            preds = receding_straight(preds, obs, dt)
         covered = {(bool(p.is_pedestrian), int(p.agent_id)) for p in preds}
         if d.fallback_prediction != "none":
             n = max(1, int(round(d.fallback_horizon / dt)))
@@ -225,3 +227,33 @@ def most_likely(preds: list[PredictedTrajectory]) -> list[PredictedTrajectory]:
         if key not in best or float(p.probability) > float(best[key].probability):
             best[key] = p
     return list(best.values())
+
+
+def receding_straight(preds: list[PredictedTrajectory], obs: Observation, dt: float) -> list[PredictedTrajectory]:
+    """``collision.receding: straight``: the predicted trajectories of every observed dynamic car that drives away from
+    the ego (faster than ``STILL_SPEED``, its last displacement pointing away from the ego) are replaced by one,
+    probability 1: straight on at that displacement per step with its heading (§VI-B-1's constant velocity), as many
+    steps as its longest hypothesis. The other agents' are kept as given."""
+    ego = np.asarray(obs.ego_pose[:2], dtype=float)
+    receding = {}
+    for v in obs.vehicles:
+        h = np.asarray(v.history, dtype=float).reshape(-1, 3)
+        if v.is_static or len(h) < 2:
+            continue
+        d = h[-1, :2] - h[-2, :2]
+        if np.hypot(*d) / obs.dt >= STILL_SPEED and float(np.dot(d, ego - h[-1, :2])) < 0.0:
+            receding[int(v.id)] = (v, d * (dt / obs.dt))
+    if not receding:
+        return preds
+    n = {}
+    for p in preds:
+        if not p.is_pedestrian and int(p.agent_id) in receding:
+            n[int(p.agent_id)] = max(n.get(int(p.agent_id), 0), len(p.poses))
+    out = [p for p in preds if p.is_pedestrian or int(p.agent_id) not in n]
+    for vid, steps in n.items():
+        v, step = receding[vid]
+        cur = np.asarray(v.history, dtype=float).reshape(-1, 3)[-1]
+        k = np.arange(1, steps + 1)[:, None]
+        poses = np.column_stack([cur[:2] + k * step, np.full(steps, cur[2])])
+        out.append(PredictedTrajectory(agent_id=vid, poses=poses, dt=dt, length=float(v.length), width=float(v.width)))
+    return out
