@@ -1,4 +1,4 @@
-"""``make_way`` (issue #28, mechanism e): step out of the way of a car that stands because the ego is in its path.
+"""``make_way`` (issue #28, mechanism e): step out of the way of an agent that stands because the ego is in its path.
 
 The gridlock of the busy lot (docs/results/busy_dlp/unfreezing, "Fourth look"): a reactive car (§III-B) stands
 because its next poses meet the ego, and the ego stands because that car blocks every plan. The simulator's agents
@@ -9,6 +9,8 @@ its heading does: the car will drive on along it.
 After the ego has stood ``make_way_after`` s, every observed dynamic car that stands within reach and whose
 **corridor** — its footprint swept ``make_way_reach`` m along its direction of travel (forward, or backward if it
 last moved backward), widened by the vehicle margin — overlaps the ego's footprint is a car the ego is in the way of.
+So is a standing pedestrian, as a square of its diameter facing the way it last walked (the planner remembers it;
+a pedestrian never seen walking is left out), widened by the pedestrian margin.
 The ego then drives the shortest short manoeuvre (one arc or an S of two opposite arcs, forward or reverse,
 ``MOVES``) that
 
@@ -16,7 +18,7 @@ The ego then drives the shortest short manoeuvre (one arc or an S of two opposit
   ego holding its end pose), and
 * ends with the ego's footprint clear of those cars' corridors swept ``make_way_clear`` m,
 
-then stands there (the trace's cause ``making_way``) until those cars have left their place by 1 m, or for
+then stands there (the trace's cause ``making_way``) until those agents have left their place by 1 m, or for
 ``make_way_hold`` s at most. The paper's sentence it departs from: §V-D-3 "the ego would stay put at the current
 position". Off by default and under every protocol; `--ablation` names it ``make_way``.
 """
@@ -35,7 +37,7 @@ from avp_search.reactive import rect_gaps
 
 #: the manoeuvres tried: (length of the first arc, length of the second, opposite-curvature arc) in m; 0 = one arc
 MOVES = ((2.0, 0.0), (3.0, 0.0), (4.0, 0.0), (6.0, 0.0), (2.0, 2.0), (3.0, 3.0), (4.0, 4.0))
-MOVED_AWAY = 1.0  # m a blocking car has to leave its place by before the ego stops standing aside
+MOVED_AWAY = 1.0  # m a blocking agent has to leave its place by before the ego stops standing aside
 RETRY_STEPS = 10  # after a failed search for a way out, the next one is this many steps later
 PED_MEMORY = 256  # pedestrians whose last walking direction is remembered
 
@@ -103,7 +105,7 @@ class MakeWayMixin:
         return out
 
     def _make_way(self, st) -> _Plan | None:
-        """Once stood ``make_way_after`` s: the shortest manoeuvre out of the corridors of the cars waiting for the
+        """Once stood ``make_way_after`` s: the shortest manoeuvre out of the corridors of the agents waiting for the
         ego (see the module docstring), or None (none waits, or no manoeuvre is safe)."""
         d, k = self.settings.decision, self.settings.control
         if (not d.make_way or self._stuck_steps * k.dt < d.make_way_after - 1e-9
