@@ -411,3 +411,24 @@ def test_receding_straight_replaces_the_curves_of_a_car_driving_away(paper_lot):
     obs = make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vacant=[14], vehicles=[towards])
     d = _planner(paper_lot, receding="straight").decide(obs, predictions=[curve])
     assert d.command[0] == 0.0 and d.trace.get("agent_id") == 8, d.trace
+
+
+def test_reactive_model_hold_predicts_a_reacting_car_where_it_is(paper_lot):
+    """``collision.reactive_model: hold``: a car 12 m south of the ego drives north at 2 m/s, predicted through the
+    ego's manoeuvre into spot 14. Rolled out with the braking rule (every agent assumed to react) it still meets the
+    plan; held where it is, as blind holds every agent, it does not, and the ego parks. With the reaction learnt from
+    evidence (`lot`) and none seen yet, the car is not held and blocks as in the paper."""
+    y = 13.0 + 0.2 * np.arange(-6, 1)
+    car = ObservedVehicle(id=8, length=L, width=W, is_static=False,
+                          history=np.column_stack([np.full(7, 21.5), y, np.full(7, math.pi / 2)]))
+    pred = PredictedTrajectory(agent_id=8, poses=np.column_stack([np.full(60, 21.5), 13.0 + 0.2 * np.arange(1, 61),
+                                                                  np.full(60, math.pi / 2)]), dt=0.1, length=L, width=W)
+    obs = make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vacant=[14], vehicles=[car])
+    rollout = _planner(paper_lot, reactive_steps=2, reactive_evidence="assumed").decide(obs, predictions=[pred])
+    assert rollout.command[0] == 0.0 and rollout.trace.get("agent_id") == 8, rollout.trace
+    hold = _planner(paper_lot, reactive_steps=2, reactive_evidence="assumed", reactive_model="hold")
+    d = hold.decide(obs, predictions=[pred])
+    assert d.mode == "park" and d.spot_id == 14 and d.command[0] != 0.0, d.trace
+    unseen = _planner(paper_lot, reactive_steps=2, reactive_evidence="lot", reactive_model="hold")
+    d = unseen.decide(obs, predictions=[pred])
+    assert d.command[0] == 0.0 and d.trace.get("agent_id") == 8, d.trace

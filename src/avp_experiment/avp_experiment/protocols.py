@@ -63,6 +63,8 @@ SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     "most_likely": {"collision.hypotheses": ("most_likely", "all")},
     # the same sentence, for a car driving away from the ego: straight on (constant velocity) instead of its curves
     "receding_straight": {"collision.receding": ("straight", "hypotheses")},
+    # with the reaction assumed for an agent (reactive_agents), it is predicted where it is, as blind predicts all
+    "reactive_hold": {"collision.reactive_model": ("hold", "rollout")},
 }
 
 

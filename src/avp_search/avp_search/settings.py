@@ -53,6 +53,10 @@ class CollisionSettings:
     # "meets", the simulator's rule; an agent braking for the ego then meets it only if the ego comes nearer)
     reactive_trigger: str = "margin"  # #28: when a reacting agent is assumed to brake: margin or overlap (§III-B)
     reactive_decel: float = 3.0  # #28: m/s^2 of braking (2x ParkSim's 1.5) that counts as stopping for the ego
+    # how an agent the reaction applies to is predicted: "rollout" (each hypothesis rolled out against the ego's plan
+    # with the braking rule above) or "hold" (held where it is now, as `blind` holds every agent: it will stop for the
+    # ego, and the ego re-plans every step; issue #28, session 19)
+    reactive_model: str = "rollout"  # #28: a reacting agent rolled out with the braking rule, or held where it is
     # which predicted trajectories of an agent are obstacles: "all" (every hypothesis >= mu, §V-D-1 "the predicted
     # trajectories") or "most_likely" (only each agent's most probable one; issue #28, session 19)
     hypotheses: str = "all"  # #28: all (§V-D-1) or most_likely (each agent's most probable hypothesis only)
@@ -120,6 +124,7 @@ class SearchConfig:
             ("collision.reactive_trigger", c.reactive_trigger in ("margin", "overlap")),
             ("collision.hypotheses", c.hypotheses in ("all", "most_likely")),
             ("collision.receding", c.receding in ("hypotheses", "straight")),
+            ("collision.reactive_model", c.reactive_model in ("rollout", "hold")),
             ("collision.reactive_evidence", c.reactive_evidence in ("assumed", "agent", "lot", "told")),
             ("collision.reactive_decel", c.reactive_decel > 0),
             ("search.xy_resolution", s.xy_resolution > 0),

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -148,11 +149,14 @@ class InputsMixin:
         if d.assume_yielding:
             preds = yielding_predictions(obs, preds, d.yield_lookahead, d.yield_margin, dt)
         c = self.settings.collision
+        keys = self._reactive_keys()
+        if c.reactive_steps > 0 and c.reactive_model == "hold":
+            preds = held_where_they_are(preds, obs, keys)
         return DynamicObstacles(preds, obs.ego_length, obs.ego_width, c.vehicle_margin, c.pedestrian_margin,
                                 keep_current_gap=c.keep_current_gap, hold_last=c.beyond_horizon == "hold",
                                 commit_steps=int(round(c.commit_horizon / dt)), risk_bound=c.risk_bound,
                                 hold_after_commit=c.beyond_commit == "hold", react_steps=c.reactive_steps,
-                                react_margin=c.reactive_margin, react_keys=self._reactive_keys(),
+                                react_margin=c.reactive_margin, react_keys=keys,
                                 react_trigger=c.reactive_trigger)
 
     def _reactive_keys(self) -> frozenset | None:
@@ -256,4 +260,28 @@ def receding_straight(preds: list[PredictedTrajectory], obs: Observation, dt: fl
         k = np.arange(1, steps + 1)[:, None]
         poses = np.column_stack([cur[:2] + k * step, np.full(steps, cur[2])])
         out.append(PredictedTrajectory(agent_id=vid, poses=poses, dt=dt, length=float(v.length), width=float(v.width)))
+    return out
+
+
+def held_where_they_are(preds: list[PredictedTrajectory], obs: Observation,
+                        keys: frozenset | None) -> list[PredictedTrajectory]:
+    """``collision.reactive_model: hold``: each agent the reaction applies to (``keys``; None = every one) is predicted
+    by one trajectory standing at its observed pose, as `blind` predicts every agent; the others keep theirs."""
+    def reacts(ped: bool, i: int) -> bool:
+        return keys is None or (ped, i) in keys
+
+    now = {(False, int(v.id)): (np.asarray(v.history, dtype=float).reshape(-1, 3)[-1], v) for v in obs.vehicles}
+    now.update({(True, int(p.id)): (np.array([*np.asarray(p.position, dtype=float), 0.0]), p)
+                for p in obs.pedestrians})
+    out, held = [], {}
+    for p in preds:
+        key = (bool(p.is_pedestrian), int(p.agent_id))
+        if key in now and reacts(*key):
+            held[key] = max(held.get(key, 0), len(p.poses))
+        else:
+            out.append(p)
+    for key, n in held.items():
+        pose, _ = now[key]
+        first = next(p for p in preds if (bool(p.is_pedestrian), int(p.agent_id)) == key)
+        out.append(replace(first, poses=np.tile(pose, (n, 1)), probability=1.0))
     return out
