@@ -31,7 +31,9 @@ import time
 import numpy as np
 
 from avp_planner.core.control import track
-from avp_planner.core.planner_types import EXPLORE, IDLE, STILL_SPEED, Decision, _Plan
+from avp_planner.core.planner_inputs import pedestrian_stands, vehicle_stands
+from avp_planner.core.planner_search import start_relaxed_margins
+from avp_planner.core.planner_types import EXPLORE, IDLE, Decision, _Plan
 from avp_search.paths import Path
 from avp_search.reactive import rect_gaps
 
@@ -80,12 +82,12 @@ class MakeWayMixin:
         A pedestrian is a square of its diameter facing the way it last walked (skipped if it never did)."""
         out = []
         for v in obs.vehicles:
-            h = np.asarray(v.history, dtype=float).reshape(-1, 3)
-            if not v.is_static and (len(h) < 2 or math.hypot(*(h[-1, :2] - h[-2, :2])) / obs.dt < STILL_SPEED):
+            if vehicle_stands(v, obs.dt):
+                h = np.asarray(v.history, dtype=float).reshape(-1, 3)
                 out.append(((False, int(v.id)), h[-1].copy(), float(v.length), float(v.width), travel_sign(h)))
         for p in obs.pedestrians:
-            q, prev = np.asarray(p.position, dtype=float), np.asarray(p.previous_position, dtype=float)
-            if math.hypot(*(q - prev)) / obs.dt < STILL_SPEED and int(p.id) in self._ped_heading:
+            if pedestrian_stands(p, obs.dt) and int(p.id) in self._ped_heading:
+                q = np.asarray(p.position, dtype=float)
                 pose = np.array([q[0], q[1], self._ped_heading[int(p.id)]])
                 out.append(((True, int(p.id)), pose, 2.0 * p.radius, 2.0 * p.radius, 1.0))
         return out
@@ -150,8 +152,7 @@ class MakeWayMixin:
                 continue
             traj = track(path, self.settings.control, self.settings.vehicle.max_curvature, obs.ego_speed)
             x = traj.states
-            near = np.cumsum(np.r_[0.0, np.hypot(*np.diff(x[:, :2], axis=0).T)]) < c.start_relax_distance
-            margins = np.where(near, 0.0, c.verify_margin)  # boxed in: the first metres as _adopt relaxes them
+            margins = start_relaxed_margins(x, c)  # boxed in: the first metres relaxed as _adopt does
             if not st.world.free_xyc(x[:, 0], x[:, 1], np.cos(x[:, 2]), np.sin(x[:, 2]), margins).all():
                 continue
             if not st.dyn.empty and st.dyn.first_collision(traj.states) >= 0:

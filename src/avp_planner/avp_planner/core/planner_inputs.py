@@ -213,13 +213,23 @@ class InputsMixin:
         gp = 2.0 * max(c.pedestrian_margin - c.footprint_margin, 0.0) + 0.04
         rows = []
         for v in obs.vehicles:
-            h = np.asarray(v.history, dtype=float).reshape(-1, 3)
-            if not v.is_static and (len(h) < 2 or np.hypot(*(h[-1, :2] - h[-2, :2])) / obs.dt < STILL_SPEED):
+            if vehicle_stands(v, obs.dt):
                 rows.append([*v.pose, v.length + gv, v.width + gv])
         for p in obs.pedestrians:
-            if np.hypot(*(np.asarray(p.position) - np.asarray(p.previous_position))) / obs.dt < STILL_SPEED:
+            if pedestrian_stands(p, obs.dt):
                 rows.append([*p.position, 0.0, 2 * p.radius + gp, 2 * p.radius + gp])
         return np.array(rows, dtype=float).reshape(-1, 5)
+
+
+def vehicle_stands(v, dt: float) -> bool:
+    """An observed dynamic vehicle that moved less than ``STILL_SPEED`` between its last two states (or has one)."""
+    h = np.asarray(v.history, dtype=float).reshape(-1, 3)
+    return not v.is_static and (len(h) < 2 or np.hypot(*(h[-1, :2] - h[-2, :2])) / dt < STILL_SPEED)
+
+
+def pedestrian_stands(p, dt: float) -> bool:
+    """An observed pedestrian that moved less than ``STILL_SPEED`` since its previous position."""
+    return np.hypot(*(np.asarray(p.position) - np.asarray(p.previous_position))) / dt < STILL_SPEED
 
 
 def most_likely(preds: list[PredictedTrajectory]) -> list[PredictedTrajectory]:
@@ -231,6 +241,20 @@ def most_likely(preds: list[PredictedTrajectory]) -> list[PredictedTrajectory]:
         if key not in best or float(p.probability) > float(best[key].probability):
             best[key] = p
     return list(best.values())
+
+
+def _set_aside(preds: list[PredictedTrajectory], chosen) -> tuple[list[PredictedTrajectory], dict]:
+    """The predictions of the agents not ``chosen(key)`` (key: (is a pedestrian, id)), and for each chosen agent that
+    has predictions: (its first prediction, the longest horizon among them), in the order the agents came."""
+    kept, set_aside = [], {}
+    for p in preds:
+        key = (bool(p.is_pedestrian), int(p.agent_id))
+        if chosen(key):
+            first, n = set_aside.get(key, (p, 0))
+            set_aside[key] = (first, max(n, len(p.poses)))
+        else:
+            kept.append(p)
+    return kept, set_aside
 
 
 def receding_straight(preds: list[PredictedTrajectory], obs: Observation, dt: float) -> list[PredictedTrajectory]:
@@ -246,20 +270,16 @@ def receding_straight(preds: list[PredictedTrajectory], obs: Observation, dt: fl
             continue
         d = h[-1, :2] - h[-2, :2]
         if np.hypot(*d) / obs.dt >= STILL_SPEED and float(np.dot(d, ego - h[-1, :2])) < 0.0:
-            receding[int(v.id)] = (v, d * (dt / obs.dt))
+            receding[(False, int(v.id))] = (v, h[-1], d * (dt / obs.dt))
     if not receding:
         return preds
-    n = {}
-    for p in preds:
-        if not p.is_pedestrian and int(p.agent_id) in receding:
-            n[int(p.agent_id)] = max(n.get(int(p.agent_id), 0), len(p.poses))
-    out = [p for p in preds if p.is_pedestrian or int(p.agent_id) not in n]
-    for vid, steps in n.items():
-        v, step = receding[vid]
-        cur = np.asarray(v.history, dtype=float).reshape(-1, 3)[-1]
+    out, set_aside = _set_aside(preds, receding.__contains__)
+    for key, (_, steps) in set_aside.items():
+        v, cur, step = receding[key]
         k = np.arange(1, steps + 1)[:, None]
         poses = np.column_stack([cur[:2] + k * step, np.full(steps, cur[2])])
-        out.append(PredictedTrajectory(agent_id=vid, poses=poses, dt=dt, length=float(v.length), width=float(v.width)))
+        out.append(PredictedTrajectory(agent_id=key[1], poses=poses, dt=dt, length=float(v.length),
+                                       width=float(v.width)))
     return out
 
 
@@ -267,21 +287,9 @@ def held_where_they_are(preds: list[PredictedTrajectory], obs: Observation,
                         keys: frozenset | None) -> list[PredictedTrajectory]:
     """``collision.reactive_model: hold``: each agent the reaction applies to (``keys``; None = every one) is predicted
     by one trajectory standing at its observed pose, as `blind` predicts every agent; the others keep theirs."""
-    def reacts(ped: bool, i: int) -> bool:
-        return keys is None or (ped, i) in keys
-
-    now = {(False, int(v.id)): (np.asarray(v.history, dtype=float).reshape(-1, 3)[-1], v) for v in obs.vehicles}
-    now.update({(True, int(p.id)): (np.array([*np.asarray(p.position, dtype=float), 0.0]), p)
-                for p in obs.pedestrians})
-    out, held = [], {}
-    for p in preds:
-        key = (bool(p.is_pedestrian), int(p.agent_id))
-        if key in now and reacts(*key):
-            held[key] = max(held.get(key, 0), len(p.poses))
-        else:
-            out.append(p)
-    for key, n in held.items():
-        pose, _ = now[key]
-        first = next(p for p in preds if (bool(p.is_pedestrian), int(p.agent_id)) == key)
-        out.append(replace(first, poses=np.tile(pose, (n, 1)), probability=1.0))
+    now = {(False, int(v.id)): np.asarray(v.history, dtype=float).reshape(-1, 3)[-1] for v in obs.vehicles}
+    now.update({(True, int(p.id)): np.array([*np.asarray(p.position, dtype=float), 0.0]) for p in obs.pedestrians})
+    out, set_aside = _set_aside(preds, lambda key: key in now and (keys is None or key in keys))
+    for key, (first, n) in set_aside.items():
+        out.append(replace(first, poses=np.tile(now[key], (n, 1)), probability=1.0))
     return out

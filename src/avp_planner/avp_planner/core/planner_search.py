@@ -106,8 +106,7 @@ class SearchMixin:
                 z = np.zeros((cand.wait_steps, 2))
                 st = np.repeat(traj.states[:1], cand.wait_steps, axis=0)
                 traj = Trajectory(np.concatenate([z, traj.controls]), np.concatenate([st, traj.states]), traj.dt)
-            relax = np.cumsum(np.r_[0.0, np.hypot(*np.diff(traj.states[:, :2], axis=0).T)]) < c.start_relax_distance
-            margins = np.where(relax, 0.0, c.verify_margin)
+            margins = start_relaxed_margins(traj.states, c)
             st = traj.states
             ok = world.free_xyc(st[:, 0], st[:, 1], np.cos(st[:, 2]), np.sin(st[:, 2]), margins).all()
             if ok and cand.mode == PARK:
@@ -165,3 +164,10 @@ class SearchMixin:
             if group:
                 front_waits = blocked
         return None, blocked_any, front_waits
+
+
+def start_relaxed_margins(states: np.ndarray, collision) -> np.ndarray:
+    """The static clearance each state of a plan keeps: 0 within ``start_relax_distance`` of arc length from its
+    start (the ego may begin next to an obstacle), ``verify_margin`` after."""
+    arc = np.cumsum(np.r_[0.0, np.hypot(*np.diff(states[:, :2], axis=0).T)])
+    return np.where(arc < collision.start_relax_distance, 0.0, collision.verify_margin)
