@@ -1,6 +1,6 @@
 # The two commands of the README. Both set up what is missing first (idempotent, tools/bootstrap.sh).
 SHELL := /bin/bash
-.PHONY: setup demo test bench lint clean
+.PHONY: setup demo test bench lint clean records-check
 
 setup:
 	@bash tools/bootstrap.sh
@@ -14,6 +14,18 @@ test: setup
 
 bench: setup
 	@source tools/env.sh && python bench/bench_sensing.py
+
+# Did a change alter the paper lot's episodes? 50 seeds x 8 methods x 2 modes in both protocols (about 10 min on
+# 2 cores), checked against the committed digests (tools/records_digest.py; docs/experiment.md "Records check").
+RECORD_METHODS := bezier,constant_velocity,hybrid_astar,learned,implicit,nawaz,oracle,blind
+records-check: setup
+	@source tools/env.sh && for p in default paper; do \
+		rm -rf out/records_check/$$p && \
+		avp experiment --protocol $$p --scenarios 50 --mode both --methods $(RECORD_METHODS) \
+			--workers $${WORKERS:-2} --no-progress --out out/records_check/$$p > /dev/null && \
+		echo "protocol $$p:" && \
+		python tools/records_digest.py check out/records_check/$$p docs/results/reference_records/$${p}_50x8x2.json \
+			|| exit 1; done
 
 lint: setup
 	@source tools/env.sh && python -m ruff check src tests bench tools
