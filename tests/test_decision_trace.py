@@ -142,6 +142,12 @@ def test_avp_why_prints_the_spells_of_a_run_record(tmp_path):
     r = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "why", str(tmp_path), "--seed", "9"],
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "no episode of method 'bezier', seed 9" in r.stderr
+    records = tmp_path / "arm.jsonl"  # a file of records, as tools/run_seeds.py writes
+    records.write_text((tmp_path / "episodes.jsonl").read_text())
+    r = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "why", str(records), "--seed", "6"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert f"{records}: bezier seed 6 reactive" in r.stdout and "blocking agent(s) [1003]" in r.stdout
 
 
 # ------------------------------------------------------------------------------- issue #28 item 3: mechanisms

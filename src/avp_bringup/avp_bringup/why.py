@@ -1,9 +1,10 @@
 """``avp why``: why the ego was not moving — the idle spells of one episode with their causes (issue #28).
 
 From a **bag** (a directory or .mcap file): the planner's ``~/debug/decision`` trace (avp_msgs/DecisionTrace)
-of the last episode in it. From a **run** (the ``--out`` folder of ``avp experiment``): the ``decision_trace`` of
-the record of ``--seed``/``--method``/``--mode`` in its episodes.jsonl. Prints the steps per mode, the idle steps
-per cause and the longest idle spells (when, how long, the main cause, the blocking agents).
+of the last episode in it. From a **run** (the ``--out`` folder of ``avp experiment``, or a file of episode records
+such as ``tools/run_seeds.py`` writes): the ``decision_trace`` of the record of ``--seed``/``--method``/``--mode``.
+Prints the steps per mode, the idle steps per cause and the longest idle spells (when, how long, the main cause, the
+blocking agents).
 """
 
 from __future__ import annotations
@@ -37,8 +38,9 @@ def trace_from_bag(bag: Path) -> tuple[dict, float]:
 
 
 def trace_from_run(out: Path, seed: int, method: str, mode: str) -> tuple[dict, float]:
-    """(trace summary, dt) of one record of an experiment folder; ValueError naming what is missing."""
-    path = out / "episodes.jsonl"
+    """(trace summary, dt) of one record of an experiment folder or a .jsonl file of records; ValueError naming what
+    is missing."""
+    path = out if out.suffix == ".jsonl" and out.is_file() else out / "episodes.jsonl"
     if not path.is_file():
         raise ValueError(f"{out}: no episodes.jsonl (not an `avp experiment --out` folder)")
     found = None
@@ -58,7 +60,7 @@ def trace_from_run(out: Path, seed: int, method: str, mode: str) -> tuple[dict, 
 def explain(source: str, seed: int | None = None, method: str = "bezier", mode: str = "reactive") -> str:
     """The text ``avp why`` prints for a bag or a run folder."""
     p = Path(source)
-    if p.is_dir() and (p / "episodes.jsonl").is_file():
+    if (p.is_dir() and (p / "episodes.jsonl").is_file()) or (p.is_file() and p.suffix == ".jsonl"):
         if seed is None:
             raise ValueError("a run folder needs --seed (and --method, --mode)")
         summary, dt = trace_from_run(p, seed, method, mode)
