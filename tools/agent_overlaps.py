@@ -6,6 +6,7 @@ driven into by the cars behind it. This tool measures how often, with shapely as
 simulator's own geometry):
 
     python tools/agent_overlaps.py OUT.jsonl SEEDS [--method bezier] [--lot busy|paper] [--t-final 60]
+                                   [--sim-param agents_yield=true]
 
 For each seed it runs the method's episode (reactive mode, the shipped parameters, as tools/run_seeds.py) and counts,
 over the steps:
@@ -74,12 +75,14 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--method", default="bezier")
     ap.add_argument("--lot", choices=["busy", "paper"], default="busy")
     ap.add_argument("--t-final", type=float, default=60.0)
+    ap.add_argument("--sim-param", action="append", default=[], metavar="KEY=VALUE",
+                    help="an avp_sim parameter (repeatable), e.g. agents_yield=true")
     a = ap.parse_args(argv)
     if a.lot == "busy":
-        sim = runner._with_lot(runner.parse_sim_params(["scenario.family=busy"]),
+        sim = runner._with_lot(runner.parse_sim_params(["scenario.family=busy", *a.sim_param]),
                                str(ROOT / "src/avp_world/avp_world/maps/dlp_lot.yaml"))
     else:
-        sim = {}
+        sim = runner.parse_sim_params(a.sim_param)
     cfg = RunConfig(t_final=a.t_final, sim_overrides=sim, planner_overrides={})
     _init_worker(cfg)
     profile = run_profile(a.method, cfg)
@@ -99,7 +102,8 @@ def main(argv: list[str]) -> int:
             p_steps += bool(peds)
             v_pairs |= cars
             p_pairs |= peds
-        line = {"method": a.method, "lot": a.lot, "seed": seed, "status": world.status, "steps": world.step_index,
+        line = {"method": a.method, "lot": a.lot, "sim_params": a.sim_param, "seed": seed, "status": world.status,
+                "steps": world.step_index,
                 "vehicle_steps": v_steps, "vehicle_steps_neither_braking": v_free, "vehicle_pairs": len(v_pairs),
                 "pedestrian_steps": p_steps, "pedestrian_pairs": len(p_pairs)}
         print(json.dumps(line), flush=True)

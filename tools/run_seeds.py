@@ -44,8 +44,11 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--t-final", type=float, default=60.0)
     ap.add_argument("--mode", default="reactive", choices=("reactive", "non_reactive"))
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--sim-param", action="append", default=[], metavar="KEY=VALUE",
+                    help="an avp_sim parameter (repeatable), e.g. agents_yield=true")
     a = ap.parse_args(argv)
-    sim = runner._with_lot(runner.parse_sim_params([f"scenario.family={a.family}"]), str(Path(a.lot).resolve()))
+    sim = runner._with_lot(runner.parse_sim_params([f"scenario.family={a.family}", *a.sim_param]),
+                           str(Path(a.lot).resolve()))
     cfg = RunConfig(t_final=a.t_final, sim_overrides=sim, planner_overrides=runner.parse_planner_params(a.params))
     keys = [(a.method, s, a.mode) for s in seeds_of(a.seeds)]
     ctx = mp.get_context("fork")

@@ -82,6 +82,10 @@ SIM_PARAMS: list[ParamSpec] = [
     ParamSpec("scenario.spawn_closer_than_ego", bool, "Re-draw a dynamic vehicle whose centre at t = 0 is not nearer "
               "its target spot than the ego's start (§VI-B: agents 'initialized closer to their intended spots').",
               "", "§VI-B", default=False),
+    ParamSpec("agents_yield", bool, "Agents also brake for each other by §III-B's rule, with their own n_pass: a "
+              "car for a car or pedestrian its next n_pass footprints meet, a pedestrian for a moving car "
+              "(avp_sim/core/agent_yield.py). §III-B: agents react to the ego only (false, the paper); on the busy "
+              "lot they then drive through each other.", "n_pass", "§III-B", default=False),
     ParamSpec("ego_max_speed", float, "Ego speed limit; commands are clipped to it and to |ω| <= |v|/R_min.",
               "v", "eq. (1)", min=0.0, default=5.0),
     ParamSpec("auth_inputs", bool, "Take only commands tagged with the user's key (avp_common.msg_auth, "

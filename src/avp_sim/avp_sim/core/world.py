@@ -5,7 +5,9 @@ Step order at time t (k = t / dt):
   2. :meth:`World.step` takes the ego command u_0,t; each other agent A brakes (u = 0) if its next
      n_pass,A planned footprints A_{t+dt..t+n_pass dt} meet the ego's current footprint V_0,t, else takes
      its next unused planned control (§III-B);
-  3. everyone moves by eq. (1) / eq. (2); collisions and parking are checked at t + dt.
+  3. with ``agents_yield`` (off by default; :mod:`.agent_yield`) the agents also brake for each other by the same
+     rule;
+  4. everyone moves by eq. (1) / eq. (2); collisions and parking are checked at t + dt.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from avp_sim.core.agent_yield import agents_yield
 from avp_sim.core.metrics import COLLISION, RUNNING, SUCCESS, TIMEOUT, EpisodeMetrics, apply_event, step_event
 from avp_sim.core.observation import RayCaster, SensorConfig, classify_world
 from avp_sim.core.scenario import Scenario
@@ -40,6 +43,7 @@ class WorldConfig:
     t_final: float = 100.0  # t_f [s] (§VI-A)
     sensor: SensorConfig = field(default_factory=SensorConfig)
     ego_max_speed: float = 5.0  # |v| of the ego is clipped to this [m/s]
+    agents_yield: bool = False  # agents also brake for each other (§III-B: for the ego only; .agent_yield)
 
 
 class World:
@@ -90,8 +94,10 @@ class World:
         self.ego_speed = 0.0
         self.status = RUNNING
         self.metrics = EpisodeMetrics()
-        self.braking = np.zeros(n, dtype=bool)
+        self.braking = np.zeros(n, dtype=bool)  # braking for the ego (§III-B)
         self.ped_braking = np.zeros(p, dtype=bool)
+        self.yielding = np.zeros(n, dtype=bool)  # braking for another agent only (agents_yield)
+        self.ped_yielding = np.zeros(p, dtype=bool)
         self.log_ego: list[np.ndarray] = [self.ego.copy()]
         self.log_vehicles: list[np.ndarray] = [self.states.copy()]
         self.log_braking: list[np.ndarray] = [self.braking.copy()]
@@ -164,6 +170,10 @@ class World:
         interrupted = int((brake & self.is_dynamic).sum()) + int(ped_brake.sum())
         self.metrics.interrupted_agent_steps += interrupted
         self.metrics.interrupted_steps += int(interrupted > 0)
+        if self.config.agents_yield:
+            v_yield, p_yield = agents_yield(self)
+            self.yielding, self.ped_yielding = v_yield & ~brake, p_yield & ~ped_brake
+            brake, ped_brake = brake | v_yield, ped_brake | p_yield
         self._advance_agents(brake, ped_brake)
         self.history = np.concatenate([self.history[:, 1:], self.states[:, None]], axis=1)
         self.ego = step_vehicle(self.ego, np.array([v, omega]), self.dt)
@@ -172,7 +182,7 @@ class World:
         self.metrics.steps = self.step_index
         self.log_ego.append(self.ego.copy())
         self.log_vehicles.append(self.states.copy())
-        self.log_braking.append(brake.copy())
+        self.log_braking.append(self.braking.copy())
         self.log_commands.append(np.array([v, omega]))
         self._check_events()
         return self.status
