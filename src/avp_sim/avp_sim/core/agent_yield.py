@@ -70,16 +70,17 @@ def agents_yield(w) -> tuple[np.ndarray, np.ndarray]:
     if len(movers):
         reach = 2.0 * w._brake_reach[movers] + np.hypot(*w.vehicle_dims.max(axis=0, initial=0.0))
         gap = np.hypot(*(w.states[movers, None, :2] - w.states[None, :, :2]).transpose(2, 0, 1))
-        in_way: set[tuple[int, int]] = set()  # k is now where i's next n_pass steps go
-        crossing: set[tuple[int, int]] = set()  # i and k, both moving, are planned onto the same place
-        for a, k in zip(*np.nonzero(gap <= reach[:, None]), strict=True):
-            i, k = int(movers[a]), int(k)
-            if i == k or rects_overlap(corners[i], corners[k]):
-                continue  # itself, or overlapping already: braking cannot part them
-            if (rects_overlap(fut[i], corners[k][None]) & v_valid[i]).any():
-                in_way.add((i, k))
-            elif (rects_overlap(fut[i], fut[k]) & v_valid[i]).any():
-                crossing.add((i, k))
+        a, k = np.nonzero(gap <= reach[:, None])
+        i = movers[a]
+        keep = i != k
+        i, k = i[keep], k[keep]
+        keep = ~rects_overlap(corners[i], corners[k])  # overlapping already: braking cannot part them
+        i, k = i[keep], k[keep]
+        valid = v_valid[i]
+        way = (rects_overlap(fut[i], corners[k][:, None]) & valid).any(axis=1)
+        cross = ~way & (rects_overlap(fut[i], fut[k]) & valid).any(axis=1)
+        in_way = set(zip(i[way].tolist(), k[way].tolist(), strict=True))  # k is now where i's next steps go
+        crossing = set(zip(i[cross].tolist(), k[cross].tolist(), strict=True))  # both planned onto one place
         for i, k in in_way:  # of two each in the other's way (head-on), the first in the scenario drives on
             if not ((k, i) in in_way and i < k):
                 v_brake[i] = True
