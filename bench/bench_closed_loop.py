@@ -78,16 +78,18 @@ def main() -> int:
     ap.add_argument("--json", default="", help="also write the figures here")
     ap.add_argument("--planner-param", action="append", metavar="KEY=VALUE",
                     help="an avp_planner parameter for the method (as `avp experiment --planner-param`)")
+    ap.add_argument("--sim-param", action="append", default=[], metavar="KEY=VALUE",
+                    help="an avp_sim parameter (as `avp experiment --sim-param`), e.g. agents_yield=true")
     args = ap.parse_args()
 
     import torch
 
     from avp_experiment.run_config import RunConfig, run_profile, sim_values
-    from avp_experiment.runner import parse_planner_params
+    from avp_experiment.runner import parse_planner_params, parse_sim_params
     from avp_sim.core.factory import load_lot_param
 
     torch.set_num_threads(1)
-    over = {"scenario.family": args.scenario}
+    over = {**parse_sim_params(args.sim_param), "scenario.family": args.scenario}
     if args.lot:
         over["lot_file"] = str(Path(args.lot).resolve())
     cfg = RunConfig(t_final=args.t_final, sim_overrides=over,
@@ -98,7 +100,7 @@ def main() -> int:
     modes = {"reactive": (True,), "non-reactive": (False,), "both": (True, False)}[args.modes]
     load0 = os.getloadavg()
     print(f"# {lot.name} ({lot.n_spots} spots), scenario {args.scenario}, method {args.method} "
-          f"{cfg.planner_overrides or ''}, t_f {args.t_final} s; "
+          f"{cfg.planner_overrides or ''} {args.sim_param or ''}, t_f {args.t_final} s; "
           f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, 1 torch thread, load average "
           f"{load0[0]:.2f} before")
     print("| seed | mode | outcome | steps | moving cars | pedestrians | loop median / p95 ms | sense | belief | "
