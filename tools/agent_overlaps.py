@@ -24,7 +24,6 @@ seed is printed and appended to OUT.jsonl.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -60,14 +59,8 @@ def overlaps(world, lot_poly) -> tuple[set, set, set]:
 
 
 def main(argv: list[str]) -> int:
-    from run_seeds import seeds_of
+    from probe_episodes import emit, episodes
     from shapely.geometry import Polygon
-
-    from avp_experiment import runner
-    from avp_experiment.ego import MethodEgo
-    from avp_experiment.episodes import _WORKER, _init_worker
-    from avp_experiment.run_config import RunConfig, run_profile
-    from avp_sim.core.factory import make_world
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("out")
@@ -78,18 +71,7 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--sim-param", action="append", default=[], metavar="KEY=VALUE",
                     help="an avp_sim parameter (repeatable), e.g. agents_yield=true")
     a = ap.parse_args(argv)
-    if a.lot == "busy":
-        sim = runner._with_lot(runner.parse_sim_params(["scenario.family=busy", *a.sim_param]),
-                               str(ROOT / "src/avp_world/avp_world/maps/dlp_lot.yaml"))
-    else:
-        sim = runner.parse_sim_params(a.sim_param)
-    cfg = RunConfig(t_final=a.t_final, sim_overrides=sim, planner_overrides={})
-    _init_worker(cfg)
-    profile = run_profile(a.method, cfg)
-    for seed in seeds_of(a.seeds):
-        world = make_world(_WORKER["lot"], _WORKER["sim"], seed, True)
-        ego = MethodEgo(_WORKER["lot"], profile, deterministic=True, intent_weights=cfg.intent_weights,
-                        intent_seed=cfg.intent_seed, message_precision=cfg.message_precision)
+    for seed, world, ego in episodes(a.method, a.seeds, a.t_final, a.sim_param, lot=a.lot):
         lot_poly = Polygon(world.lot.boundary)
         v_steps = v_free = p_steps = 0
         v_pairs: set = set()
@@ -102,13 +84,10 @@ def main(argv: list[str]) -> int:
             p_steps += bool(peds)
             v_pairs |= cars
             p_pairs |= peds
-        line = {"method": a.method, "lot": a.lot, "sim_params": a.sim_param, "seed": seed, "status": world.status,
-                "steps": world.step_index,
-                "vehicle_steps": v_steps, "vehicle_steps_neither_braking": v_free, "vehicle_pairs": len(v_pairs),
-                "pedestrian_steps": p_steps, "pedestrian_pairs": len(p_pairs)}
-        print(json.dumps(line), flush=True)
-        with open(a.out, "a") as f:
-            f.write(json.dumps(line) + "\n")
+        emit(a.out, {"method": a.method, "lot": a.lot, "sim_params": a.sim_param, "seed": seed,
+                     "status": world.status, "steps": world.step_index, "vehicle_steps": v_steps,
+                     "vehicle_steps_neither_braking": v_free, "vehicle_pairs": len(v_pairs),
+                     "pedestrian_steps": p_steps, "pedestrian_pairs": len(p_pairs)})
     return 0
 
 

@@ -12,7 +12,6 @@ mode), stepped here so that the planner's evidence can be read after each step.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -21,13 +20,7 @@ sys.path.insert(0, str(ROOT / "tools"))
 
 
 def main(argv: list[str]) -> int:
-    from run_seeds import seeds_of
-
-    from avp_experiment import runner
-    from avp_experiment.ego import MethodEgo
-    from avp_experiment.episodes import _WORKER, _init_worker
-    from avp_experiment.run_config import RunConfig, run_profile
-    from avp_sim.core.factory import make_world
+    from probe_episodes import emit, episodes
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("out")
@@ -36,15 +29,7 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--method", default="bezier")
     ap.add_argument("--t-final", type=float, default=60.0)
     a = ap.parse_args(argv)
-    lot_file = str(ROOT / "src/avp_world/avp_world/maps/dlp_lot.yaml")
-    sim = runner._with_lot(runner.parse_sim_params(["scenario.family=busy"]), lot_file)
-    cfg = RunConfig(t_final=a.t_final, sim_overrides=sim, planner_overrides=runner.parse_planner_params(a.params))
-    _init_worker(cfg)
-    profile = run_profile(a.method, cfg)
-    for seed in seeds_of(a.seeds):
-        world = make_world(_WORKER["lot"], _WORKER["sim"], seed, True)
-        ego = MethodEgo(_WORKER["lot"], profile, deterministic=True, intent_weights=cfg.intent_weights,
-                        intent_seed=cfg.intent_seed, message_precision=cfg.message_precision)
+    for seed, world, ego in episodes(a.method, a.seeds, a.t_final, planner_params=a.params):
         first_brake = first_evidence = None
         evasive_before = 0
         while not world.done:
@@ -56,11 +41,8 @@ def main(argv: list[str]) -> int:
             world.step(*out.command)
             if first_brake is None and ((world.braking & world.is_dynamic).any() or world.ped_braking.any()):
                 first_brake = out.step
-        line = {"method": a.method, "seed": seed, "status": world.status, "first_brake_step": first_brake,
-                "first_evidence_step": first_evidence, "evasive_steps_before_evidence": evasive_before}
-        print(json.dumps(line), flush=True)
-        with open(a.out, "a") as f:
-            f.write(json.dumps(line) + "\n")
+        emit(a.out, {"method": a.method, "seed": seed, "status": world.status, "first_brake_step": first_brake,
+                     "first_evidence_step": first_evidence, "evasive_steps_before_evidence": evasive_before})
     return 0
 
 
