@@ -35,13 +35,14 @@ from avp_world.geometry import disc_rect_overlap, rect_corners, rects_overlap
 from avp_world.kinematics import step_pedestrian, step_vehicle
 
 
-def _lookahead(states, plans, index, steps, step_fn, dt) -> np.ndarray:
-    """(n, steps, state) planned states over the next ``steps`` steps of each agent."""
-    out = np.zeros((len(states), steps, states.shape[1]))
+def plan_lookahead(states, plans, rows, index, steps, step_fn, dt) -> np.ndarray:
+    """(len(rows), steps, state): agents ``rows`` rolled out from ``states`` with their next ``steps`` unused planned
+    controls of ``plans`` (from ``index`` on; the last control repeats past a plan's end). Shared with §III-B's rule
+    in :meth:`World._reactive_brakes`."""
+    out = np.zeros((len(rows), steps, states.shape[1]))
     s = states
     for j in range(steps):
-        idx = np.minimum(index + j, plans.shape[1] - 1)
-        s = step_fn(s, plans[np.arange(len(states)), idx], dt)
+        s = step_fn(s, plans[rows, np.minimum(index + j, plans.shape[1] - 1)], dt)
         out[:, j] = s
     return out
 
@@ -60,10 +61,11 @@ def agents_yield(w) -> tuple[np.ndarray, np.ndarray]:
         return v_brake, p_stop
     corners = rect_corners(w.states, w.vehicle_dims[:, 0], w.vehicle_dims[:, 1])
     fut = np.repeat(corners[:, None], steps, axis=1)  # (n, L, 4, 2): parked cars stay where they are
-    ahead = _lookahead(w.states[moving], w.plans[moving], w.plan_index[moving], steps, step_vehicle, w.dt)
+    ahead = plan_lookahead(w.states[moving], w.plans, moving, w.plan_index[moving], steps, step_vehicle, w.dt)
     fut[moving] = rect_corners(ahead, w.vehicle_dims[moving, 0, None], w.vehicle_dims[moving, 1, None])
     v_valid = np.arange(steps)[None] < w.passiveness[:, None]  # (n, L): each car looks n_pass steps ahead
-    ped_fut = _lookahead(w.ped_pos, w.ped_plans, w.ped_index, steps, step_pedestrian, w.dt) if p else None
+    ped_fut = (plan_lookahead(w.ped_pos, w.ped_plans, np.arange(p), w.ped_index, steps, step_pedestrian, w.dt)
+               if p else None)
     p_valid = np.arange(steps)[None] < w.ped_pass[:, None]
     car_meets_ped = np.zeros((n, p), dtype=bool)
     movers = np.nonzero(w.is_dynamic & (w.passiveness > 0))[0]
@@ -88,9 +90,9 @@ def agents_yield(w) -> tuple[np.ndarray, np.ndarray]:
             if (k, i) not in in_way and i > k:
                 v_brake[i] = True
         if p:  # cars wait for pedestrians on their way (also one they touch: it walks on, they part): (m, L, P)
-            hit = (disc_rect_overlap(w.ped_pos[None, None], w.ped_radii[None, None], fut[movers][:, :, None])
-                   | disc_rect_overlap(ped_fut.transpose(1, 0, 2)[None], w.ped_radii[None, None],
-                                       fut[movers][:, :, None]))
+            fm = fut[movers][:, :, None]
+            hit = (disc_rect_overlap(w.ped_pos[None, None], w.ped_radii[None, None], fm)
+                   | disc_rect_overlap(ped_fut.transpose(1, 0, 2)[None], w.ped_radii[None, None], fm))
             car_meets_ped[movers] = (hit & v_valid[movers][:, :, None]).any(axis=1)
             v_brake[movers] |= car_meets_ped[movers].any(axis=1)
     walkers = np.nonzero(w.ped_pass > 0)[0]

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from avp_sim.core.agent_yield import agents_yield
+from avp_sim.core.agent_yield import agents_yield, plan_lookahead
 from avp_sim.core.metrics import COLLISION, RUNNING, SUCCESS, TIMEOUT, EpisodeMetrics, apply_event, step_event
 from avp_sim.core.observation import RayCaster, SensorConfig, classify_world
 from avp_sim.core.scenario import Scenario
@@ -131,23 +131,19 @@ class World:
             cand = cand[gap <= self._brake_reach[cand]]
         max_pass = int(self.passiveness[cand].max(initial=0))
         if max_pass > 0 and len(cand):
-            s = self.states[cand]
-            for j in range(max_pass):
-                idx = np.minimum(self.plan_index[cand] + j, self.plans.shape[1] - 1)
-                s = step_vehicle(s, self.plans[cand, idx], self.dt)
-                fp = rect_corners(s, self.vehicle_dims[cand, 0], self.vehicle_dims[cand, 1])
-                hit = rects_overlap(fp, ego_fp[None]) & (j < self.passiveness[cand])
-                brake[cand[hit]] = True
+            ahead = plan_lookahead(self.states[cand], self.plans, cand, self.plan_index[cand], max_pass,
+                                   step_vehicle, self.dt)
+            fp = rect_corners(ahead, self.vehicle_dims[cand, 0, None], self.vehicle_dims[cand, 1, None])
+            hit = rects_overlap(fp, ego_fp[None, None]) & (np.arange(max_pass)[None] < self.passiveness[cand, None])
+            brake[cand[hit.any(axis=1)]] = True
         p = len(self.ped_pos)
         ped_brake = np.zeros(p, dtype=bool)
         max_pp = int(self.ped_pass.max(initial=0))
         if max_pp > 0 and p:
-            pos = self.ped_pos.copy()
-            for j in range(max_pp):
-                idx = np.minimum(self.ped_index + j, self.ped_plans.shape[1] - 1)
-                pos = step_pedestrian(pos, self.ped_plans[np.arange(p), idx], self.dt)
-                hit = disc_rect_overlap(pos, self.ped_radii, ego_fp[None]) & (j < self.ped_pass)
-                ped_brake |= hit
+            pos = plan_lookahead(self.ped_pos, self.ped_plans, np.arange(p), self.ped_index, max_pp, step_pedestrian,
+                                 self.dt)
+            hit = disc_rect_overlap(pos, self.ped_radii[:, None], ego_fp[None, None])
+            ped_brake = (hit & (np.arange(max_pp)[None] < self.ped_pass[:, None])).any(axis=1)
         return brake, ped_brake
 
     def clip_command(self, v: float, omega: float) -> tuple[float, float]:
