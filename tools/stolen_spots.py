@@ -23,16 +23,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-LOT = ROOT / "src/avp_world/avp_world/maps/dlp_lot.yaml"
-
-
-def _config(t_final: float, planner_params: list[str]):
-    """The run configuration of the busy lot's records (as tools/run_seeds.py makes it)."""
-    from avp_experiment import runner
-    from avp_experiment.run_config import RunConfig
-
-    sim = runner._with_lot(runner.parse_sim_params(["scenario.family=busy"]), str(LOT))
-    return RunConfig(t_final=t_final, sim_overrides=sim, planner_overrides=runner.parse_planner_params(planner_params))
+sys.path.insert(0, str(ROOT / "tools"))
 
 
 def heading_for(world, lot, spot_id: int, steps: int) -> list[dict]:
@@ -72,6 +63,8 @@ def _ego_view(lot, sim: dict, cfg, method: str, seed: int, spot_id: int) -> dict
 
 
 def main(argv: list[str]) -> int:
+    from probe_episodes import run_config
+
     from avp_experiment.run_config import sim_values
     from avp_sim.core.factory import load_lot_param, make_world
 
@@ -82,7 +75,7 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--t-final", type=float, default=60.0)
     ap.add_argument("--json", help="append one line per stolen episode to this file")
     a = ap.parse_args(argv)
-    cfg = _config(a.t_final, a.planner_param)
+    cfg = run_config(a.t_final, a.planner_param)
     sim = sim_values(cfg)
     lot = load_lot_param(sim["lot_file"])
     for spec in a.records:

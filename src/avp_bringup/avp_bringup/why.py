@@ -37,11 +37,18 @@ def trace_from_bag(bag: Path) -> tuple[dict, float]:
     return trace.summary(), 0.1
 
 
+def records_file(source: Path) -> Path | None:
+    """The episode records of ``source``: itself if a .jsonl file, its episodes.jsonl if a run folder, else None."""
+    if source.is_file() and source.suffix == ".jsonl":
+        return source
+    return source / "episodes.jsonl" if (source / "episodes.jsonl").is_file() else None
+
+
 def trace_from_run(out: Path, seed: int, method: str, mode: str) -> tuple[dict, float]:
     """(trace summary, dt) of one record of an experiment folder or a .jsonl file of records; ValueError naming what
     is missing."""
-    path = out if out.suffix == ".jsonl" and out.is_file() else out / "episodes.jsonl"
-    if not path.is_file():
+    path = records_file(out)
+    if path is None:
         raise ValueError(f"{out}: no episodes.jsonl (not an `avp experiment --out` folder)")
     found = None
     for line in path.read_text().splitlines():
@@ -60,7 +67,7 @@ def trace_from_run(out: Path, seed: int, method: str, mode: str) -> tuple[dict, 
 def explain(source: str, seed: int | None = None, method: str = "bezier", mode: str = "reactive") -> str:
     """The text ``avp why`` prints for a bag or a run folder."""
     p = Path(source)
-    if (p.is_dir() and (p / "episodes.jsonl").is_file()) or (p.is_file() and p.suffix == ".jsonl"):
+    if records_file(p) is not None:
         if seed is None:
             raise ValueError("a run folder needs --seed (and --method, --mode)")
         summary, dt = trace_from_run(p, seed, method, mode)
