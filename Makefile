@@ -1,6 +1,6 @@
 # The two commands of the README. Both set up what is missing first (idempotent, tools/bootstrap.sh).
 SHELL := /bin/bash
-.PHONY: setup demo test bench lint clean records-check
+.PHONY: setup demo test test-fast stress-dds bench lint clean records-check
 
 setup:
 	@bash tools/bootstrap.sh
@@ -11,6 +11,14 @@ demo: setup
 
 test: setup
 	@source tools/env.sh && python -m pytest -q tests
+
+# the unit tests alone: no node processes, no Ray cluster (the markers of tests/conftest.py)
+test-fast: setup
+	@source tools/env.sh && python -m pytest -q -m "not dds and not ray" tests
+
+# the DDS tests RUNS times in a row beside HOGS busy loops, to catch discovery races before CI does
+stress-dds: setup
+	@source tools/env.sh && python tools/stress_dds.py --runs $${RUNS:-10} --hogs $${HOGS:-2}
 
 bench: setup
 	@source tools/env.sh && python bench/bench_sensing.py

@@ -10,6 +10,17 @@ import pytest
 from avp_world.lot import load_bundled_lot
 
 
+def pytest_collection_modifyitems(config, items):
+    """Markers by what a test needs (pyproject.toml): ``dds`` for every test that uses :func:`ros_env` (it starts node
+    processes, or talks over DDS itself), ``ray`` for the Ray backend's. ``-m "not dds and not ray"`` selects the
+    unit tests; tools/stress_dds.py runs ``-m dds`` in a loop."""
+    for item in items:
+        if "ros_env" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.dds)
+        if item.path.name == "test_ray_backend.py":
+            item.add_marker(pytest.mark.ray)
+
+
 @pytest.fixture(scope="session")
 def paper_lot():
     return load_bundled_lot("paper_lot")

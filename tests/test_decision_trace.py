@@ -32,6 +32,7 @@ def _rushing_car(speed: float = 5.0):
 
 def test_an_idle_step_names_the_agent_that_blocks_it(paper_lot):
     s = PlannerSettings()
+    s = replace(s, collision=replace(s.collision, reactive_steps=0))  # the paper's check: no car assumed to stop
     calm = EgoPlanner(paper_lot, replace(s, decision=replace(s.decision, evasive=False)))
     car, pred = _rushing_car()
     d = calm.decide(make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vehicles=[car]), predictions=[pred])

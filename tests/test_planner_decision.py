@@ -235,9 +235,14 @@ def test_closed_loop_in_the_simulator(paper_lot, reactive):
             assert w.metrics.parking_time < 60.0
 
 
-def test_evasive_when_standing_still_is_hit(paper_lot, planner):
+def test_evasive_when_standing_still_is_hit(paper_lot):
     """A car rushing up the aisle at the ego (and stopping where the ego could go) makes every plan unsafe;
-    standing still is hit first, so the ego backs away (the plan that is hit latest) instead of idling."""
+    standing still is hit first, so the ego backs away (the plan that is hit latest) instead of idling. The paper's
+    check (``collision.reactive_steps: 0``): with the shipped assumption the car would stop for the ego."""
+    from dataclasses import replace
+
+    s = PlannerSettings()
+    planner = EgoPlanner(paper_lot, replace(s, collision=replace(s.collision, reactive_steps=0)))
     ego = np.array([21.5, 25.0, -math.pi / 2])
     n = 40
     ys = 12.0 + 0.5 * np.arange(1, n + 1)  # 5 m/s northwards, then holds y = 32
@@ -246,9 +251,7 @@ def test_evasive_when_standing_still_is_hit(paper_lot, planner):
     d = planner.decide(make_obs(paper_lot, ego), predictions=[pred])
     assert d.mode != "idle" and d.reason.startswith("evasive"), d.reason
     assert d.command[0] < 0  # reversing, away from the car
-    settings = PlannerSettings()
-    from dataclasses import replace
-
+    settings = planner.settings
     calm = EgoPlanner(paper_lot, replace(settings, decision=replace(settings.decision, evasive=False)))
     d = calm.decide(make_obs(paper_lot, ego), predictions=[pred])
     assert d.mode == "idle"

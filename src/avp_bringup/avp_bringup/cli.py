@@ -178,10 +178,12 @@ def cmd_replay(args: argparse.Namespace) -> int:
         return 2
     print(f"[avp replay] {args.bag}: {len(rep.connections)} topics at rate {args.rate}, from +{args.start} s")
     try:
-        time.sleep(args.delay)  # let subscribers discover the publishers
+        # --wait-subscribers: first until our writers have matched a reader on every topic, then --delay, in which
+        # the readers' side of the match completes (a volatile message written before it is lost to that reader)
         if args.wait_subscribers and not rep.wait_for_subscribers(list(rep.pubs), timeout=30.0):
             print("[avp replay] --wait-subscribers: no subscriber matched every topic within 30 s; playing anyway",
                   file=sys.stderr)
+        time.sleep(args.delay)  # let subscribers discover the publishers (and, after a match, finish matching)
         n = rep.play(rate=args.rate, start_offset=args.start)
         print(f"[avp replay] published {n} messages")
     except KeyboardInterrupt:
@@ -344,7 +346,7 @@ def _add_bag_commands(sub) -> None:
     p.add_argument("--topics", nargs="+")
     p.add_argument("--delay", type=float, default=1.0, help="wall seconds to wait for subscribers first")
     p.add_argument("--wait-subscribers", action="store_true",
-                   help="after --delay, also wait (up to 30 s) until every replayed topic has a subscriber")
+                   help="before --delay, wait (up to 30 s) until every replayed topic has a subscriber")
     p.set_defaults(func=cmd_replay)
     p = sub.add_parser("merge-bag", help="one MCAP file of a (split) bag, for viewers that open one file")
     p.add_argument("bag")

@@ -28,8 +28,9 @@ from typing import Any
 from avp_experiment.profiles import MethodProfile, ProfileError
 
 #: planner behaviours beyond §V-D, each {parameter: (on value, off value)}; "off" is the paper's rule. The
-#: defaults of planner.param.yaml have the first three on and, of issue #28's, ``reactive_agents`` (with
-#: ``collision.reactive_evidence: lot``: assumed once an agent has been seen to stop for the ego); the others off.
+#: defaults of planner.param.yaml have the first three on and ``reactive_agents`` (with
+#: ``collision.reactive_evidence: assumed``: every agent is assumed to stop for the ego from the first step; the
+#: ``wary`` planner profile waits until one has been seen to, ``lot``); the others off.
 SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     # "If no safe plans were found ... the ego would stay put" (§V-D-3): no escape manoeuvre when standing still
     # is predicted to be hit
@@ -49,7 +50,7 @@ SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     "deadlock_breaker": {"decision.deadlock_breaker": (True, False)},
     # "avoids collisions with the predicted trajectories" (§V-D-1) as if each agent went on whatever the ego does:
     # the agents stop for the ego as §III-B's do (look-ahead 2 steps, avp_search.reactive), on in planner.param.yaml
-    # once one has been seen to (collision.reactive_evidence: lot)
+    # for every agent from the first step (collision.reactive_evidence: assumed)
     "reactive_agents": {"collision.reactive_steps": (2, 0)},
     # c) "wait-and-go" (Nawaz et al.) waits before starting only: wait at a stop on the path instead
     "wait_anywhere": {"decision.wait_anywhere": (True, False)},

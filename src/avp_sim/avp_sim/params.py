@@ -104,9 +104,9 @@ SIM_PARAMS: list[ParamSpec] = [
               "old is ignored and the ego holds still (0: only the current one; a dead pipeline node stops the ego "
               "within one step).", min=0, max=1000, default=0),
     ParamSpec("realtime_wait_first_command", bool, "Real-time: the clock starts when the ego's pipeline is up — "
-              "observation 0 is re-sent every step period until a command answering it arrives (false: the world "
-              "runs from the first observation; the ego holds still until its nodes are ready, e.g. while the belief "
-              "node prepares a big lot).", default=True),
+              "step 0 (observation and ground truth) is re-sent every step period until a command answering it "
+              "arrives (false: the world runs from the first observation; the ego holds still until its nodes are "
+              "ready, e.g. while the belief node prepares a big lot).", default=True),
     ParamSpec("wait_for_subscribers", bool, "Lock-step: hold step 0 until a subscriber to observation and a "
               "publisher on cmd exist, then 0.5 s more the first time (sim_node.SUBSCRIBER_SETTLE_S: the "
               "readers finish matching).", default=True),

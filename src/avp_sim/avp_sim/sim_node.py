@@ -7,7 +7,8 @@ Topics (relative; the launcher puts every node in namespace /avp):
   service    reset_episode (avp_msgs/srv/ResetEpisode)
 
 Lock-step: observation k is published, the command stamped t_k is awaited, then the world steps,
-so results do not depend on compute speed. Real-time: a wall timer steps every dt with the latest
+so results do not depend on compute speed. Real-time: until the ego's first command (``realtime_wait_first_command``)
+step 0 — observation and ground truth — is re-sent every dt; then a wall timer steps every dt with the latest
 command if it answers the current observation (stamp; or one at most ``command_max_lag`` steps older)
 and arrived less than ``command_watchdog`` wall seconds ago; else the ego holds still (v = ω = 0) — so
 when a pipeline node dies the ego stops within one step.
@@ -179,7 +180,11 @@ class SimNode(Node):
             return
         if w.step_index == 0 and self.p["realtime_wait_first_command"] and (
                 self.latest_cmd is None or self.latest_cmd[3] != step_to_ns(0, self.dt)):
-            self._publish_step()  # the clock starts with the ego's first answer (a re-send: no new ground truth)
+            # the clock starts with the ego's first answer. Until then step 0 is re-sent whole — observation, ground
+            # truth, markers — so that a recorder, monitor or viewer whose reader matches our volatile writers late
+            # (DDS discovery) still gets step 0; every consumer keys ground truth by step (README, real time)
+            self.debug_step = -1
+            self._publish_step()
             return
         v, om, fresh = 0.0, 0.0, False
         if self.latest_cmd is not None:
