@@ -67,11 +67,12 @@ def main(argv: list[str] | None = None) -> int:
             counts = summarise(r.stdout)
             failures = sorted(set(re.findall(r"^(?:FAILED|ERROR) (\S+)", r.stdout, re.M)))
             rec = {"run": i, "rc": r.returncode, "wall_s": round(time.monotonic() - t0, 1), "hogs": args.hogs,
-                   **counts, "failures": failures}
+                   "loadavg_end": [round(x, 2) for x in os.getloadavg()], **counts, "failures": failures}
             with (args.out / "runs.jsonl").open("a") as f:
                 f.write(json.dumps(rec) + "\n")
             failed_runs += r.returncode != 0
-            print(f"run {i + 1}/{args.runs}: rc {r.returncode}, {counts}, {rec['wall_s']} s"
+            print(f"run {i + 1}/{args.runs}: rc {r.returncode}, {counts}, {rec['wall_s']} s, load "
+                  f"{rec['loadavg_end'][1]}"
                   + (f", failed: {', '.join(failures)}" if failures else ""), flush=True)
     finally:
         for h in hogs:
