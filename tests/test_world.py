@@ -166,8 +166,8 @@ def test_reactive_brakes_skip_only_agents_that_cannot_reach_the_ego(paper_lot):
         full._brake_reach = np.full_like(full._brake_reach, np.inf)
         for k in range(250):
             cmd = (2.0, 0.0) if k % 80 < 40 else (2.0, 0.15)
-            b, pb = w._reactive_brakes()
-            bf, pbf = full._reactive_brakes()
+            b, pb, _ = w._reactive_brakes()
+            bf, pbf, _ = full._reactive_brakes()
             assert np.array_equal(b, bf) and np.array_equal(pb, pbf), (seed, k)
             n_braking += int(b.any())
             w.step(*cmd)

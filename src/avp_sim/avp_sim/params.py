@@ -86,6 +86,12 @@ SIM_PARAMS: list[ParamSpec] = [
               "car for a car or pedestrian its next n_pass footprints meet, a pedestrian for a moving car "
               "(avp_sim/core/agent_yield.py). §III-B: agents react to the ego only (false, the paper); on the busy "
               "lot they then drive through each other.", "n_pass", "§III-B", default=False),
+    ParamSpec("egos.count", int, "Automated cars (egos) in the lot, each with its own observation, command and "
+              "metrics (avp_sim/core/egos.py; a scenario file's `egos` sets them instead). The paper has one; with "
+              "more, §III-B's agents brake for every ego (a departure).", "K", "", min=1, max=8, default=1),
+    ParamSpec("egos.entry_interval", float, "Seconds between two egos' entries through the gate (each enters once "
+              "its time has come and the gate is clear; its parking time counts from its entry).", "", "",
+              min=0.0, max=600.0, default=5.0),
     ParamSpec("ego_max_speed", float, "Ego speed limit; commands are clipped to it and to |ω| <= |v|/R_min.",
               "v", "eq. (1)", min=0.0, default=5.0),
     ParamSpec("auth_inputs", bool, "Take only commands tagged with the user's key (avp_common.msg_auth, "

@@ -53,7 +53,8 @@ def scenario_params(p: dict[str, Any]) -> ScenarioParams:
 
 def world_config(p: dict[str, Any]) -> WorldConfig:
     return WorldConfig(t_final=p["t_final"], sensor=sensor_config(p), ego_max_speed=p["ego_max_speed"],
-                       agents_yield=p["agents_yield"])
+                       agents_yield=p["agents_yield"], n_egos=p["egos.count"],
+                       entry_interval=p["egos.entry_interval"])
 
 
 def make_world(lot: LotMap, p: dict[str, Any], seed: int, reactive: bool, scenario_file: str = "",

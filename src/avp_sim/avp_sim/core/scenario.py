@@ -64,6 +64,8 @@ class Scenario:
     dt: float = 0.1
     t_hist: float = 4.0
     passiveness_step: float = 0.1  # s per unit of n_pass (§III-B counts timesteps; see ScenarioParams)
+    # further egos of a scenario file ((pose (3,), entry time [s]) each; .egos): the lot then has 1 + len egos
+    ego_entries: tuple = ()
 
     @property
     def hist_steps(self) -> int:

@@ -26,9 +26,11 @@ from avp_world.lot import LotMap
 from avp_world.vehicle import VehicleSpec
 
 MAX_DYNAMIC_VEHICLES = 64  # a scenario file's dynamic vehicles (bounded work per request, issue #20)
+MAX_EGOS = 8  # egos of one lot (avp_sim.core.egos): ego_start's and those of ``egos``
 
 #: keys of a scenario file and of each dynamic_vehicles entry
-_FILE_KEYS = {"seed", "reactive", "ego_start", "vacant_spot_ids", "dynamic_vehicles"}
+_FILE_KEYS = {"seed", "reactive", "ego_start", "egos", "vacant_spot_ids", "dynamic_vehicles"}
+_EGO_KEYS = {"start", "enter_at"}
 _DYN_KEYS = {"target_spot", "maneuver", "cruise_speed", "approach_distance", "passiveness"}
 
 
@@ -56,7 +58,8 @@ def scenario_from_dict(lot: LotMap, data: dict, source: str, seed: int, reactive
     random by ``seed``); ``dynamic_vehicles``: each parks in one of the vacant spots with one of ParkSim's 8
     maneuvers ("side/stop/entry", e.g. ``near/before/head_in``), cruising at ``cruise_speed`` and
     ``approach_distance`` from its maneuver start at t = 0, with passiveness n_pass (§III-B; 0 when not
-    reactive); ``ego_start`` [x, y, theta]. ``seed`` / ``reactive`` default to the request's. Every problem
+    reactive); ``ego_start`` [x, y, theta]; ``egos``: further automated cars, each ``{start: [x, y, theta],
+    enter_at: s}`` (avp_sim.core.egos). ``seed`` / ``reactive`` default to the request's. Every problem
     raises :class:`ScenarioError` naming ``source`` and the field.
     """
     params = params.resolve(lot)
@@ -82,6 +85,7 @@ def scenario_from_dict(lot: LotMap, data: dict, source: str, seed: int, reactive
     ego_start = np.array([_number(x, f"{source}: ego_start[{i}]") for i, x in enumerate(ego)])
     if not polygon_contains_points(lot.boundary, rect_corners(ego_start, vehicle.length, vehicle.width)).all():
         raise ScenarioError(f"{source}: ego_start: the ego's footprint is outside the lot")
+    entries = _ego_entries(lot, data.get("egos", []), source, vehicle)
     if "vacant_spot_ids" not in data:
         raise ScenarioError(f"{source}: vacant_spot_ids: missing")
     vac = data["vacant_spot_ids"]
@@ -114,7 +118,31 @@ def scenario_from_dict(lot: LotMap, data: dict, source: str, seed: int, reactive
         parked.append(VehicleAgent(id=s.id, length=params.parked_length, width=params.parked_width,
                                    initial_state=pose, controls=np.zeros((0, 2)), parked=True))
     return Scenario(seed=seed, reactive=reactive, ego_start=ego_start, ego=vehicle, vehicles=tuple(parked + dynamic),
-                    dt=params.dt, t_hist=params.t_hist, passiveness_step=params.passiveness_step)
+                    dt=params.dt, t_hist=params.t_hist, passiveness_step=params.passiveness_step, ego_entries=entries)
+
+
+def _ego_entries(lot: LotMap, egos, source: str, vehicle: VehicleSpec) -> tuple:
+    """The ``egos`` entries: ((pose, entry time [s]), ...) of the automated cars after the first."""
+    if not isinstance(egos, list):
+        raise ScenarioError(f"{source}: egos: expected a list, got {type(egos).__name__}")
+    if len(egos) > MAX_EGOS - 1:
+        raise ScenarioError(f"{source}: egos: {len(egos)} egos besides ego_start's, at most {MAX_EGOS - 1}")
+    out = []
+    for j, e in enumerate(egos):
+        w = f"{source}: egos[{j}]"
+        if not isinstance(e, dict):
+            raise ScenarioError(f"{w}: expected a mapping with keys {sorted(_EGO_KEYS)}")
+        unknown = sorted(set(e) - _EGO_KEYS)
+        if unknown:
+            raise ScenarioError(f"{w}.{unknown[0]}: unknown key (known: {sorted(_EGO_KEYS)})")
+        start = e.get("start")
+        if not isinstance(start, list) or len(start) != 3:
+            raise ScenarioError(f"{w}.start: expected [x, y, theta], got {start!r}")
+        pose = np.array([_number(x, f"{w}.start[{i}]") for i, x in enumerate(start)])
+        if not polygon_contains_points(lot.boundary, rect_corners(pose, vehicle.length, vehicle.width)).all():
+            raise ScenarioError(f"{w}.start: the ego's footprint is outside the lot")
+        out.append((pose, _number(e.get("enter_at", 0.0), f"{w}.enter_at", 0.0, 3600.0)))
+    return tuple(out)
 
 
 def _dynamic_vehicles(lot: LotMap, dyn_list: list, seen: set[int], ego_start: np.ndarray, source: str,

@@ -8,6 +8,10 @@ Step order at time t (k = t / dt):
   3. with ``agents_yield`` (off by default; :mod:`.agent_yield`) the agents also brake for each other by the same
      rule;
   4. everyone moves by eq. (1) / eq. (2); collisions and parking are checked at t + dt.
+
+With K egos (``egos.count``, :mod:`.egos`) :meth:`World.observe` takes the ego's index, :meth:`World.step_all` one
+command per ego, each agent brakes for every ego in the lot, and each ego keeps its own status and metrics; with K = 1
+everything is as above.
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from avp_sim.core.agent_yield import agents_yield, plan_lookahead
+from avp_sim.core.egos import EGO_ID_BASE, Egos
 from avp_sim.core.metrics import COLLISION, RUNNING, SUCCESS, TIMEOUT, EpisodeMetrics, apply_event, step_event
 from avp_sim.core.observation import RayCaster, SensorConfig, classify_world
 from avp_sim.core.scenario import Scenario
@@ -44,6 +49,8 @@ class WorldConfig:
     sensor: SensorConfig = field(default_factory=SensorConfig)
     ego_max_speed: float = 5.0  # |v| of the ego is clipped to this [m/s]
     agents_yield: bool = False  # agents also brake for each other (§III-B: for the ego only; .agent_yield)
+    n_egos: int = 1  # K automated cars in the lot (egos.count; .egos); 1 = the paper
+    entry_interval: float = 5.0  # s between two egos' entries through the gate (egos.entry_interval)
 
 
 class World:
@@ -90,11 +97,12 @@ class World:
             self.history[:, k + 1] = self.states
         self.step_index = 0
         self._occupancy_step = -1  # occupancy() cache: state changes only in step()
-        self.ego = np.array(sc.ego_start, dtype=float)
-        self.ego_speed = 0.0
+        self.egos = Egos(np.array(sc.ego_start, dtype=float), config.n_egos,
+                         int(round(config.entry_interval / self.dt)), self.hist, sc.ego.length, sc.ego.width,
+                         tuple((pose, int(round(t / self.dt))) for pose, t in sc.ego_entries))
         self.status = RUNNING
-        self.metrics = EpisodeMetrics()
         self.braking = np.zeros(n, dtype=bool)  # braking for the ego (§III-B)
+        self.braking_for = np.zeros((n, self.egos.count), dtype=bool)  # ... for which ego (set by each step)
         self.ped_braking = np.zeros(p, dtype=bool)
         self.yielding = np.zeros(n, dtype=bool)  # braking for another agent only (agents_yield)
         self.ped_yielding = np.zeros(p, dtype=bool)
@@ -102,7 +110,23 @@ class World:
         self.log_vehicles: list[np.ndarray] = [self.states.copy()]
         self.log_braking: list[np.ndarray] = [self.braking.copy()]
         self.log_commands: list[np.ndarray] = []
+        self.log_egos: list[np.ndarray] = [self.egos.poses.copy()]
         self._check_events()
+
+    # ------------------------------------------------------------------ ego 0 (the paper's one ego)
+    @property
+    def ego(self) -> np.ndarray:
+        """Ego 0's pose (x, y, theta): the one ego of the paper."""
+        return self.egos.poses[0]
+
+    @property
+    def ego_speed(self) -> float:
+        return float(self.egos.speeds[0])
+
+    @property
+    def metrics(self) -> EpisodeMetrics:
+        """Ego 0's §VI-B metrics (``self.egos.metrics[i]`` for ego i)."""
+        return self.egos.metrics[0]
 
     # ------------------------------------------------------------------ dynamics
     def _advance_agents(self, brake: np.ndarray, ped_brake: np.ndarray) -> None:
@@ -120,14 +144,28 @@ class World:
             self.ped_pos = step_pedestrian(self.ped_pos, pu, self.dt)
             self.ped_index = self.ped_index + (~ped_brake)
 
-    def _reactive_brakes(self) -> tuple[np.ndarray, np.ndarray]:
+    def _reactive_brakes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """§III-B for every ego in the lot (K > 1: a departure, :mod:`.egos`): (vehicles that brake, pedestrians that
+        stop, (K,) the number of agents braking for each ego)."""
+        brake, ped_brake = np.zeros(len(self.states), dtype=bool), np.zeros(len(self.ped_pos), dtype=bool)
+        counts = np.zeros(self.egos.count, dtype=np.int64)
+        self.braking_for = np.zeros((len(self.states), self.egos.count), dtype=bool)  # (agent, ego): who for whom
+        for j in np.nonzero(self.egos.present)[0]:
+            b, pb = self._brakes_for(self.egos.poses[j])
+            counts[j] = int((b & self.is_dynamic).sum()) + int(pb.sum())
+            self.braking_for[:, j] = b
+            brake |= b
+            ped_brake |= pb
+        return brake, ped_brake, counts
+
+    def _brakes_for(self, ego: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """§III-B: agent A brakes iff A_tau meets V_0,t for some tau = t + dt, ..., t + n_pass,A dt."""
         n = len(self.states)
-        ego_fp = rect_corners(self.ego, self.scenario.ego.length, self.scenario.ego.width)
+        ego_fp = rect_corners(ego, self.scenario.ego.length, self.scenario.ego.width)
         brake = np.zeros(n, dtype=bool)
         cand = np.nonzero(self.passiveness > 0)[0]
         if len(cand):  # agents that cannot reach the ego within their n_pass steps cannot brake
-            gap = np.hypot(self.states[cand, 0] - self.ego[0], self.states[cand, 1] - self.ego[1])
+            gap = np.hypot(self.states[cand, 0] - ego[0], self.states[cand, 1] - ego[1])
             cand = cand[gap <= self._brake_reach[cand]]
         max_pass = int(self.passiveness[cand].max(initial=0))
         if max_pass > 0 and len(cand):
@@ -154,48 +192,112 @@ class World:
         return v, float(np.clip(omega, -wmax, wmax))
 
     def step(self, v: float, omega: float) -> str:
-        """Advance one dt with ego command (v, omega); returns the episode status."""
+        """Advance one dt with ego command (v, omega); returns the episode status. One ego (K > 1: :meth:`step_all`)."""
+        if self.egos.count != 1:
+            raise ValueError(f"World.step drives one ego; this world has {self.egos.count}: use step_all")
+        return self.step_all([(v, omega)])
+
+    def step_all(self, commands) -> str:
+        """Advance one dt with one command (v, omega) per ego (those of egos not driving are ignored); returns the
+        episode status (running while any ego runs)."""
         if self.status != RUNNING:
             return self.status
-        if not (math.isfinite(v) and math.isfinite(omega)):
-            raise ValueError(f"ego command must be finite, got v={v}, omega={omega}")
-        v, omega = self.clip_command(v, omega)
-        brake, ped_brake = self._reactive_brakes()
+        eg = self.egos
+        if len(commands) != eg.count:
+            raise ValueError(f"step_all needs {eg.count} commands (one per ego), got {len(commands)}")
+        driving = eg.driving
+        cmds = np.zeros((eg.count, 2))
+        for i, (v, omega) in enumerate(commands):
+            if not (math.isfinite(v) and math.isfinite(omega)):
+                raise ValueError(f"ego command must be finite, got v={v}, omega={omega}" + (f" (ego {i})" if i else ""))
+            if driving[i]:
+                cmds[i] = self.clip_command(v, omega)
+        brake, ped_brake, counts = self._reactive_brakes()
         self.braking = brake
         self.ped_braking = ped_brake
-        interrupted = int((brake & self.is_dynamic).sum()) + int(ped_brake.sum())
-        self.metrics.interrupted_agent_steps += interrupted
-        self.metrics.interrupted_steps += int(interrupted > 0)
+        for i in np.nonzero(driving)[0]:
+            eg.metrics[i].interrupted_agent_steps += int(counts[i])
+            eg.metrics[i].interrupted_steps += int(counts[i] > 0)
         if self.config.agents_yield:
             v_yield, p_yield = agents_yield(self)
             self.yielding, self.ped_yielding = v_yield & ~brake, p_yield & ~ped_brake
             brake, ped_brake = brake | v_yield, ped_brake | p_yield
         self._advance_agents(brake, ped_brake)
         self.history = np.concatenate([self.history[:, 1:], self.states[:, None]], axis=1)
-        self.ego = step_vehicle(self.ego, np.array([v, omega]), self.dt)
-        self.ego_speed = v
+        for i in range(eg.count):
+            if driving[i]:
+                eg.poses[i] = step_vehicle(eg.poses[i], cmds[i], self.dt)
+            eg.speeds[i] = cmds[i, 0]
+        eg.push_history()
         self.step_index += 1
-        self.metrics.steps = self.step_index
         self.log_ego.append(self.ego.copy())
+        self.log_egos.append(eg.poses.copy())
         self.log_vehicles.append(self.states.copy())
         self.log_braking.append(self.braking.copy())
-        self.log_commands.append(np.array([v, omega]))
+        self.log_commands.append(cmds[0].copy() if eg.count == 1 else cmds)
+        self._enter_due_ego()
         self._check_events()
         return self.status
+
+    def _enter_due_ego(self) -> None:
+        """The first ego whose entry time has come enters at the gate, if no vehicle or ego stands on it."""
+        eg = self.egos
+        for i in eg.waiting():
+            if self.step_index < eg.due_step[i]:
+                return
+            gate = rect_corners(eg.starts[i], eg.length, eg.width)[None]
+            blockers = [self.vehicle_corners()]
+            if eg.present.any():
+                blockers.append(eg.corners(np.nonzero(eg.present)[0]))
+            if rects_overlap(np.concatenate(blockers), gate).any():
+                return  # the gate is taken: it waits (its parking time starts when it enters)
+            eg.enter(i, self.step_index)
+            return
 
     # ------------------------------------------------------------------ events and metrics
     def vehicle_corners(self) -> np.ndarray:
         return rect_corners(self.states, self.vehicle_dims[:, 0], self.vehicle_dims[:, 1])
 
-    def ego_corners(self) -> np.ndarray:
-        return rect_corners(self.ego, self.scenario.ego.length, self.scenario.ego.width)
+    def ego_corners(self, i: int = 0) -> np.ndarray:
+        return rect_corners(self.egos.poses[i], self.scenario.ego.length, self.scenario.ego.width)
+
+    def _with_egos(self, corners: np.ndarray, ids: np.ndarray, others: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The agents' corners and ids with those of the egos ``others`` appended (as observed vehicles)."""
+        if not len(others):
+            return corners, ids
+        return (np.concatenate([corners, self.egos.corners(others)]),
+                np.concatenate([ids, EGO_ID_BASE + others.astype(np.int64)]))
 
     def _check_events(self) -> None:
-        status, who, parked = step_event(self.lot, self.ego_corners(), self.vehicle_corners(), self.vehicle_ids,
-                                         self.ped_pos, self.ped_radii, self.ped_ids)
-        self.status = apply_event(self.metrics, status, who, parked, self.step_index, self.dt,
-                                  self.config.t_final, self.target_spot[self.is_dynamic],
-                                  ego_moved=self.step_index > 0 and self.ego_speed != 0.0)
+        eg = self.egos
+        agents = self.vehicle_corners()
+        for i in np.nonzero(eg.driving)[0]:
+            corners, ids = self._with_egos(agents, self.vehicle_ids, eg.others(i))
+            status, who, parked = step_event(self.lot, self.ego_corners(i), corners, ids, self.ped_pos,
+                                             self.ped_radii, self.ped_ids)
+            m = eg.metrics[i]
+            eg.status[i] = apply_event(m, status, eg.ego_name(who), parked, self.step_index, self.dt,
+                                       self.config.t_final, self.target_spot[self.is_dynamic],
+                                       ego_moved=self.step_index > 0 and eg.speeds[i] != 0.0)
+            if m.success and eg.entered_step[i] > 0:  # parking time from its entry (K > 1)
+                m.parking_time = (self.step_index - int(eg.entered_step[i])) * self.dt
+        self.status = self._episode_status()
+
+    def _episode_status(self) -> str:
+        """K = 1: the ego's. K > 1: running while any ego runs or may still enter; then success if every ego
+        parked, collision if any collided, else timeout (an ego that never entered times out)."""
+        eg = self.egos
+        if eg.count == 1:
+            return eg.status[0]
+        if self.step_index * self.dt >= self.config.t_final - 1e-9:
+            for i in eg.waiting():
+                eg.status[i] = TIMEOUT
+                eg.metrics[i].steps = self.step_index
+        if any(s == RUNNING for s in eg.status):
+            return RUNNING
+        if all(s == SUCCESS for s in eg.status):
+            return SUCCESS
+        return COLLISION if COLLISION in eg.status else TIMEOUT
 
     @property
     def done(self) -> bool:
@@ -209,14 +311,20 @@ class World:
             self._occupancy_step = self.step_index
         return self._occupancy
 
-    def observe(self) -> Observation:
-        """What the ego senses now: rays stop at the lot boundary, other vehicles or dQ (no ground truth)."""
-        corners = self.vehicle_corners()
-        scan = self.caster.cast(self.ego, corners, self.ped_pos, self.ped_radii)
-        occupied, vehicle_spot = self.occupancy()
+    def observe(self, i: int = 0) -> Observation:
+        """What ego ``i`` senses now: rays stop at the lot boundary, other vehicles (the other egos among them) or dQ
+        (no ground truth)."""
+        eg = self.egos
+        if not eg.present[i]:
+            raise ValueError(f"ego {i} has not entered the lot yet")
+        others = eg.others(i)
+        corners, _ = self._with_egos(self.vehicle_corners(), self.vehicle_ids, others)
+        scan = self.caster.cast(eg.poses[i], corners, self.ped_pos, self.ped_radii)
+        occupied, vehicle_spot = classify_world(self.lot, corners) if len(others) else self.occupancy()
         seen_spots = scan.seen_spots
         vac = self.lot.spot_ids[seen_spots & ~occupied]
         occ = self.lot.spot_ids[seen_spots & occupied]
+        n_agents = len(self.states)
         vehicles = tuple(
             ObservedVehicle(
                 id=int(self.vehicle_ids[i]),
@@ -225,7 +333,11 @@ class World:
                 is_static=bool(vehicle_spot[i] >= 0),
                 history=self.history[i].copy(),
             )
-            for i in np.nonzero(scan.seen_vehicles)[0]
+            for i in np.nonzero(scan.seen_vehicles[:n_agents])[0]
+        ) + tuple(
+            ObservedVehicle(id=EGO_ID_BASE + int(j), length=eg.length, width=eg.width,
+                            is_static=bool(vehicle_spot[n_agents + r] >= 0), history=eg.history[j].copy())
+            for r, j in enumerate(others) if scan.seen_vehicles[n_agents + r]
         )
         peds = tuple(
             ObservedPedestrian(int(self.ped_ids[i]), float(self.ped_radii[i]), self.ped_pos[i].copy(),
@@ -236,10 +348,10 @@ class World:
         return Observation(
             step=self.step_index,
             dt=self.dt,
-            ego_pose=self.ego.copy(),
+            ego_pose=eg.poses[i].copy(),
             ego_length=self.scenario.ego.length,
             ego_width=self.scenario.ego.width,
-            ego_speed=self.ego_speed,
+            ego_speed=float(eg.speeds[i]),
             vacant_spot_ids=vac.astype(np.int64),
             occupied_spot_ids=occ.astype(np.int64),
             vehicles=vehicles,
@@ -261,4 +373,6 @@ class World:
             "target_spot": self.target_spot,
             "is_dynamic": self.is_dynamic,
             "pedestrians": self.ped_pos.copy(),
+            "egos": self.egos.poses.copy(),
+            "egos_present": self.egos.present.copy(),
         }

@@ -1,0 +1,138 @@
+"""Several automated cars in one lot, in process: K egos, each a pipeline of its own (a :class:`~.ego.MethodEgo`
+of its method), on one simulator core (:mod:`avp_sim.core.egos`). No ego is told another's plan or chosen spot; to
+each the others are observed vehicles.
+
+One record per ego-episode: the §VI-B record of :func:`~.metrics.episode_record` for that ego, plus its index, the
+fleet, its entry time, the spots it lost (to an agent or to another ego, counted apart) and the episode's gridlock
+(:mod:`.gridlock`). A spot is *lost* when the spot an ego is driving to park in (its decision's target) is taken by
+another vehicle (an agent or ego that comes to lie inside it) before the ego parks there.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from avp_experiment.gridlock import GridlockMeter, Node
+from avp_experiment.profiles import MethodProfile
+from avp_experiment.run_config import RunConfig
+
+
+def parse_fleet(spec: str, egos: int | None = None) -> list[str]:
+    """``bezier,bezier,blind`` -> one method per ego; ``bezier`` with ``egos`` = K -> K of it. One clear error for a
+    malformed spec."""
+    names = [s.strip() for s in spec.split(",")] if spec else []
+    if not names or any(not n for n in names):
+        raise ValueError(f"--fleet: expected comma-separated method names, got {spec!r}")
+    if egos is not None:
+        if not 1 <= egos <= 8:
+            raise ValueError(f"--egos: expected 1..8 automated cars, got {egos}")
+        if len(names) == 1:
+            names = names * egos
+        elif len(names) != egos:
+            raise ValueError(f"--fleet names {len(names)} methods but --egos is {egos}")
+    if not 1 <= len(names) <= 8:
+        raise ValueError(f"--fleet: 1..8 egos, got {len(names)}")
+    return names
+
+
+def _holders(world) -> dict[int, str]:
+    """Spot id -> "agent" or "ego:<j>" for every spot a vehicle or ego lies inside now (§III-A's rule)."""
+    from avp_sim.core.observation import classify_world
+
+    eg = world.egos
+    rows = np.nonzero(eg.present)[0]
+    corners = np.concatenate([world.vehicle_corners(), eg.corners(rows)]) if len(rows) else world.vehicle_corners()
+    _, vehicle_spot = classify_world(world.lot, corners)
+    n = len(world.states)
+    out: dict[int, str] = {}
+    for r, row in enumerate(vehicle_spot):
+        if row >= 0:
+            out[int(world.lot.spot_ids[row])] = "agent" if r < n else f"ego:{int(rows[r - n])}"
+    return out
+
+
+def waits_for(world, decisions: dict[int, object]) -> dict[Node, set[Node]]:
+    """This step's waits-for edges (:mod:`.gridlock`): egos standing for the agent their trace names, agents braking
+    for an ego."""
+    from avp_planner.core.trace import step_of
+    from avp_sim.core.egos import EGO_ID_BASE
+
+    edges: dict[Node, set[Node]] = {}
+    for i, d in decisions.items():
+        _, tr, still = step_of(d)
+        agent = tr.get("agent_id")
+        if still and agent is not None and int(agent) >= 0 and not tr.get("pedestrian"):
+            a = int(agent)
+            edges.setdefault(("ego", i), set()).add(("ego", a - EGO_ID_BASE) if a >= EGO_ID_BASE else ("agent", a))
+    for r, j in zip(*np.nonzero(world.braking_for), strict=True):
+        edges.setdefault(("agent", int(world.vehicle_ids[r])), set()).add(("ego", int(j)))
+    return edges
+
+
+def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int, reactive: bool,
+                     cfg: RunConfig, scenario: tuple[str, dict] | None = None) -> list[dict]:
+    """One episode with ``len(profiles)`` egos (``egos.count`` is set to it; ``scenario``: (name, the parsed scenario
+    file) instead of the seed's scenario, its ``egos`` one fewer than the profiles); a record per ego."""
+    from avp_experiment.ego import MethodEgo
+    from avp_experiment.episodes import ORACLE_HORIZON
+    from avp_experiment.metrics import episode_record, lot_record
+    from avp_experiment.oracle import OracleEgo, ground_truth
+    from avp_planner.core.trace import DecisionTrace
+    from avp_sim.core.factory import make_world
+
+    t0 = time.perf_counter()
+    k = len(profiles)
+    world = make_world(lot, dict(sim_p, **{"egos.count": k}), seed, reactive, scenario_data=scenario)
+    if world.egos.count != k:
+        raise ValueError(f"the scenario has {world.egos.count} egos, the fleet {k}")
+    egos = [(OracleEgo if p.ground_truth else MethodEgo)(
+        lot, p, deterministic=True, intent_weights=cfg.intent_weights, intent_seed=cfg.intent_seed,
+        message_precision=cfg.message_precision) for p in profiles]
+    traces = [DecisionTrace(world.dt) for _ in range(k)]
+    timings: list[list[dict]] = [[] for _ in range(k)]
+    target = [-1] * k  # the spot each ego is driving to park in
+    lost = [{"agent": 0, "ego": 0} for _ in range(k)]
+    meter = GridlockMeter(world.dt)
+    while not world.done:
+        driving = world.egos.driving.copy()
+        commands, decisions = [], {}
+        for i in range(k):
+            if not driving[i]:
+                commands.append((0.0, 0.0))
+                continue
+            if profiles[i].ground_truth:  # the oracle bound: told the agents' true futures (not the other egos')
+                egos[i].tell(ground_truth(world, ORACLE_HORIZON))
+            out = egos[i].step(world.observe(i))
+            commands.append(out.command)
+            timings[i].append(out.timings)
+            if out.decision is not None:
+                traces[i].add(out.step, out.decision)
+                decisions[i] = out.decision
+                if out.decision.mode == "park":
+                    target[i] = int(out.decision.spot_id)
+        meter.add(world.step_index, waits_for(world, decisions))
+        world.step_all(commands)
+        holders = _holders(world)
+        for i in range(k):
+            who = holders.get(target[i])
+            if target[i] >= 0 and who is not None and who != f"ego:{i}":
+                lost[i]["agent" if who == "agent" else "ego"] += 1
+                target[i] = -1
+    grid = meter.summary(world.step_index)
+    wall = time.perf_counter() - t0
+    fleet = ",".join(p.name for p in profiles)
+    records = []
+    for i in range(k):
+        entered = int(world.egos.entered_step[i])
+        rec = episode_record(method=profiles[i].name, seed=seed, reactive=reactive, status=world.egos.status[i],
+                             metrics=world.egos.metrics[i].as_dict(), min_ade=np.zeros(0), min_fde=np.zeros(0),
+                             step_timings=timings[i], horizon=cfg.ade_horizon, transport="inproc", wall_s=wall,
+                             lot=lot_record(lot), ego_poses=np.asarray(world.log_egos)[max(entered, 0):, i],
+                             decision_trace=traces[i].summary())
+        rec.update(ego=i, egos=k, fleet=fleet, entered_s=None if entered < 0 else round(entered * world.dt, 3),
+                   final_pose=[round(float(x), 6) for x in world.egos.poses[i]],
+                   spots_lost_to_agent=lost[i]["agent"], spots_lost_to_ego=lost[i]["ego"], **grid)
+        records.append(rec)
+    return records

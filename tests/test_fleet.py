@@ -1,0 +1,152 @@
+"""Several automated cars in one lot (avp_sim.core.egos, avp_experiment.fleet): hand-built scenes on the paper lot,
+shapely as the judge of where the egos end up."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from shapely.geometry import Polygon
+
+from avp_experiment.fleet import parse_fleet, run_fleet_inproc, waits_for
+from avp_experiment.gridlock import GridlockMeter, find_cycle
+from avp_experiment.run_config import RunConfig, run_profile, sim_values
+from avp_sim.core.egos import EGO_ID_BASE
+from avp_sim.core.scenario_file import scenario_from_dict
+from avp_sim.core.world import SUCCESS, World, WorldConfig
+from avp_world.geometry import rect_corners
+
+DOWN, UP = -math.pi / 2, math.pi / 2
+GATE = [21.5, 38.0, DOWN]  # the paper's start: top of the middle road
+
+
+def _scene(paper_lot, vacant, egos, seed=3):
+    return scenario_from_dict(paper_lot, {"seed": seed, "reactive": True, "ego_start": GATE, "vacant_spot_ids": vacant,
+                                          "egos": egos}, "test scene", seed, True)
+
+
+def _fleet(paper_lot, vacant, egos, methods=("bezier", "bezier"), t_final=60.0, gate=GATE):
+    cfg = RunConfig(t_final=t_final)
+    sim = sim_values(cfg)
+    data = {"seed": 3, "reactive": True, "ego_start": gate, "vacant_spot_ids": vacant, "egos": egos}
+    return run_fleet_inproc(paper_lot, sim, [run_profile(m, cfg) for m in methods], 3, True, cfg,
+                            scenario=("test scene", data))
+
+
+def _inside(paper_lot, pose, spot_id) -> bool:
+    spot = Polygon(paper_lot.spot_corners[paper_lot.spot_index(spot_id)])
+    return spot.buffer(1e-6).contains(Polygon(rect_corners(np.asarray(pose), 4.6, 1.85)))
+
+
+def test_one_ego_is_the_world_as_before(paper_lot):
+    """K = 1: World.step drives the one ego; step_all with one command is the same step; observations name no ego."""
+    sc = _scene(paper_lot, [17, 26], [])
+    a, b = World(paper_lot, sc), World(paper_lot, sc)
+    for _ in range(30):
+        a.step(1.0, 0.1)
+        b.step_all([(1.0, 0.1)])
+    assert np.array_equal(a.ego, b.ego) and a.metrics == b.metrics
+    assert all(v.id < EGO_ID_BASE for v in a.observe().vehicles)
+    with pytest.raises(ValueError, match="use step_all"):
+        World(paper_lot, sc, WorldConfig(n_egos=2)).step(1.0, 0.0)
+
+
+def test_egos_enter_one_after_another_and_see_each_other(paper_lot):
+    """egos.entry_interval: ego 1 enters at the gate 5 s after ego 0, once the gate is clear; to ego 1, ego 0 is an
+    observed vehicle (its pose history, nothing else), and a parked ego is a parked car."""
+    w = World(paper_lot, _scene(paper_lot, [17, 26], []), WorldConfig(n_egos=2, entry_interval=5.0))
+    assert list(w.egos.present) == [True, False]
+    with pytest.raises(ValueError, match="not entered"):
+        w.observe(1)
+    for _ in range(50):  # ego 0 drives 10 m down the middle road: the gate is clear at 5 s
+        w.step_all([(2.0, 0.0), (5.0, 0.0)])
+    assert list(w.egos.present) == [True, True] and w.egos.entered_step[1] == 50
+    assert np.allclose(w.egos.poses[1], GATE)  # its command before it entered was ignored
+    seen = {v.id: v for v in w.observe(1).vehicles}
+    assert EGO_ID_BASE + 0 in seen and np.allclose(seen[EGO_ID_BASE].history[-1], w.egos.poses[0])
+    assert EGO_ID_BASE + 1 in {v.id for v in w.observe(0).vehicles}
+
+
+def test_two_egos_two_spots_both_park_and_nobody_loses_a_spot(paper_lot):
+    recs = _fleet(paper_lot, [17, 26], [])
+    assert [r["status"] for r in recs] == [SUCCESS, SUCCESS], recs
+    assert {r["parked_spot_id"] for r in recs} == {17, 26}
+    assert all(r["spots_lost_to_ego"] == 0 and r["spots_lost_to_agent"] == 0 for r in recs)
+    assert not any(r["collision"] for r in recs) and recs[1]["entered_s"] == 5.0
+    assert recs[0]["fleet"] == "bezier,bezier" and [r["ego"] for r in recs] == [0, 1]
+
+
+def test_two_egos_one_spot_one_parks_the_other_lost_it_to_that_ego(paper_lot):
+    """Both start at t = 0 equally far from the one free spot, at the two ends of the middle road."""
+    recs = _fleet(paper_lot, [14], [{"start": [21.5, 3.5, UP], "enter_at": 0.0}], t_final=40.0)
+    parked = [r for r in recs if r["status"] == SUCCESS]
+    assert len(parked) == 1 and parked[0]["parked_spot_id"] == 14, recs
+    assert _inside(paper_lot, parked[0]["final_pose"], 14)
+    other = next(r for r in recs if r is not parked[0])
+    assert other["spots_lost_to_ego"] == 1 and other["spots_lost_to_agent"] == 0
+    assert not any(r["collision"] for r in recs)
+    assert recs[0]["gridlock"] == (_mutual_wait_s(recs) >= 5.0)
+
+
+def test_find_cycle_and_gridlock_meter():
+    ego0, ego1, car = ("ego", 0), ("ego", 1), ("agent", 7)
+    assert find_cycle({ego0: {ego1}, ego1: {ego0}}) == frozenset({ego0, ego1})
+    assert find_cycle({ego0: {car}, car: {ego0}}) == frozenset({ego0, car})
+    assert find_cycle({ego0: {ego1}, ego1: {car}}) is None
+    m = GridlockMeter(dt=0.1, min_s=5.0)
+    for k in range(49):  # 4.9 s: not yet
+        m.add(k, {ego0: {ego1}, ego1: {ego0}})
+    m.add(49, {ego0: {ego1}})
+    assert not m.summary(49)["gridlock"]
+    m = GridlockMeter(dt=0.1, min_s=5.0)
+    for k in range(60):
+        m.add(k, {ego0: {ego1}, ego1: {ego0}})
+    s = m.summary(59)
+    assert s["gridlock"] and s["gridlock_s"] == 6.0 and s["gridlock_spells"][0]["members"] == ["ego:0", "ego:1"]
+
+
+def test_waits_for_reads_the_traces_and_the_agents_brakes(paper_lot):
+    from types import SimpleNamespace
+
+    w = World(paper_lot, _scene(paper_lot, [17], [{"start": [21.5, 20.0, UP], "enter_at": 0.0}]))
+    stand = SimpleNamespace(mode="idle", command=(0.0, 0.0),
+                            trace={"mode": "idle", "cause": "agent", "agent_id": EGO_ID_BASE + 1, "pedestrian": False})
+    drive = SimpleNamespace(mode="park", command=(1.0, 0.0), trace={"mode": "park"})
+    assert waits_for(w, {0: stand, 1: drive}) == {("ego", 0): {("ego", 1)}}
+
+
+def test_parse_fleet_errors():
+    assert parse_fleet("bezier", 3) == ["bezier"] * 3
+    assert parse_fleet("bezier,blind") == ["bezier", "blind"]
+    for spec, k, msg in (("", None, "comma-separated"), ("bezier,,blind", None, "comma-separated"),
+                         ("bezier", 9, "1..8"), ("bezier,blind", 3, "names 2 methods")):
+        with pytest.raises(ValueError, match=msg):
+            parse_fleet(spec, k)
+
+
+def _mutual_wait_s(recs, dt=0.1) -> float:
+    """Seconds in which both egos' idle spells name each other as the blocker (from their decision traces)."""
+    steps = []
+    for i, r in enumerate(recs):
+        other = EGO_ID_BASE + (1 - i)
+        s = set()
+        for spell in r["decision_trace"]["idle_spells"]:
+            if other in spell.get("blocking_agents", []):
+                k0 = round(spell["start_s"] / dt)
+                s.update(range(k0, k0 + round(spell["seconds"] / dt)))
+        steps.append(s)
+    return len(steps[0] & steps[1]) * dt
+
+
+def test_two_egos_face_to_face_in_one_aisle(paper_lot):
+    """Face to face 10 m apart in the middle road, a free spot ahead of each beyond the other and one behind each.
+    No collision; the gridlock metric fires exactly when both stood waiting on each other for 5 s (here neither
+    waits: each reverses into the spot behind it)."""
+    data = [{"start": [21.5, 16.0, UP], "enter_at": 0.0}]
+    recs = _fleet(paper_lot, [20, 19], data, t_final=40.0, gate=[21.5, 26.0, DOWN])
+    assert not any(r["collision"] for r in recs), [r["collision_with"] for r in recs]
+    assert recs[0]["gridlock"] == recs[1]["gridlock"]
+    assert recs[0]["gridlock"] == (_mutual_wait_s(recs) >= 5.0), (recs[0]["gridlock_spells"], _mutual_wait_s(recs))
+    assert [r["status"] for r in recs] == [SUCCESS, SUCCESS]
+    assert all(_inside(paper_lot, r["final_pose"], r["parked_spot_id"]) for r in recs)  # shapely: in its spot
