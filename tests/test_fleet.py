@@ -150,3 +150,19 @@ def test_two_egos_face_to_face_in_one_aisle(paper_lot):
     assert recs[0]["gridlock"] == (_mutual_wait_s(recs) >= 5.0), (recs[0]["gridlock_spells"], _mutual_wait_s(recs))
     assert [r["status"] for r in recs] == [SUCCESS, SUCCESS]
     assert all(_inside(paper_lot, r["final_pose"], r["parked_spot_id"]) for r in recs)  # shapely: in its spot
+
+
+@pytest.mark.parametrize("egos, needle", [
+    ({"start": GATE}, "egos: expected a list"),
+    ([{"start": GATE}] * 8, "at most 7"),
+    ([{"start": GATE, "speed": 1}], "egos[0].speed: unknown key"),
+    ([{"start": [21.5, 38.0]}], "egos[0].start: expected [x, y, theta]"),
+    ([{"start": [500.0, 38.0, 0.0]}], "egos[0].start: the ego's footprint is outside the lot"),
+    ([{"start": GATE, "enter_at": -1.0}], "egos[0].enter_at: -1.0 is outside"),
+])
+def test_bad_egos_in_a_scenario_file_get_one_error_naming_the_field(paper_lot, egos, needle):
+    from avp_sim.core.scenario import ScenarioError
+
+    with pytest.raises(ScenarioError) as e:
+        _scene(paper_lot, [17], egos)
+    assert "test scene: " in str(e.value) and needle in str(e.value)

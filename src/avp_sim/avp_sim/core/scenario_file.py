@@ -79,12 +79,7 @@ def scenario_from_dict(lot: LotMap, data: dict, source: str, seed: int, reactive
     reactive = data.get("reactive", reactive)
     if not isinstance(reactive, bool):
         raise ScenarioError(f"{source}: reactive: expected true/false, got {reactive!r}")
-    ego = data.get("ego_start", list(params.ego_start))
-    if not isinstance(ego, list) or len(ego) != 3:
-        raise ScenarioError(f"{source}: ego_start: expected [x, y, theta], got {ego!r}")
-    ego_start = np.array([_number(x, f"{source}: ego_start[{i}]") for i, x in enumerate(ego)])
-    if not polygon_contains_points(lot.boundary, rect_corners(ego_start, vehicle.length, vehicle.width)).all():
-        raise ScenarioError(f"{source}: ego_start: the ego's footprint is outside the lot")
+    ego_start = _ego_pose(lot, data.get("ego_start", list(params.ego_start)), f"{source}: ego_start", vehicle)
     entries = _ego_entries(lot, data.get("egos", []), source, vehicle)
     if "vacant_spot_ids" not in data:
         raise ScenarioError(f"{source}: vacant_spot_ids: missing")
@@ -130,19 +125,29 @@ def _ego_entries(lot: LotMap, egos, source: str, vehicle: VehicleSpec) -> tuple:
     out = []
     for j, e in enumerate(egos):
         w = f"{source}: egos[{j}]"
-        if not isinstance(e, dict):
-            raise ScenarioError(f"{w}: expected a mapping with keys {sorted(_EGO_KEYS)}")
-        unknown = sorted(set(e) - _EGO_KEYS)
-        if unknown:
-            raise ScenarioError(f"{w}.{unknown[0]}: unknown key (known: {sorted(_EGO_KEYS)})")
-        start = e.get("start")
-        if not isinstance(start, list) or len(start) != 3:
-            raise ScenarioError(f"{w}.start: expected [x, y, theta], got {start!r}")
-        pose = np.array([_number(x, f"{w}.start[{i}]") for i, x in enumerate(start)])
-        if not polygon_contains_points(lot.boundary, rect_corners(pose, vehicle.length, vehicle.width)).all():
-            raise ScenarioError(f"{w}.start: the ego's footprint is outside the lot")
+        _mapping(e, w, _EGO_KEYS)
+        pose = _ego_pose(lot, e.get("start"), f"{w}.start", vehicle)
         out.append((pose, _number(e.get("enter_at", 0.0), f"{w}.enter_at", 0.0, 3600.0)))
     return tuple(out)
+
+
+def _ego_pose(lot: LotMap, value, where: str, vehicle: VehicleSpec) -> np.ndarray:
+    """An ego's pose [x, y, theta] whose footprint lies inside the lot."""
+    if not isinstance(value, list) or len(value) != 3:
+        raise ScenarioError(f"{where}: expected [x, y, theta], got {value!r}")
+    pose = np.array([_number(x, f"{where}[{i}]") for i, x in enumerate(value)])
+    if not polygon_contains_points(lot.boundary, rect_corners(pose, vehicle.length, vehicle.width)).all():
+        raise ScenarioError(f"{where}: the ego's footprint is outside the lot")
+    return pose
+
+
+def _mapping(d, where: str, keys: set[str]) -> None:
+    """``d`` is a mapping whose keys are among ``keys`` (ScenarioError naming the first unknown one)."""
+    if not isinstance(d, dict):
+        raise ScenarioError(f"{where}: expected a mapping with keys {sorted(keys)}")
+    unknown = sorted(set(d) - keys)
+    if unknown:
+        raise ScenarioError(f"{where}.{unknown[0]}: unknown key (known: {sorted(keys)})")
 
 
 def _dynamic_vehicles(lot: LotMap, dyn_list: list, seen: set[int], ego_start: np.ndarray, source: str,
@@ -153,11 +158,7 @@ def _dynamic_vehicles(lot: LotMap, dyn_list: list, seen: set[int], ego_start: np
     plans: dict[int, np.ndarray] = {}
     for j, d in enumerate(dyn_list):
         w = f"{source}: dynamic_vehicles[{j}]"
-        if not isinstance(d, dict):
-            raise ScenarioError(f"{w}: expected a mapping with keys {sorted(_DYN_KEYS)}")
-        unknown = sorted(set(d) - _DYN_KEYS)
-        if unknown:
-            raise ScenarioError(f"{w}.{unknown[0]}: unknown key (known: {sorted(_DYN_KEYS)})")
+        _mapping(d, w, _DYN_KEYS)
         for key in ("target_spot", "maneuver"):
             if key not in d:
                 raise ScenarioError(f"{w}.{key}: missing")
