@@ -50,12 +50,16 @@ _STATE = {RUNNING: EpisodeStatus.STATE_RUNNING, SUCCESS: EpisodeStatus.STATE_SUC
 #: matched (a test saw one of two ground-truth subscribers miss step 0). Only the first episode waits (the
 #: readers stay matched).
 SUBSCRIBER_SETTLE_S = 0.5
+#: why the node refuses several egos (docs/world.md, "Several egos")
+ONE_EGO = "the live graph drives one ego; several egos run in process (avp_experiment.fleet)"
 
 
 class SimNode(Node):
     def __init__(self) -> None:
         super().__init__("avp_sim")
         self.p = declare_and_validate(self, SIM_PARAMS)
+        if self.p["egos.count"] != 1:
+            raise ValueError(f"parameter 'egos.count': {self.p['egos.count']}: {ONE_EGO}")
         world_config(self.p)  # validates the sensor block at start-up
         self.lot = load_lot_param(self.p["lot_file"])
         self.scenario_dirs = served_dirs(self.p["scenario_dir"])  # what reset_episode may read (scenario_source)
@@ -96,7 +100,10 @@ class SimNode(Node):
 
     # ---------------------------------------------------------------- episodes
     def _new_episode(self, seed: int, reactive: bool, scenario: tuple[str, object] | None = None) -> World:
-        self.world = make_world(self.lot, self.p, seed, reactive, scenario_data=scenario)
+        world = make_world(self.lot, self.p, seed, reactive, scenario_data=scenario)
+        if world.egos.count != 1:
+            raise ValueError(f"scenario: egos: {world.egos.count} egos: {ONE_EGO}")
+        self.world = world
         # the episode id every message of this episode carries (avp_common.msg_auth, issue #27): the wall clock
         # in ns, strictly increasing, so that a replay of an earlier episode (or of an earlier run) is older
         self.episode = max(time.time_ns(), self.episode + 1)
