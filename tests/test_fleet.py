@@ -166,3 +166,39 @@ def test_bad_egos_in_a_scenario_file_get_one_error_naming_the_field(paper_lot, e
     with pytest.raises(ScenarioError) as e:
         _scene(paper_lot, [17], egos)
     assert "test scene: " in str(e.value) and needle in str(e.value)
+
+
+def test_avp_experiment_runs_fleets_with_a_record_per_ego_and_resumes(tmp_path, capsys):
+    """``avp experiment --egos 2`` (a fleet of each method) and ``--fleet`` (one mixed fleet): a record per ego,
+    the fleet table, and the same command again runs nothing."""
+    from avp_experiment.results import RESULTS_FILE, read_results
+    from avp_experiment.runner import main
+
+    common = ["--scenarios", "1", "--seed-base", "4", "--mode", "reactive", "--workers", "0", "--t-final", "30",
+              "--no-progress"]
+    out = tmp_path / "k2"
+    assert main([*common, "--egos", "2", "--methods", "blind", "--out", str(out)]) == 0
+    recs = read_results(out / RESULTS_FILE)
+    assert [(r["method"], r["ego"], r["ego_method"], r["seed"]) for r in recs] == [
+        ("fleet:blind,blind", 0, "blind", 4), ("fleet:blind,blind", 1, "blind", 4)]
+    assert "| blind,blind | reactive | 2 |" in (out / "fleet.md").read_text()
+    capsys.readouterr()
+    assert main([*common, "--egos", "2", "--methods", "blind", "--out", str(out)]) == 0
+    assert "0 to run" in capsys.readouterr().out and len(read_results(out / RESULTS_FILE)) == 2
+    mixed = tmp_path / "mixed"
+    assert main([*common, "--fleet", "blind,bezier", "--out", str(mixed)]) == 0
+    assert [r["ego_method"] for r in read_results(mixed / RESULTS_FILE)] == ["blind", "bezier"]
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--egos", "9", "--methods", "blind"], "--egos: expected 1..8"),
+    (["--fleet", "blind,,bezier"], "--fleet: expected comma-separated"),
+    (["--fleet", "blind,bezier", "--egos", "3"], "--fleet names 2 methods but --egos is 3"),
+    (["--egos", "2", "--methods", "blind", "--transport", "ros"], "the live graph drives one ego"),
+])
+def test_bad_fleet_arguments_get_one_line(tmp_path, capsys, args, needle):
+    from avp_experiment.runner import main
+
+    assert main([*args, "--scenarios", "1", "--no-progress", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and needle in err[0], err

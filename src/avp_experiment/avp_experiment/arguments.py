@@ -53,6 +53,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ablation", action="store_true",
                    help="run the table once per safety-extras variant (all_on, all_off, no_<extra>) into "
                    "OUT/<variant>/ and tabulate them (OUT/ablation.md)")
+    p.add_argument("--egos", type=int, default=1,
+                   help="automated cars per episode (1-8): each method of --methods runs as a fleet of this many "
+                   "(in process; docs/world.md 'Several egos'); a record per ego")
+    p.add_argument("--fleet", default="", metavar="M1,M2,...",
+                   help="one mixed fleet instead of --methods: a method per ego, e.g. bezier,bezier,blind,blind")
     p.add_argument("--float64-messages", action="store_true",
                    help="do not round beliefs/intentions to the float32 of the messages (inproc only differs)")
     p.add_argument("--episode-timeout", type=float, default=600.0, help="ros: wall seconds per episode")

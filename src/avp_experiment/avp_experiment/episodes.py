@@ -75,11 +75,21 @@ def _init_worker(cfg: RunConfig, pool_worker: bool = False, sources: dict[str, s
     _WORKER.update(cfg=cfg, lot=load_lot_param(sim["lot_file"]), sim=sim, profiles={}, sources=sources or {})
 
 
-def _worker_episode(key: Key) -> dict:
+def _worker_episode(key: Key) -> dict | list[dict]:
+    """One episode's record; a fleet's (a key named ``fleet:M1,M2,...``, :mod:`.fleet`): a record per ego."""
+    from avp_experiment.fleet import fleet_names
+
     method, seed, mode = key
     profiles = _WORKER["profiles"]
-    if method not in profiles:
-        profiles[method] = run_profile(_WORKER["sources"].get(method, method), _WORKER["cfg"])
+    names = fleet_names(method) or [method]
+    for name in names:
+        if name not in profiles:
+            profiles[name] = run_profile(_WORKER["sources"].get(name, name), _WORKER["cfg"])
+    if len(names) > 1 or method != names[0]:
+        from avp_experiment.fleet import run_fleet_inproc
+
+        return run_fleet_inproc(_WORKER["lot"], _WORKER["sim"], [profiles[n] for n in names], seed,
+                                mode == "reactive", _WORKER["cfg"])
     return run_episode_inproc(_WORKER["lot"], _WORKER["sim"], profiles[method], seed, mode == "reactive",
                               _WORKER["cfg"])
 

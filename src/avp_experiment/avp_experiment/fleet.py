@@ -18,6 +18,28 @@ from avp_experiment.gridlock import GridlockMeter, Node
 from avp_experiment.profiles import MethodProfile
 from avp_experiment.run_config import RunConfig
 
+#: the method field of a fleet's records (and of its episode keys): ``fleet:`` + its methods in ego order
+FLEET_PREFIX = "fleet:"
+
+
+def fleet_label(names: list[str]) -> str:
+    return FLEET_PREFIX + ",".join(names)
+
+
+def fleet_names(label: str) -> list[str]:
+    """The methods of a fleet label, ego by ego ([] for a plain method name)."""
+    return label[len(FLEET_PREFIX):].split(",") if label.startswith(FLEET_PREFIX) else []
+
+
+def run_units(methods: list[str], egos: int, fleet: str) -> list[str]:
+    """What the episode keys name: the methods themselves (one ego), a fleet of ``egos`` of each method, or the one
+    mixed ``fleet``."""
+    if fleet:
+        return [fleet_label(parse_fleet(fleet, egos if egos > 1 else None))]
+    if egos == 1:
+        return list(methods)
+    return [fleet_label(parse_fleet(m, egos)) for m in methods]
+
 
 def parse_fleet(spec: str, egos: int | None = None) -> list[str]:
     """``bezier,bezier,blind`` -> one method per ego; ``bezier`` with ``egos`` = K -> K of it. One clear error for a
@@ -123,6 +145,7 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
     grid = meter.summary(world.step_index)
     wall = time.perf_counter() - t0
     fleet = ",".join(p.name for p in profiles)
+    label = fleet_label([p.name for p in profiles])
     records = []
     for i in range(k):
         entered = int(world.egos.entered_step[i])
@@ -131,8 +154,42 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
                              step_timings=timings[i], horizon=cfg.ade_horizon, transport="inproc", wall_s=wall,
                              lot=lot_record(lot), ego_poses=np.asarray(world.log_egos)[max(entered, 0):, i],
                              decision_trace=traces[i].summary())
-        rec.update(ego=i, egos=k, fleet=fleet, entered_s=None if entered < 0 else round(entered * world.dt, 3),
+        rec.update(method=label, ego_method=profiles[i].name, ego=i, egos=k, fleet=fleet,
+                   episode_s=round(world.step_index * world.dt, 3),
+                   entered_s=None if entered < 0 else round(entered * world.dt, 3),
                    final_pose=[round(float(x), 6) for x in world.egos.poses[i]],
                    spots_lost_to_agent=lost[i]["agent"], spots_lost_to_ego=lost[i]["ego"], **grid)
         records.append(rec)
     return records
+
+
+def fleet_table(records: list[dict]) -> str:
+    """The fleet columns of docs/metrics.md ("Several egos") per fleet and mode, as a Markdown table: ego-episodes,
+    success with its 95 % Wilson interval, collisions (at fault; with another ego), spots lost to an ego / an agent,
+    episodes with a gridlock, mean parking time, lot throughput (egos parked per minute of simulated time)."""
+    from avp_experiment.metrics import wilson
+
+    rows = ["| fleet | mode | ego-episodes | success [95 % CI] | collisions (at fault) | ego-ego collisions | "
+            "spots lost to an ego / an agent | episodes with a gridlock | mean parking time s | egos parked per min |",
+            "|---|---|--:|---|---|--:|---|---|--:|--:|"]
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for r in records:
+        if r.get("egos"):
+            groups.setdefault((r["method"], r["mode"]), []).append(r)
+    for (label, mode), rs in sorted(groups.items()):
+        n, ok = len(rs), sum(r["success"] for r in rs)
+        lo, hi = wilson(ok, n)
+        episodes: dict[int, list[dict]] = {}
+        for r in rs:
+            episodes.setdefault(r["seed"], []).append(r)
+        grid = sum(any(r["gridlock"] for r in ep) for ep in episodes.values())
+        minutes = sum(ep[0]["episode_s"] for ep in episodes.values()) / 60.0
+        times = [r["parking_time"] for r in rs if r["success"] and r["parking_time"] is not None]
+        rows.append(
+            f"| {label[len(FLEET_PREFIX):]} | {mode} | {n} | {ok} = {100 * ok / n:.1f} % [{100 * lo:.1f}, "
+            f"{100 * hi:.1f}] | {sum(r['collision'] for r in rs)} ({sum(r['collision_at_fault'] for r in rs)}) | "
+            f"{sum(r['collision_with'].startswith('ego:') for r in rs)} | "
+            f"{sum(r['spots_lost_to_ego'] for r in rs)} / {sum(r['spots_lost_to_agent'] for r in rs)} | "
+            f"{grid} of {len(episodes)} | {sum(times) / len(times) if times else float('nan'):.1f} | "
+            f"{ok / minutes if minutes else float('nan'):.2f} |")
+    return "\n".join(rows)

@@ -207,11 +207,21 @@ def run_experiment(args: argparse.Namespace) -> dict:
                     intent_seed=args.intent_seed, message_precision=not args.float64_messages,
                     sim_overrides=_with_lot(parse_sim_params(args.sim_param), args.lot), protocol=args.protocol,
                     planner_overrides=parse_planner_params(args.planner_param))
-    profiles, skipped = resolve_methods(args.methods, cfg, args.transport)
+    from avp_experiment.fleet import fleet_names, parse_fleet, run_units
+
+    egos, fleet = getattr(args, "egos", 1), getattr(args, "fleet", "")
+    if (egos != 1 or fleet) and (args.transport != "inproc"):
+        raise ValueError("--egos/--fleet run in process (--transport inproc): the live graph drives one ego")
+    spec = ",".join(dict.fromkeys(parse_fleet(fleet))) if fleet else args.methods
+    profiles, skipped = resolve_methods(spec, cfg, args.transport)
     for name, why in skipped.items():
         print(f"[avp experiment] skipping method {name!r}: {why}", file=sys.stderr)
     if not profiles:
         raise ValueError(f"no runnable method in --methods {args.methods!r}")
+    units = run_units([p.name for p in profiles], egos, fleet)
+    missing = sorted({n for u in units for n in fleet_names(u)} - {p.name for p in profiles})
+    if missing:
+        raise ValueError(f"--fleet: method(s) {missing} cannot run")
     ident = run_identity(cfg, profiles)
     if cfg.intent_weights:  # one clear error here rather than one per episode in the workers
         from avp_perception.core.bev import BEVConfig
@@ -221,22 +231,27 @@ def run_experiment(args: argparse.Namespace) -> dict:
         make_intent_predictor(load_bundled_lot(), BEVConfig(), cfg.intent_weights, cfg.intent_seed)
     lock = lock_folder(out)
     try:
-        return _run_locked(args, out, cfg, profiles, skipped, ident)
+        return _run_locked(args, out, cfg, profiles, skipped, ident, units)
     finally:
         lock.close()
 
 
 def _run_locked(args: argparse.Namespace, out: Path, cfg: RunConfig, profiles: list[MethodProfile],
-                skipped: dict[str, str], ident: dict) -> dict:
-    """The part of :func:`run_experiment` that writes the results folder (which it holds locked)."""
+                skipped: dict[str, str], ident: dict, units: list[str]) -> dict:
+    """The part of :func:`run_experiment` that writes the results folder (which it holds locked). ``units``: what
+    the keys name — the methods, or fleets of them (:mod:`.fleet`, a record per ego)."""
+    from collections import Counter
+
+    from avp_experiment.fleet import fleet_names, fleet_table
     from avp_experiment.summary import write_summary
 
     check_run_file(out, ident)
     path = out / RESULTS_FILE
-    records = read_results(path)
-    done = {record_key(r) for r in records}
+    records = dedupe_egos(read_results(path))
+    count = Counter(record_key(r) for r in records)
+    done = {k for k, c in count.items() if c >= max(1, len(fleet_names(k[0])))}  # a fleet: every ego's record
     seeds, bad_seeds = valid_seeds(args.scenarios, args.seed_base, sim_values(cfg), out / SEEDS_FILE)
-    keys = episode_keys([p.name for p in profiles], seeds, MODES[args.mode])
+    keys = episode_keys(units, seeds, MODES[args.mode])
     todo = [k for k in keys if k not in done]
     print(f"[avp experiment] {len(keys)} episodes ({len(profiles)} methods x {args.scenarios} scenarios x "
           f"{len(MODES[args.mode])} modes; seeds {seeds[0]}..{seeds[-1]}"
@@ -252,10 +267,11 @@ def _run_locked(args: argparse.Namespace, out: Path, cfg: RunConfig, profiles: l
         writer = ResultsWriter(path)
         bar = tqdm(total=len(todo), unit="ep", desc="episodes", disable=args.no_progress, smoothing=0.05)
 
-        def on_record(r: dict) -> None:
+        def on_record(got: dict | list[dict]) -> None:
             nonlocal n_run
-            writer.write(r)
-            records.append(r)
+            for r in got if isinstance(got, list) else [got]:  # a fleet's episode: a record per ego
+                writer.write(r)
+                records.append(r)
             n_run += 1
             bar.set_postfix_str(f"{r['method']} seed {r['seed']} {r['mode']}: {r['status']}", refresh=False)
             bar.update(1)
@@ -277,16 +293,27 @@ def _run_locked(args: argparse.Namespace, out: Path, cfg: RunConfig, profiles: l
             writer.close()
             log_invocation(out, args, started, time.perf_counter() - t0, n_run, len(todo), commit)
     wanted = set(keys)
-    summary = write_summary(out, [r for r in records if record_key(r) in wanted], skipped,
+    records = [r for r in dedupe_egos(records) if record_key(r) in wanted]
+    if any(fleet_names(u) for u in units):
+        (out / "fleet.md").write_text(f"# Several egos\n\n{fleet_table(records)}\n\nColumns: docs/metrics.md, "
+                                      "\"Several egos\".\n")
+    summary = write_summary(out, records, skipped,
                             {"ade_horizon": cfg.ade_horizon, "t_final": cfg.t_final, "intent": ident["intent"],
                              "seeds_without_scenario": bad_seeds, "sim_overrides": ident["config"]["sim_overrides"],
                              "protocol": cfg.protocol, "planner_overrides": cfg.planner_overrides},
-                            {p.name: (p.group, p.label) for p in profiles})
+                            {**{p.name: (p.group, p.label) for p in profiles},
+                             **{u: ("fleet", u[len("fleet:"):]) for u in units if fleet_names(u)}})
     print(f"[avp experiment] ran {n_run} episodes; summary: {out / 'summary.md'}, plots in {out / 'plots'}/")
     if errors:
         print(f"[avp experiment] {len(errors)} episode(s) raised and are not in the results (listed above); "
               "run the same command to retry them", file=sys.stderr)
     return {"ran": n_run, "skipped_methods": skipped, "summary": summary, "errors": errors}
+
+
+def dedupe_egos(records: list[dict]) -> list[dict]:
+    """One record per (key, ego): a fleet episode cut off mid-write and run again leaves its first records twice."""
+    last = {(record_key(r), r.get("ego")): i for i, r in enumerate(records)}
+    return [r for i, r in enumerate(records) if last[(record_key(r), r.get("ego"))] == i]
 
 
 def _parse_params(items: list[str] | None, specs: dict, flag: str, node: str) -> dict[str, Any]:
