@@ -32,13 +32,31 @@ def cmd_key_file(tmp_path_factory):
     return str(tmp_path_factory.mktemp("cmd_key") / "cmd.key")
 
 
+def _claim_test_domain():
+    """(domain id, its lock file): a ROS domain no other test process and no running avp graph holds
+    (avp_bringup.domain's lock files), searched from a random start so that a domain just left by a test (whose
+    processes' discovery data may linger) is rarely the next one taken. Two test runs at once never share one."""
+    from avp_bringup.domain import MAX_DOMAIN, _try_lock
+
+    start = random.Random(os.getpid() * 7919 + random.randrange(1000)).randint(1, MAX_DOMAIN)
+    for i in range(MAX_DOMAIN):
+        d = (start - 1 + i) % MAX_DOMAIN + 1
+        lock = _try_lock(d)
+        if lock is not None:
+            return d, lock
+    raise RuntimeError(f"every ROS domain 1..{MAX_DOMAIN} is held")
+
+
 @pytest.fixture()
 def ros_env(cmd_key_file):
-    """Environment for child ROS processes: a domain id of this test's own, localhost discovery, the tests'
-    command key (the test process signs with it too once the ``ros``-style fixtures copy this environment)."""
+    """Environment for child ROS processes: a domain id of this test's own (held for the test, :func:`_claim_test_
+    domain`), localhost discovery, the tests' command key (the test process signs with it too once the
+    ``ros``-style fixtures copy this environment)."""
     env = dict(os.environ)
     env["AVP_CMD_KEY_FILE"] = cmd_key_file
-    env["ROS_DOMAIN_ID"] = str(random.Random(os.getpid() * 7919 + random.randrange(1000)).randint(1, 101))
+    domain, lock = _claim_test_domain()
+    env["ROS_DOMAIN_ID"] = str(domain)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env["PYTHONUNBUFFERED"] = "1"
-    return env
+    yield env
+    lock.close()  # releases the flock

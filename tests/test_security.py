@@ -254,8 +254,8 @@ def test_two_demos_at_once_do_not_cross_talk(ros_env, tmp_path):
 
     from avp_bag.episode import read_episode
 
+    # no ROS_DOMAIN_ID: each demo claims the first domain that no graph and no test holds (the shared lock files)
     env = {k: v for k, v in ros_env.items() if k != "ROS_DOMAIN_ID"}
-    env["TMPDIR"] = str(tmp_path)  # the lock files of this test's own, away from any graph the user runs
 
     def demo(tag: str) -> subprocess.Popen:
         return subprocess.Popen([sys.executable, "-m", "avp_bringup.cli", "demo", "--ego", "scripted", "--seed", "2",
