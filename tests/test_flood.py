@@ -100,7 +100,9 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
     assert all(k["replay"] > 0 for k in report["sent"].values()), report  # tagged copies of the graph's messages
     # issue #27: the running episode's first messages (step 0) replayed, and messages of the episode before
     assert all(k["replay_first"] > 0 and k["earlier_episode"] > 0 for k in report["sent"].values()), report
-    assert report["bad_resets"] >= 20, report  # and a stream of hostile reset_episode requests
+    # and a stream of hostile reset_episode requests: 2 a second while the service is up, so their number follows
+    # the episode's wall time (a fixed count failed when the episode ended within 10 s); at least 1 a second
+    assert report["bad_resets"] >= max(4, report["wall_s"] - 2), report
     assert got.shape == expected.shape and np.array_equal(got, expected)  # the same episode as without the flood
     logs = {p.stem: p.read_text() for p in (tmp_path / "logs").glob("*.log")}
     flooded = {"avp_sim": 2, "avp_belief": 1, "avp_prediction": 1, "avp_planner": 2}  # flooded inputs per node
