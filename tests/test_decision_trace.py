@@ -170,8 +170,10 @@ def _planner(lot, **kw):
     s = PlannerSettings()
     dec = {k: v for k, v in kw.items() if hasattr(s.decision, k)}
     col = {"reactive_steps": 0, **{k: v for k, v in kw.items() if hasattr(s.collision, k)}}
-    return EgoPlanner(lot, replace(s, decision=replace(s.decision, evasive=False, **dec),
-                                   collision=replace(s.collision, **col)))
+    # no wall-clock caps (as the experiments' DETERMINISTIC_PLANNER): a loaded machine must not change a decision
+    return EgoPlanner(lot, replace(s, decision=replace(s.decision, evasive=False, decision_time_cap=1e4,
+                                                       fallback_time_cap=1e3, **dec),
+                                   collision=replace(s.collision, **col), search=replace(s.search, time_cap=1e3)))
 
 
 def test_assume_yielding_lets_the_ego_go_when_the_car_waits_for_it(paper_lot):

@@ -12,9 +12,7 @@ from typing import Any
 import numpy as np
 
 from avp_experiment.profiles import MethodProfile
-from avp_experiment.run_config import Key, RunConfig, run_profile, sim_values
-
-ORACLE_HORIZON = 10.0  # s of true future given to the oracle bound (.oracle)
+from avp_experiment.run_config import ORACLE_HORIZON, Key, RunConfig, run_profile, sim_values
 
 
 def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reactive: bool, cfg: RunConfig,

@@ -16,7 +16,7 @@ import numpy as np
 
 from avp_experiment.gridlock import GridlockMeter, Node
 from avp_experiment.profiles import MethodProfile
-from avp_experiment.run_config import RunConfig
+from avp_experiment.run_config import ORACLE_HORIZON, RunConfig
 
 #: the method field of a fleet's records (and of its episode keys): ``fleet:`` + its methods in ego order
 FLEET_PREFIX = "fleet:"
@@ -98,7 +98,6 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
     """One episode with ``len(profiles)`` egos (``egos.count`` is set to it; ``scenario``: (name, the parsed scenario
     file) instead of the seed's scenario, its ``egos`` one fewer than the profiles); a record per ego."""
     from avp_experiment.ego import MethodEgo
-    from avp_experiment.episodes import ORACLE_HORIZON
     from avp_experiment.metrics import episode_record, lot_record
     from avp_experiment.oracle import OracleEgo, ground_truth
     from avp_planner.core.trace import DecisionTrace

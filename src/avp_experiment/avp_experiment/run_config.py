@@ -27,6 +27,7 @@ class RunConfig:
 
 
 Key = tuple[str, int, str]  # (method, seed, "reactive" | "non_reactive")
+ORACLE_HORIZON = 10.0  # s of true future given to the oracle bound (.oracle; one ego or a fleet's, .fleet)
 
 
 def sim_values(cfg: RunConfig) -> dict[str, Any]:
