@@ -208,8 +208,14 @@ def test_swap_to_a_user_node_in_lockstep(ros, tmp_path):
         assert client.state(f"/avp/{planner}") == "active"
         assert client.state("/avp/minimal_planner") == "unconfigured"
         client.change(f"/avp/{planner}", "deactivate")
-        client.spin(0.3)  # a command sent just before the deactivation may still step the simulator once
-        k_off = max(monitor.gt)
+        # a command sent just before the deactivation may still step the simulator, and on a loaded machine the
+        # monitor takes the last steps' ground truth late: wait until no new step has come for 1 s (a planner that
+        # kept commanding would keep the steps coming, and fail below)
+        k_off, t_last, t0 = max(monitor.gt), time.monotonic(), time.monotonic()
+        while time.monotonic() - t_last < 1.0 and time.monotonic() - t0 < 15.0:
+            client.spin(0.1)
+            if max(monitor.gt) != k_off:
+                k_off, t_last = max(monitor.gt), time.monotonic()
         client.spin(2.0)
         assert max(monitor.gt) == k_off, "lock-step stepped without an active planner"
         report = swap_planner(client, "/avp", node="/avp/minimal_planner", discovery=1.0)
