@@ -32,7 +32,7 @@ def _share(pkg: str, rel: str) -> str:
     return f"{get_package_share_directory(pkg)}/{rel}"
 
 
-def _inprocess_trajectory(lot, ego, method):
+def _inprocess_trajectory(lot, ego, method, planner_overrides=None):
     from avp_bringup.inproc import run_episode
     from avp_common.params import load_yaml_params
     from avp_planner.scripted_driver import ScriptedDriver, ScriptedDriverConfig
@@ -56,7 +56,7 @@ def _inprocess_trajectory(lot, ego, method):
     from avp_planner.planner_node import PLANNER_PARAMS
 
     q = load_yaml_params(_share("avp_planner", "config/planner.param.yaml"), "avp_planner", PLANNER_PARAMS)
-    q.update(PLANNER_OVERRIDES)
+    q.update(PLANNER_OVERRIDES if planner_overrides is None else planner_overrides)
     b = load_yaml_params(_share("avp_perception", "config/belief.param.yaml"), "avp_belief", BELIEF_PARAMS)
     r = load_yaml_params(_share("avp_perception", "config/prediction.param.yaml"), "avp_prediction",
                          PREDICTION_PARAMS)

@@ -55,11 +55,16 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
     from avp_bringup.graph import Graph, default_graph, with_params
     from avp_bringup.monitor import EpisodeMonitor
 
-    expected, world, _ = _inprocess_trajectory(paper_lot, "planner", "bezier")
+    # the planner with the agents' reaction assumed only once seen (profile wary): with the default's roll-out for
+    # every agent from the first step a decision costs more, and on 2 cores under this flood the planner then falls
+    # behind its flooded input queue and each lock-step step waits for the 5 s re-send (the episode, unchanged, then
+    # outlasts the 300 s below; docs/benchmarks.md, "Catching discovery races")
+    planner = {**PLANNER_OVERRIDES, "collision.reactive_evidence": "lot"}
+    expected, world, _ = _inprocess_trajectory(paper_lot, "planner", "bezier", planner)
     for k, v in ros_env.items():
         monkeypatch.setenv(k, v)
     nodes = default_graph("planner")
-    nodes[-1] = with_params(nodes[-1], **PLANNER_OVERRIDES)
+    nodes[-1] = with_params(nodes[-1], **planner)
     nodes[2] = with_params(nodes[2], method="bezier", **PREDICTION_OVERRIDES)
     n_subs = nodes[0].extra_params["min_subscribers"]
     nodes[0] = with_params(nodes[0], seed=SEED, reactive=True, t_final=T_FINAL, publish_markers=False,
