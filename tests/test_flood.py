@@ -55,10 +55,9 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
     from avp_bringup.graph import Graph, default_graph, with_params
     from avp_bringup.monitor import EpisodeMonitor
 
-    # the planner with the agents' reaction assumed only once seen (profile wary): with the default's roll-out for
-    # every agent from the first step a decision costs more, and on 2 cores under this flood the planner then falls
-    # behind its flooded input queue and each lock-step step waits for the 5 s re-send (the episode, unchanged, then
-    # outlasts the 300 s below; docs/benchmarks.md, "Catching discovery races")
+    # the planner with the agents' reaction assumed only once seen (profile wary), the compute profile this test was
+    # set up with: the default's roll-out for every agent costs more per decision. On 2 loaded cores the flooded
+    # pipeline has needed the 5 s lock-step re-send at many steps with either planner (docs/benchmarks.md)
     planner = {**PLANNER_OVERRIDES, "collision.reactive_evidence": "lot"}
     expected, world, _ = _inprocess_trajectory(paper_lot, "planner", "bezier", planner)
     for k, v in ros_env.items():
