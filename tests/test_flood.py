@@ -24,6 +24,8 @@ import pytest
 rclpy = pytest.importorskip("rclpy")
 
 FLOODER = Path(__file__).resolve().parents[1] / "bench" / "flood_publisher.py"
+#: messages a second on each flooded topic in the full-graph test (see there)
+FLOOD_RATE = 200
 
 
 def _rss_mb(pid: int) -> float:
@@ -71,15 +73,20 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
     rclpy.init()
     monitor = EpisodeMonitor()
     graph = Graph(nodes, tmp_path / "logs", env=ros_env)
-    flood = subprocess.Popen([sys.executable, str(FLOODER), "--rate", "1000", "--duration", "600",
+    # FLOOD_RATE per topic, not 1 kHz: at 1 kHz on each of three topics 2 cores are saturated (docs/benchmarks.md,
+    # "Hung nodes and floods"), the nodes' reader queues overflow, real messages of a step are lost now and then
+    # (about one step in ten on an idle 2-core machine) and each loss waits for the 5 s lock-step re-send, so the
+    # episode's wall time grew past any limit under load. What this test checks is that hostile messages change
+    # nothing, and that holds at any rate; the 1 kHz behaviour is bench/bench_flood.py's
+    flood = subprocess.Popen([sys.executable, str(FLOODER), "--rate", str(FLOOD_RATE), "--duration", "600",
                               "--episode-replays", "--bad-resets", "2"], env=ros_env,
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     graph.start()
     rss: dict[str, list[float]] = {name: [] for name in graph.procs}
     try:
         t0 = last = time.monotonic()
-        # a generous limit: on 2 loaded cores the flooded pipeline can need the 5 s lock-step re-send at many steps
-        while not monitor.finished and time.monotonic() - t0 < 900:
+        # a generous limit (the episode takes about 1-3 min on 2 cores)
+        while not monitor.finished and time.monotonic() - t0 < 600:
             rclpy.spin_once(monitor, timeout_sec=0.05)
             assert all(rc is None for rc in graph.poll().values()), "a node died under the flood"
             if time.monotonic() - last >= 1.0:
@@ -101,7 +108,7 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
         rclpy.try_shutdown()
     report = json.loads(out.strip().splitlines()[-1])
     sent = {t: sum(k.values()) for t, k in report["sent"].items()}
-    assert all(n >= 1000 for n in sent.values()), (report, err)  # it did flood (the rate depends on the machine)
+    assert all(n >= 5 * FLOOD_RATE for n in sent.values()), (report, err)  # it did flood (5 s at the least)
     assert all(k["replay"] > 0 for k in report["sent"].values()), report  # tagged copies of the graph's messages
     # issue #27: the running episode's first messages (step 0) replayed, and messages of the episode before
     assert all(k["replay_first"] > 0 and k["earlier_episode"] > 0 for k in report["sent"].values()), report
