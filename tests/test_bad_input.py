@@ -112,7 +112,7 @@ STARTUP_CASES = [  # (case, node, key in its parameter file, value (DROP: remove
     ("sim dt out of range", _sim(), "dt", -0.1, "parameter 'dt': -0.1 is below the minimum 0.01"),
     ("sim n_ray not an integer", _sim(), "sensor.n_ray", 3.5, "parameter 'sensor.n_ray': expected an integer"),
     ("sim missing key", _sim(), "t_final", DROP, "parameter 't_final': missing"),
-    ("sim several egos", _sim(), "egos.count", 2, "parameter 'egos.count': 2: the live graph drives one ego"),
+    ("sim too many egos", _sim(), "egos.count", 9, "parameter 'egos.count': 9 is above the maximum 8"),
     ("sim malformed lot map", _sim(), "lot_file", "BADLOT", "lot.yaml: spots[id=0]: spot lies (partly) outside"),
     ("planner bad type", _PLANNER, "search.max_iterations", "many",
      "parameter 'search.max_iterations': expected an integer"),
@@ -434,8 +434,9 @@ def test_bad_requests_into_a_running_simulator(ros_env, tmp_path, monkeypatch):
         assert not r1.success and "scenario_file: not a file of the served" in r1.message and "\n" not in r1.message
         assert not r2.success and "dynamic_vehicles[0].target_spot" in r2.message and "\n" not in r2.message
         two = dict(yaml.safe_load(SCENARIO.read_text()), egos=[{"start": [21.5, 38.0, -1.5708], "enter_at": 5.0}])
-        r3 = reset(seed=1, reactive=True, scenario_yaml=yaml.safe_dump(two))  # several egos: in process only
-        assert not r3.success and "the live graph drives one ego" in r3.message, r3.message
+        r3 = reset(seed=1, reactive=True, scenario_yaml=yaml.safe_dump(two))  # 2 egos for a simulator of 1
+        assert not r3.success and "egos: 2 egos, but this simulator drives 1 (parameter egos.count)" in r3.message, \
+            r3.message
         send(0, 1.0, 0.0)  # the episode that was running is untouched by the failed resets
         spin(10, lambda: any(g.step == 1 for g in gts))
         assert any(g.step == 1 for g in gts)

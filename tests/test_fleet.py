@@ -4,6 +4,7 @@ shapely as the judge of where the egos end up."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -194,7 +195,7 @@ def test_avp_experiment_runs_fleets_with_a_record_per_ego_and_resumes(tmp_path, 
     (["--egos", "9", "--methods", "blind"], "--egos: expected 1..8"),
     (["--fleet", "blind,,bezier"], "--fleet: expected comma-separated"),
     (["--fleet", "blind,bezier", "--egos", "3"], "--fleet names 2 methods but --egos is 3"),
-    (["--egos", "2", "--methods", "blind", "--transport", "ros"], "the live graph drives one ego"),
+    (["--egos", "2", "--methods", "blind", "--transport", "ros"], "the experiment runs fleets in process"),
 ])
 def test_bad_fleet_arguments_get_one_line(tmp_path, capsys, args, needle):
     from avp_experiment.runner import main
@@ -202,3 +203,93 @@ def test_bad_fleet_arguments_get_one_line(tmp_path, capsys, args, needle):
     assert main([*args, "--scenarios", "1", "--no-progress", "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and needle in err[0], err
+
+
+def test_the_reservation_book_refuses_a_second_claim_and_frees_a_dead_egos_spot():
+    from types import SimpleNamespace
+
+    from avp_planner.core.reservation import SpotReservations
+
+    book = SpotReservations(timeout=2.0)
+    assert book.claim(0, 14, now=0.0) and book.holder(14) == 0
+    assert not book.claim(1, 14, now=0.5) and book.refused == 1  # first come, first served
+    assert book.claim(0, 14, now=1.0)  # the holder may claim again (a heartbeat)
+    assert book.claim(1, 17, now=1.0) and book.held_by_others(0) == {17}
+    assert book.claim(1, 18, now=1.5) and book.holder(17) is None  # one hold per ego: the new one frees the old
+    book.update(0, SimpleNamespace(mode="idle", spot_id=-1), now=2.5)  # waiting keeps the hold
+    assert book.holder(14) == 0
+    book.heartbeat(1, 4.0)
+    assert book.expire(4.6) == [0] and book.holder(14) is None  # ego 0 silent for more than 2 s: its spot is free
+    assert book.claim(1, 14, now=4.7) and book.holder(18) is None
+    book.update(1, SimpleNamespace(mode="explore", spot_id=-1), now=5.0)  # gave the spot up
+    assert book.by_ego == {}
+    with pytest.raises(ValueError, match="timeout"):
+        SpotReservations(timeout=0.0)
+
+
+def test_reserve_hides_the_spots_other_egos_hold_and_one_ego_parks_without_a_fight(paper_lot):
+    from avp_planner.core.reservation import SpotReservations
+
+    book = SpotReservations()
+    world = World(paper_lot, _scene(paper_lot, [14, 17], [{"start": [21.5, 3.5, UP], "enter_at": 0.0}]),
+                  WorldConfig(n_egos=2))
+    world.step_all([(0.0, 0.0), (0.0, 0.0)])  # ego 1 enters after the first step
+    obs = world.observe(0)
+    assert obs.vacant_spot_ids.tolist() == [17]  # ego 0 sees spot 17 vacant
+    assert book.apply(obs, 0) is obs  # nothing hidden while nobody holds a spot
+    book.claim(1, 17, now=0.0)
+    seen = book.apply(obs, 0)
+    assert seen.vacant_spot_ids.tolist() == [] and set(seen.occupied_spot_ids) == {*obs.occupied_spot_ids, 17}
+    assert book.apply(obs, 1) is obs  # its own hold is not hidden from ego 1
+    recs = _fleet(paper_lot, [14], [{"start": [21.5, 3.5, UP], "enter_at": 0.0}], methods=("reserve", "reserve"),
+                  t_final=40.0)
+    parked = [r for r in recs if r["status"] == SUCCESS]
+    assert len(parked) == 1 and _inside(paper_lot, parked[0]["final_pose"], 14), recs
+    assert not any(r["collision"] for r in recs)
+    assert recs[0]["fleet"] == "reserve,reserve"
+
+
+def test_reserve_needs_several_egos_and_stays_out_of_the_live_graph():
+    from avp_experiment.profiles import ProfileError, load_profile, method_node_params
+    from avp_experiment.runner import resolve_methods
+
+    run, skipped = resolve_methods("bezier,reserve")
+    assert [p.name for p in run] == ["bezier"] and "--egos" in skipped["reserve"]
+    run, skipped = resolve_methods("bezier,reserve", egos=2)
+    assert [p.name for p in run] == ["bezier", "reserve"] and not skipped
+    with pytest.raises(ProfileError, match="in process only"):
+        method_node_params(load_profile("reserve"))
+
+
+def test_the_live_graph_of_k_egos_its_topics_and_its_frames():
+    from avp_bag.recorder import GRAPH_TOPICS, fleet_topics
+    from avp_bringup.cli import _fleet_methods, build_parser
+    from avp_bringup.graph import Graph, fleet_graph
+    from avp_viz import scene
+
+    nodes = fleet_graph(["bezier", "blind", "bezier"], scene=True)
+    assert nodes[0].extra_params["egos.count"] == 3 and nodes[0].extra_params["min_subscribers"] == 4
+    assert [n.key for n in nodes[1:5]] == ["ego0.avp_belief", "ego0.avp_prediction", "ego0.avp_planner",
+                                           "ego0.avp_scene"]
+    assert {n.namespace for n in nodes[1:]} == {"/avp/ego0", "/avp/ego1", "/avp/ego2"}
+    cmd = Graph(nodes, Path("/tmp")).command(nodes[6])  # ego 1's prediction node: blind's predictor
+    assert "__ns:=/avp/ego1" in cmd and "lot_map:=/avp/lot_map" in cmd
+    assert fleet_graph(["bezier"])[0].extra_params.get("egos.count", 1) == 1  # one method: the one-ego graph
+    p = build_parser()
+    assert _fleet_methods(p.parse_args(["launch", "--egos", "2"])) == ["bezier", "bezier"]
+    assert _fleet_methods(p.parse_args(["launch"])) == []
+    for bad, needle in ((["--egos", "9"], "--egos: expected 1..8"), (["--methods", "a,,b"], "--methods: expected"),
+                        (["--methods", "bezier", "--method", "blind"], "exclude each other")):
+        with pytest.raises(ValueError, match=needle):
+            _fleet_methods(p.parse_args(["launch", *bad]))
+    topics = fleet_topics(2)
+    assert "/avp/observation" not in topics and "/avp/ego1/observation" in topics and "/avp/episode_status" in topics
+    assert "/avp/ego0/viz/scene" in topics and "/avp/debug/ground_truth" in topics and fleet_topics(1) == GRAPH_TOPICS
+    from types import SimpleNamespace
+
+    obs = SimpleNamespace(ego_pose=(1.0, 2.0, 0.0), vehicles=[SimpleNamespace(id=5, pose=(3.0, 4.0, 0.0))])
+    from builtin_interfaces.msg import Time
+
+    tf = scene.transforms(obs, Time(), "ego1/")
+    assert [(t.header.frame_id, t.child_frame_id) for t in tf.transforms] == [("ego1/odom", "ego1/base_link"),
+                                                                             ("map", "ego1/agent_5")]

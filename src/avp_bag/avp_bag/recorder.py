@@ -53,6 +53,24 @@ OPTIONAL_TOPICS = {
 }
 
 
+#: an ego's own topics (under /avp/ego<i>/ in a graph of several egos)
+EGO_TOPICS = ("observation", "cmd", "episode_status", "beliefs", "intentions", "ego_intention", "predictions",
+              "decision", "avp_planner/debug/decision", "plan", "viz/lot", "viz/spots", "viz/scene")
+
+
+def fleet_topics(egos: int) -> dict[str, tuple[str, bool]]:
+    """The recording set of a graph of ``egos`` egos (avp launch --egos K): the lot's topics (clock, lot map, ground
+    truth, the lot's episode status, /tf) and every ego's own under /avp/ego<i>/. One ego: :data:`GRAPH_TOPICS`."""
+    if egos == 1:
+        return dict(GRAPH_TOPICS)
+    own = {f"/avp/{t}" for t in EGO_TOPICS}
+    out = {t: v for t, v in GRAPH_TOPICS.items() if t not in own or t == "/avp/episode_status"}
+    out.pop("/avp/debug/scan", None)  # the simulator's scan is ego 0's in a one-ego graph only
+    for i in range(egos):
+        out.update({f"/avp/ego{i}/{t}": GRAPH_TOPICS[f"/avp/{t}"] for t in EGO_TOPICS})
+    return out
+
+
 def _qos(latched: bool) -> Qos:
     zero = QosTime(0, 0)
     return Qos(QosHistory.KEEP_LAST, 1 if latched else 100, QosReliability.RELIABLE,
@@ -104,15 +122,17 @@ class BagRecorder(Node):
                                                     qos))
 
     def _callback(self, topic, conn):
-        from avp_common.msg_auth import verify
+        from avp_common.msg_auth import ego_scope, scoped_key, verify
 
         is_clock = topic == "/clock"
-        check = self.key is not None and topic in TAGGED_TOPICS
+        scope = ego_scope(topic)  # several egos: ego i's topics carry ego i's tag (avp_common.msg_auth)
+        check = self.key is not None and ("/avp/" + topic.split("/", 3)[-1] if scope else topic) in TAGGED_TOPICS
+        key = scoped_key(self.key, scope) if self.key is not None else None
 
         def cb(raw: bytes) -> None:
             if self.closed:
                 return
-            if check and not verify(self.key, raw):
+            if check and not verify(key, raw):
                 n = self.foreign_dropped[topic] = self.foreign_dropped.get(topic, 0) + 1
                 self._foreign_log.report(topic, f"{topic}: {n} message(s) without the graph's tag not recorded "
                                                 "(another publisher; `avp record --foreign` records them)")
@@ -152,4 +172,4 @@ class BagRecorder(Node):
                 self.get_logger().error(f"recording stopped: {exc}")
 
 
-__all__ = ["BagRecorder", "GRAPH_TOPICS", "TAGGED_TOPICS", "OPTIONAL_TOPICS", "time_to_ns"]
+__all__ = ["BagRecorder", "GRAPH_TOPICS", "TAGGED_TOPICS", "OPTIONAL_TOPICS", "fleet_topics", "time_to_ns"]

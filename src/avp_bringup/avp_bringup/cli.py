@@ -1,7 +1,8 @@
 """The ``avp`` command: run the live graph and its tools (ros2cli/launch are not on PyPI here).
 
-  avp launch [--method NAME] [--params FILE] [--log-dir DIR] [--lot FILE]
-                                                   start the node graph (a Table I method); Ctrl-C stops it
+  avp launch [--method NAME] [--params FILE] [--log-dir DIR] [--lot FILE] [--egos K] [--methods M1,M2,...]
+                                                   start the node graph (a Table I method; K egos, one pipeline
+                                                   each in /avp/ego<i>); Ctrl-C stops it
   avp demo   [--method NAME] [--seed N] [--non-reactive] [--realtime] [--out DIR] [--params FILE] [--lot FILE]
                                                    one seeded episode over DDS -> metrics.json (with the
                                                    closed-loop step time), episode.png, episode.gif
@@ -10,7 +11,8 @@
   avp replay BAG [--rate R] [--start S] [--topics T ...]
                                                    republish a bag with its sim clock
   avp metrics BAG                                  recompute an episode's metrics from a bag
-  avp swap-planner PROFILE|--node NODE [--keep-old] replace the running planner (lifecycle) while the sim steps
+  avp swap-planner PROFILE|--node NODE [--keep-old] [--ego I]
+                                                   replace the running planner (lifecycle) while the sim steps
   avp experiment [--scenarios N] [--seed-base S] [--mode reactive|non-reactive|both] [--methods M,...|all]
                  [--workers W] [--out DIR] [--transport inproc|ros] [--lot FILE]
                                                    the Table I runner (docs/experiment.md); resumable
@@ -43,13 +45,17 @@ def cmd_experiment(args: argparse.Namespace) -> int:
 
 
 def cmd_launch(args: argparse.Namespace) -> int:
-    from avp_bringup.graph import Graph, default_log_dir, ego_graph, with_params, with_scene
+    from avp_bringup.graph import Graph, default_log_dir, ego_graph, fleet_graph, with_params, with_scene
 
     log_dir = default_log_dir(args.log_dir)
     try:
-        nodes = ego_graph(args.method, args.ego)
-        if not args.no_scene:
-            nodes = with_scene(nodes)
+        fleet = _fleet_methods(args)
+        if fleet:
+            nodes = fleet_graph(fleet, scene=not args.no_scene)
+        else:
+            nodes = ego_graph(args.method, args.ego)
+            if not args.no_scene:
+                nodes = with_scene(nodes)
         if args.lot:
             from avp_world.lot import load_lot
 
@@ -60,7 +66,8 @@ def cmd_launch(args: argparse.Namespace) -> int:
         return 2
     graph = Graph(nodes, log_dir, args.params)
     graph.start()
-    print(f"[avp] started {len(graph.procs)} nodes in namespace /avp; logs in {log_dir}/")
+    where = f"namespaces /avp, /avp/ego0 .. /avp/ego{len(fleet) - 1}" if fleet else "namespace /avp"
+    print(f"[avp] started {len(graph.procs)} nodes in {where}; logs in {log_dir}/")
     for name, p in graph.procs.items():
         print(f"[avp]   {name}: pid {p.pid}  log {log_dir / (name + '.log')}")
     print("[avp] Ctrl-C stops the graph")
@@ -88,6 +95,22 @@ def cmd_launch(args: argparse.Namespace) -> int:
         graph.stop()
         print(f"[avp] graph stopped{'; shut down ' + ', '.join(others) if others else ''}")
     return 0
+
+
+def _fleet_methods(args: argparse.Namespace) -> list[str]:
+    """``--egos K [--methods M1,...]`` -> one method per ego ([] for the one-ego graph); ValueError naming the
+    option for a bad value."""
+    if args.egos == 1 and not args.methods:
+        return []
+    from avp_experiment.fleet import parse_fleet
+
+    if args.ego != "planner":
+        raise ValueError("--egos/--methods and --ego scripted exclude each other")
+    if args.methods and args.method:
+        raise ValueError("--method and --methods exclude each other (--methods M1,M2,... names one per ego)")
+    names = parse_fleet(args.methods or args.method or "bezier",
+                        args.egos if not args.methods or args.egos > 1 else None, "--methods")
+    return names if len(names) > 1 else []
 
 
 def _foxglove(args: argparse.Namespace):
@@ -233,7 +256,12 @@ def cmd_swap_planner(args: argparse.Namespace) -> int:
     rclpy.init()
     node = rclpy.create_node("avp_swap_planner")
     try:
-        report = swap_planner(LifecycleClient(node), args.namespace, profile=args.profile, node=args.node,
+        namespace = args.namespace
+        if args.ego is not None:  # avp launch --egos K: ego i's pipeline is in /avp/ego<i>
+            from avp_bringup.graph import ego_namespace
+
+            namespace = ego_namespace(args.ego)
+        report = swap_planner(LifecycleClient(node), namespace, profile=args.profile, node=args.node,
                               name=args.name, log_dir=Path(args.log_dir) if args.log_dir else None,
                               user_params=args.params, keep_old=args.keep_old, timeout=args.timeout)
     except SwapError as exc:
@@ -316,6 +344,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--method", help="a Table I method profile (bezier, constant_velocity, hybrid_astar, learned, "
                    "implicit, nawaz or a profile file): the same 4 nodes with the profile's parameters")
     p.add_argument("--lot", help="lot map YAML to simulate and plan on (default: the bundled paper lot)")
+    p.add_argument("--egos", type=int, default=1, help="automated cars, 1-8: one pipeline each in /avp/ego<i> "
+                   "(docs/world.md, 'Several egos')")
+    p.add_argument("--methods", help="one method per ego, comma-separated (e.g. bezier,blind); sets --egos")
     p.add_argument("--no-scene", action="store_true", help="leave out the scene node (/tf, /tf_static, viz/scene)")
     foxglove_cli.add_arguments(p)
     p.set_defaults(func=cmd_launch)
@@ -369,6 +400,8 @@ def _add_bag_commands(sub) -> None:
     p.add_argument("--params", help="extra parameter file for the new planner (as given to avp launch)")
     p.add_argument("--log-dir", help="where the new planner's log goes (default out/logs/swap-<time>/)")
     p.add_argument("--namespace", default="/avp")
+    p.add_argument("--ego", type=int, choices=range(8), metavar="I",
+                   help="swap ego I's planner in a graph of several egos (namespace /avp/ego<I>); the others drive on")
     p.add_argument("--keep-old", action="store_true", help="leave the old planner inactive instead of shutting "
                    "it down")
     p.add_argument("--timeout", type=float, default=30.0, help="per lifecycle call / start-up [s]")

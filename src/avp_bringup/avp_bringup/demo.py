@@ -24,6 +24,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "hybrid_astar, implicit, nawaz or a profile file) [default: bezier; ignored with --ego scripted]")
     p.add_argument("--realtime", action="store_true", help="the simulator steps at 1/dt wall rate (mode: realtime) "
                    "instead of lock-step; the closed-loop step time then decides whether commands come in time")
+    p.add_argument("--egos", type=int, default=1, help="automated cars, 1-8, each a pipeline of --method in "
+                   "/avp/ego<i> (docs/world.md, 'Several egos'); the GIF shows all of them from ego 0's view")
     p.add_argument("--no-gif", action="store_true", help="do not write episode.gif")
     p.add_argument("--t-final", type=float, default=None)
     p.add_argument("--out", default=str(avp_root() / "out" / "demo"))
@@ -63,7 +65,9 @@ def run(args: argparse.Namespace) -> int:
     bag.parent.mkdir(parents=True, exist_ok=True)
     rclpy.init()
     try:
-        recorder = BagRecorder(bag)
+        from avp_bag.recorder import fleet_topics
+
+        recorder = BagRecorder(bag, fleet_topics(args.egos))
     except BagWriteError as exc:
         print(f"[avp demo] {exc}", file=sys.stderr)
         rclpy.try_shutdown()
@@ -95,21 +99,31 @@ def _method(args: argparse.Namespace) -> str:
 def _demo_nodes(args: argparse.Namespace) -> list:
     """The graph of ``--method`` (bezier by default) with the simulator set up for one episode started by
     ``reset_episode`` (ValueError on conflicting options)."""
-    from avp_bringup.graph import ego_graph, with_params, with_scene
+    from avp_bringup.graph import ego_graph, fleet_graph, with_params, with_scene
 
     if args.ego == "planner" and not args.method:
         args.method = "bezier"  # the paper's method
-    # lock-step: the wall-clock caps lifted, so the episode is the same whatever the machine's load
-    nodes = ego_graph(args.method, args.ego, deterministic=not args.realtime)
-    if not getattr(args, "no_scene", False):
-        nodes = with_scene(nodes)
+    if not 1 <= args.egos <= 8:
+        raise ValueError(f"--egos: expected 1..8 automated cars, got {args.egos}")
+    if args.egos > 1:
+        if args.ego != "planner":
+            raise ValueError("--egos and --ego scripted exclude each other")
+        nodes = fleet_graph([args.method] * args.egos, deterministic=not args.realtime,
+                            scene=not getattr(args, "no_scene", False))
+    else:
+        # lock-step: the wall-clock caps lifted, so the episode is the same whatever the machine's load
+        nodes = ego_graph(args.method, args.ego, deterministic=not args.realtime)
+        if not getattr(args, "no_scene", False):
+            nodes = with_scene(nodes)
     sim = nodes[0]
     # the episode is started with reset_episode once the whole graph is up and discovered both ways (a volatile
     # reader that matches after step 0 was sent never gets it: lock-step would re-send after lockstep_timeout, real
     # time would run without the pipeline); in lock-step step 0 also waits for the graph's observation subscribers
     # plus our monitor and recorder
+    # + our recorder, and our monitor (one ego: it reads /avp/observation)
+    plus = 2 if args.egos == 1 else 1
     extra = {"seed": args.seed, "reactive": not args.non_reactive, "mode": _mode(args), "autostart": False,
-             "min_subscribers": sim.extra_params.get("min_subscribers", 1) + 2, "min_debug_subscribers": 2}
+             "min_subscribers": sim.extra_params.get("min_subscribers", 1) + plus, "min_debug_subscribers": 2}
     if args.t_final is not None:
         extra["t_final"] = args.t_final
     if args.lot:
@@ -133,7 +147,7 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
 
     out = Path(args.out)
     log_dir = out / "logs"
-    monitor = EpisodeMonitor()
+    monitor = EpisodeMonitor(egos=args.egos)
     executor = SingleThreadedExecutor()
     executor.add_node(monitor)
     executor.add_node(recorder)
@@ -143,11 +157,13 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
     graph = Graph(nodes, log_dir, args.params)
     t0 = time.monotonic()
     graph.start()
-    print(f"[avp demo] method {_method(args)}, seed {args.seed} ({'non-' if args.non_reactive else ''}reactive), "
-          f"{_mode(args)}, through the live graph over DDS ({', '.join(n.name for n in nodes)}); node logs in "
-          f"{log_dir}/")
+    egos = f"{args.egos} egos of " if args.egos > 1 else ""
+    print(f"[avp demo] {egos}method {_method(args)}, seed {args.seed} ({'non-' if args.non_reactive else ''}"
+          f"reactive), {_mode(args)}, through the live graph over DDS ({', '.join(n.key for n in nodes)}); node logs "
+          f"in {log_dir}/")
     try:
-        _start_episode(monitor, executor, graph, ResetEpisode, args, len(nodes) - 1 + 2, log_dir)
+        n_subs = nodes[0].extra_params["min_subscribers"]
+        _start_episode(monitor, executor, graph, ResetEpisode, args, n_subs, log_dir)
         while not monitor.finished:
             executor.spin_once(timeout_sec=0.2)
             dead = {n: rc for n, rc in graph.poll().items() if rc is not None}
@@ -162,9 +178,11 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
         while time.monotonic() - t_end < 1.0:  # drain: the last step's messages to the monitor and the bag
             executor.spin_once(timeout_sec=0.05)
         latency = monitor.latency_dict(_mode(args))
-        metrics = monitor.write(lot, out, {"wall_time_s": round(wall, 2), "method": _method(args),
-                                           "lot": lot_record(lot), "ego_node": _ego_node(nodes),
-                                           "closed_loop_step_time": latency})
+        extra = {"wall_time_s": round(wall, 2), "method": _method(args), "lot": lot_record(lot),
+                 "ego_node": _ego_node(nodes), "closed_loop_step_time": latency}
+        if args.egos > 1:
+            extra["egos"] = monitor.ego_states()
+        metrics = monitor.write(lot, out, extra)
     except RuntimeError as exc:
         print(f"[avp demo] {exc}", file=sys.stderr)
         return 1, ()
@@ -186,12 +204,15 @@ def _report(args: argparse.Namespace, bag: Path, metrics: dict, latency: dict, w
     print(f"[avp demo] bag: {bag}\n[avp demo]   replay it: avp replay {bag}   metrics from it: avp metrics {bag}")
     print(f"[avp demo] {metrics['state']} after {metrics['sim_time']:.1f} s sim time ({wall:.1f} s wall); "
           f"wrote {out / 'metrics.json'} and {out / 'episode.png'}")
+    for i, e in enumerate(metrics.get("egos", [])):
+        print(f"[avp demo]   ego {i}: {e['state']}" + (f", parked in spot {e['parked_spot_id']} after "
+                                                         f"{e['parking_time']:.1f} s" if e["success"] else ""))
     print(f"[avp demo] {latency_line(latency)}")
     if not args.no_gif:
         from avp_viz.episode_video import episode_gif
 
         gif = out / "episode.gif"
-        info = episode_gif(bag, gif, title=f"{_method(args)} seed {args.seed}")
+        info = episode_gif(bag, gif, title=f"{_method(args)} seed {args.seed}", egos=args.egos)
         print(f"[avp demo] wrote {gif} ({info['frames']} frames, every {info['stride']}. step, "
               f"{info['bytes'] / 1e6:.1f} MB) from the bag's topics")
 
@@ -213,9 +234,11 @@ def _start_episode(monitor, executor, graph, srv_type, args, n_obs_subs: int, lo
     from avp_common.services import call_once
 
     client = monitor.create_client(srv_type, "reset_episode")
+    prefixes = [f"/avp/ego{i}" for i in range(args.egos)] if args.egos > 1 else ["/avp"]
     t0 = time.monotonic()
-    while not (client.service_is_ready() and monitor.count_subscribers("/avp/observation") >= n_obs_subs
-               and monitor.count_publishers("/avp/cmd") >= 1):
+    while not (client.service_is_ready()
+               and all(monitor.count_subscribers(f"{p}/observation") >= n_obs_subs
+                       and monitor.count_publishers(f"{p}/cmd") >= 1 for p in prefixes)):
         executor.spin_once(timeout_sec=0.1)
         dead = {n: rc for n, rc in graph.poll().items() if rc is not None}
         if dead or time.monotonic() - t0 > timeout:

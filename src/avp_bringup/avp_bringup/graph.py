@@ -1,7 +1,8 @@
 """Start and stop the AVP node graph as separate processes (ros2 launch is not on PyPI, docs/install.md).
 
 Each node runs as ``install/<pkg>/lib/<pkg>/<exe> --ros-args -r __ns:=/avp --params-file <default>
-[--params-file <user>]``; its stdout/stderr go to ``<log_dir>/<node>.log``.
+[--params-file <user>]``; its stdout/stderr go to ``<log_dir>/<node>.log``. With K egos (:func:`fleet_graph`) ego
+i's pipeline runs in ``/avp/ego<i>`` and logs to ``<log_dir>/ego<i>.<node>.log``.
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ import os
 import signal
 import subprocess
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 NAMESPACE = "/avp"
@@ -23,6 +24,14 @@ class NodeSpec:
     executable: str
     param_file: str  # relative to the package's share directory
     extra_params: dict = field(default_factory=dict)
+    namespace: str = NAMESPACE
+    remaps: tuple[tuple[str, str], ...] = ()  # (from, to) name remappings
+
+    @property
+    def key(self) -> str:
+        """The node's name in :attr:`Graph.procs` and its log file's stem: ``ego1.avp_planner`` in /avp/ego1."""
+        sub = self.namespace[len(NAMESPACE):].strip("/") if self.namespace.startswith(NAMESPACE) else self.namespace
+        return f"{sub.replace('/', '.')}.{self.name}" if sub else self.name
 
     def executable_path(self) -> Path:
         from ament_index_python.packages import get_package_prefix  # a graph needs the sourced workspace
@@ -81,7 +90,41 @@ def with_scene(nodes: list[NodeSpec]) -> list[NodeSpec]:
 
 def with_params(spec: NodeSpec, **extra) -> NodeSpec:
     """``spec`` with ``extra`` parameters added to (or replacing) its ``extra_params``."""
-    return NodeSpec(spec.name, spec.package, spec.executable, spec.param_file, {**spec.extra_params, **extra})
+    return replace(spec, extra_params={**spec.extra_params, **extra})
+
+
+def ego_namespace(i: int) -> str:
+    """Ego i's namespace among several egos: ``/avp/ego<i>``."""
+    return f"{NAMESPACE}/ego{int(i)}"
+
+
+#: what a pipeline in an ego's namespace reads from the lot's namespace
+EGO_REMAPS = (("lot_map", f"{NAMESPACE}/lot_map"),)
+
+
+def fleet_graph(methods: list, *, deterministic: bool = False, sim_extra: dict | None = None,
+                scene: bool = False) -> list[NodeSpec]:
+    """The live graph of K = len(methods) egos (docs/world.md, "Several egos"): one simulator (``egos.count`` K)
+    and, per ego i, the belief node, prediction node and planner of its method (:func:`method_graph`) in
+    :func:`ego_namespace` (i), reading the lot's ``lot_map``. The simulator's step 0 waits for each ego's three
+    observation subscribers and its cmd publisher. ``scene``: a scene node per ego too (its frames ``ego<i>/`` on the
+    one /tf, its colour; avp_viz.scene). One method gives the one-ego graph of :func:`method_graph`."""
+    if len(methods) == 1:
+        return method_graph(methods[0], deterministic=deterministic, sim_extra=sim_extra)
+    if not 1 <= len(methods) <= 8:
+        raise ValueError(f"--egos: expected 1..8 automated cars, got {len(methods)}")
+    nodes: list[NodeSpec] = []
+    sim = None
+    for i, m in enumerate(methods):
+        sim_i, *pipeline = method_graph(m, deterministic=deterministic)
+        sim = sim or sim_i
+        nodes += [replace(n, namespace=ego_namespace(i), remaps=EGO_REMAPS) for n in pipeline]
+        if scene:
+            nodes.append(replace(with_params(SCENE_NODE, ego_index=i), namespace=ego_namespace(i), remaps=EGO_REMAPS))
+    assert sim is not None
+    n_subs = sim.extra_params.get("min_subscribers", 3) + (1 if scene else 0)
+    sim = with_params(sim, **{"egos.count": len(methods), "min_subscribers": n_subs, **(sim_extra or {})})
+    return [sim, *nodes]
 
 
 def method_graph(method, *, deterministic: bool = False, intent_weights: str | None = None,
@@ -159,8 +202,11 @@ class Graph:
         self.procs: dict[str, subprocess.Popen] = {}
 
     def command(self, spec: NodeSpec) -> list[str]:
-        cmd = [str(spec.executable_path()), "--ros-args", "-r", f"__ns:={NAMESPACE}", "-r", f"__node:={spec.name}",
-               "--params-file", str(spec.default_params())]
+        cmd = [str(spec.executable_path()), "--ros-args", "-r", f"__ns:={spec.namespace}", "-r",
+               f"__node:={spec.name}"]
+        for src, dst in spec.remaps:
+            cmd += ["-r", f"{src}:={dst}"]
+        cmd += ["--params-file", str(spec.default_params())]
         if self.user_params:
             cmd += ["--params-file", str(Path(self.user_params).resolve())]
         for k, v in spec.extra_params.items():
@@ -173,10 +219,10 @@ class Graph:
             self.start_node(spec)
 
     def start_node(self, spec: NodeSpec) -> subprocess.Popen:
-        log = open(self.log_dir / f"{spec.name}.log", "ab")  # noqa: SIM115 - owned by the process
+        log = open(self.log_dir / f"{spec.key}.log", "ab")  # noqa: SIM115 - owned by the process
         proc = subprocess.Popen(self.command(spec), stdout=log, stderr=subprocess.STDOUT, env=self.env,
                                 start_new_session=True)
-        self.procs[spec.name] = proc
+        self.procs[spec.key] = proc
         return proc
 
     def poll(self) -> dict[str, int | None]:

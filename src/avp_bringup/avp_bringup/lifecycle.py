@@ -237,17 +237,18 @@ def start_planner_process(name: str, profile: Path, namespace: str, log_dir: Pat
     """``avp_planner/planner`` as a detached process named ``name`` (unconfigured: autostart false), with
     the parameters the default graph gives its planner (use_beliefs / use_predictions), replaced by ``wiring``
     (the running planner's inputs, :data:`WIRING`) where given."""
-    from avp_bringup.graph import Graph, NodeSpec, default_graph
+    from avp_bringup.graph import EGO_REMAPS, Graph, NodeSpec, default_graph
+    from avp_common.msg_auth import ego_scope
 
     base = next(s for s in default_graph("planner") if s.package == "avp_planner" and s.executable == "planner")
     extra = {**base.extra_params, **{k: v for k, v in (wiring or {}).items() if k in WIRING}, "autostart": False}
-    spec = NodeSpec(name, base.package, base.executable, base.param_file, extra)
+    # in an ego's namespace (avp launch --egos K) it reads the lot's lot_map, as that ego's pipeline does
+    spec = NodeSpec(name, base.package, base.executable, base.param_file, extra, namespace=namespace,
+                    remaps=EGO_REMAPS if ego_scope(namespace) else ())
     cmd = Graph([spec], log_dir, user_params).command(spec)
     cmd[cmd.index("-p"):cmd.index("-p")] = ["--params-file", str(profile)]  # defaults < user < profile < -p
-    if namespace != "/avp":
-        cmd[cmd.index("__ns:=/avp")] = f"__ns:={namespace}"
     log_dir.mkdir(parents=True, exist_ok=True)
-    log = log_dir / f"{name}.log"
+    log = log_dir / f"{spec.key}.log"
     with open(log, "ab") as f:
         proc = subprocess.Popen(cmd, stdout=f, stderr=subprocess.STDOUT, env=env, start_new_session=True)
     return proc, log

@@ -43,8 +43,12 @@ STATE_NAMES = {EpisodeStatus.STATE_IDLE: "idle", EpisodeStatus.STATE_RUNNING: "r
 
 
 class EpisodeMonitor(Node):
-    def __init__(self, namespace: str = "/avp") -> None:
+    def __init__(self, namespace: str = "/avp", egos: int = 1) -> None:
         super().__init__("avp_monitor", namespace=namespace)
+        self.ego_status: dict[int, EpisodeStatus] = {}  # several egos: ego i's own status (ego<i>/episode_status)
+        for i in range(egos if egos > 1 else 0):
+            self.create_subscription(EpisodeStatus, f"ego{i}/episode_status",
+                                     lambda m, i=i: self.ego_status.__setitem__(i, m), STATUS)
         self.gt: dict[int, GroundTruth] = {}
         self.status: EpisodeStatus | None = None
         self.last_obs: Observation | None = None
@@ -151,12 +155,13 @@ class EpisodeMonitor(Node):
         return self.status is not None and self.status.state not in (EpisodeStatus.STATE_RUNNING,
                                                                        EpisodeStatus.STATE_IDLE)
 
-    def ego_trajectory(self) -> np.ndarray:
-        steps = sorted(self.gt)
+    def ego_trajectory(self, ego: int = 0) -> np.ndarray:
+        """Ego ``ego``'s poses, step by step, from the step it is first in the lot (K egos: its id is its index)."""
         out = []
-        for k in steps:
-            ego = next(a for a in self.gt[k].agents if a.kind == AgentState.KIND_EGO)
-            out.append([ego.pose.x, ego.pose.y, ego.pose.theta])
+        for k in sorted(self.gt):
+            a = next((a for a in self.gt[k].agents if a.kind == AgentState.KIND_EGO and int(a.id) == ego), None)
+            if a is not None:
+                out.append([a.pose.x, a.pose.y, a.pose.theta])
         return np.array(out).reshape(-1, 3)
 
     def vehicle_trajectories(self) -> dict:
@@ -168,6 +173,18 @@ class EpisodeMonitor(Node):
                 d = out.setdefault(int(a.id), {"traj": [], "dims": (a.length, a.width), "dynamic": not a.is_static,
                                                "target": int(a.target_spot_id)})
                 d["traj"].append([a.pose.x, a.pose.y, a.pose.theta])
+        return out
+
+    def ego_states(self) -> list[dict]:
+        """Several egos: each ego's state and metrics from its own episode status (``egos`` given)."""
+        out = []
+        for i in sorted(self.ego_status):
+            m = self.ego_status[i].metrics
+            out.append({"state": STATE_NAMES.get(self.ego_status[i].state, "?"), "success": bool(m.success),
+                        "collision": bool(m.collision), "collision_with": m.collision_with,
+                        "parked_spot_id": int(m.parked_spot_id),
+                        "parking_time": None if math.isnan(m.parking_time) else float(m.parking_time),
+                        "interrupted_steps": int(m.interrupted_steps)})
         return out
 
     def metrics_dict(self) -> dict:

@@ -18,8 +18,16 @@ node), ``predictions`` (prediction node), ``cmd`` (every ego node; a custom plan
 :meth:`Authenticator.publisher`). The key: 32 random bytes in ``$AVP_CMD_KEY_FILE``, default
 ``~/.local/state/avp/cmd.key``, created on first use with mode 0600 in a 0700 directory; every node of the
 user's graphs, `avp swap-planner`'s planners and custom planners read the same file — a swapped-in planner's
-hand-over is its access to it. Not stopped: a process of the same user (it can read the file), readers of any
-topic (nothing is encrypted); a deployment needs SROS2 with a security-enabled DDS (docs/bad_input.md).
+hand-over is its access to it.
+
+Several egos (docs/world.md, "Several egos"): ego i's pipeline runs in namespace ``/avp/ego<i>``. A node there tags
+what it publishes with ego i's key, HMAC-SHA256(key, "ego<i>") (:func:`scoped_key`), and a message on a topic under
+``/ego<i>/`` verifies only with ego i's key; every other topic (``/avp/lot_map``) keeps the key itself. So ego 1's
+planner cannot steer ego 0 — its command on ``/avp/ego0/cmd``, a copy or a misconfigured remap, carries ego 1's tag —
+and one graph's egos cannot feed each other's pipelines. With one ego (namespace ``/avp``) nothing changes.
+
+Not stopped: a process of the same user (it can read the file), readers of any topic (nothing is encrypted); a
+deployment needs SROS2 with a security-enabled DDS (docs/bad_input.md).
 """
 
 from __future__ import annotations
@@ -27,6 +35,7 @@ from __future__ import annotations
 import hashlib
 import hmac
 import os
+import re
 import time
 from pathlib import Path
 from typing import Any
@@ -84,6 +93,21 @@ def load_key(path: Path | None = None) -> bytes:
 
 _PLACEHOLDER = b"0" * TAG_HEX
 _FRAME_LEN_AT = 12  # CDR: 4-byte encapsulation header, header.stamp (int32 sec, uint32 nanosec), frame_id length
+
+
+_EGO_SCOPE = re.compile(r"(?:^|/)(ego\d+)(?:/|$)")
+
+
+def ego_scope(name: str) -> str | None:
+    """``"ego<i>"`` when the namespace or topic ``name`` lies under an ego's namespace (``/avp/ego1/cmd``), else
+    None."""
+    m = _EGO_SCOPE.search(name)
+    return m.group(1) if m else None
+
+
+def scoped_key(key: bytes, scope: str | None) -> bytes:
+    """The key of ``scope`` (an ego's, :func:`ego_scope`): HMAC-SHA256(key, scope); ``key`` itself for None."""
+    return key if scope is None else hmac.new(key, scope.encode(), hashlib.sha256).digest()
 
 
 def _frame_span(data: bytes | bytearray) -> tuple[int, int] | None:
@@ -148,15 +172,23 @@ class Authenticator:
 
     def __init__(self, node, check_inputs: bool = True, key: bytes | None = None):
         self.node = node
-        self.key = key if key is not None else load_key()
+        self.master = key if key is not None else load_key()
+        #: what this node signs with: its ego's key in /avp/ego<i>, else the key itself (module docstring)
+        self.key = scoped_key(self.master, ego_scope(node.get_namespace()))
         self.check_inputs = bool(check_inputs)
         self.dropped: dict[tuple[str, str], int] = {}  # (topic, reason) -> count
         self._last_log: dict[tuple[str, str], float] = {}
         self._publishers: dict[str, tuple[float, set[str]]] = {}
         self._reported: dict[str, set[str]] = {}
 
-    def publisher(self, msg_type, topic: str, qos):
-        return _SigningPublisher(self.node.create_publisher(msg_type, topic, qos), self.key)
+    def publisher(self, msg_type, topic: str, qos, *, ego: int | None = None):
+        """A publisher that tags with this node's key, or with ego ``ego``'s (the simulator's per-ego outputs)."""
+        key = self.key if ego is None else scoped_key(self.master, f"ego{int(ego)}")
+        return _SigningPublisher(self.node.create_publisher(msg_type, topic, qos), key)
+
+    def key_for(self, topic: str) -> bytes:
+        """The key an input on the (resolved) ``topic`` must carry: its ego's under /ego<i>/, else the key itself."""
+        return scoped_key(self.master, ego_scope(topic))
 
     def subscription(self, msg_type, topic: str, callback, qos, *, with_info: bool = False):
         """A subscription that checks the tag on the received bytes, then deserialises and calls ``callback``
@@ -167,7 +199,7 @@ class Authenticator:
             if len(data) > MAX_INPUT_BYTES:
                 self._report(holder["sub"].topic_name, f"larger than {MAX_INPUT_BYTES} bytes, dropped unread")
                 return
-            if self.check_inputs and not verify(self.key, data):
+            if self.check_inputs and not verify(holder["key"], data):
                 self._report(holder["sub"].topic_name)
                 return
             msg = deserialize_message(data, msg_type)
@@ -175,6 +207,7 @@ class Authenticator:
 
         # bursts taken in one executor round: a flood costs a wait-set rebuild per batch, not per message
         holder["sub"] = draining_subscription(self.node, msg_type, topic, checked, qos, with_info=with_info)
+        holder["key"] = self.key_for(holder["sub"].topic_name)
         return holder["sub"]
 
     def _report(self, topic: str, why: str = "unauthenticated") -> None:

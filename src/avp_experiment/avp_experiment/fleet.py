@@ -18,6 +18,9 @@ from avp_experiment.gridlock import GridlockMeter, Node
 from avp_experiment.profiles import MethodProfile
 from avp_experiment.run_config import ORACLE_HORIZON, RunConfig
 
+#: s without a decision after which the reservation book frees an ego's spot (avp_planner.core.reservation); in
+#: process every driving ego decides every step, so only a finished ego's hold ends, and at once
+RESERVATION_TIMEOUT = 5.0
 #: the method field of a fleet's records (and of its episode keys): ``fleet:`` + its methods in ego order
 FLEET_PREFIX = "fleet:"
 
@@ -41,21 +44,21 @@ def run_units(methods: list[str], egos: int, fleet: str) -> list[str]:
     return [fleet_label(parse_fleet(m, egos)) for m in methods]
 
 
-def parse_fleet(spec: str, egos: int | None = None) -> list[str]:
+def parse_fleet(spec: str, egos: int | None = None, option: str = "--fleet") -> list[str]:
     """``bezier,bezier,blind`` -> one method per ego; ``bezier`` with ``egos`` = K -> K of it. One clear error for a
-    malformed spec."""
+    malformed spec, naming ``option``."""
     names = [s.strip() for s in spec.split(",")] if spec else []
     if not names or any(not n for n in names):
-        raise ValueError(f"--fleet: expected comma-separated method names, got {spec!r}")
+        raise ValueError(f"{option}: expected comma-separated method names, got {spec!r}")
     if egos is not None:
         if not 1 <= egos <= 8:
             raise ValueError(f"--egos: expected 1..8 automated cars, got {egos}")
         if len(names) == 1:
             names = names * egos
         elif len(names) != egos:
-            raise ValueError(f"--fleet names {len(names)} methods but --egos is {egos}")
+            raise ValueError(f"{option} names {len(names)} methods but --egos is {egos}")
     if not 1 <= len(names) <= 8:
-        raise ValueError(f"--fleet: 1..8 egos, got {len(names)}")
+        raise ValueError(f"{option}: 1..8 egos, got {len(names)}")
     return names
 
 
@@ -94,12 +97,14 @@ def waits_for(world, decisions: dict[int, object]) -> dict[Node, set[Node]]:
 
 
 def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int, reactive: bool,
-                     cfg: RunConfig, scenario: tuple[str, dict] | None = None) -> list[dict]:
+                     cfg: RunConfig, scenario: tuple[str, dict] | None = None, keep: dict | None = None) -> list[dict]:
     """One episode with ``len(profiles)`` egos (``egos.count`` is set to it; ``scenario``: (name, the parsed scenario
-    file) instead of the seed's scenario, its ``egos`` one fewer than the profiles); a record per ego."""
+    file) instead of the seed's scenario, its ``egos`` one fewer than the profiles); a record per ego. ``keep``: a
+    dict that receives the finished ``world`` (a test's oracle)."""
     from avp_experiment.ego import MethodEgo
     from avp_experiment.metrics import episode_record, lot_record
     from avp_experiment.oracle import OracleEgo, ground_truth
+    from avp_planner.core.reservation import SpotReservations
     from avp_planner.core.trace import DecisionTrace
     from avp_sim.core.factory import make_world
 
@@ -112,6 +117,8 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
         lot, p, deterministic=True, intent_weights=cfg.intent_weights, intent_seed=cfg.intent_seed,
         message_precision=cfg.message_precision) for p in profiles]
     traces = [DecisionTrace(world.dt) for _ in range(k)]
+    reserve = [p.coordination == "reserve" for p in profiles]
+    book = SpotReservations(RESERVATION_TIMEOUT) if any(reserve) else None
     timings: list[list[dict]] = [[] for _ in range(k)]
     target = [-1] * k  # the spot each ego is driving to park in
     lost = [{"agent": 0, "ego": 0} for _ in range(k)]
@@ -125,7 +132,12 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
                 continue
             if profiles[i].ground_truth:  # the oracle bound: told the agents' true futures (not the other egos')
                 egos[i].tell(ground_truth(world, ORACLE_HORIZON))
-            out = egos[i].step(world.observe(i))
+            obs = world.observe(i)
+            if book is not None and reserve[i]:  # the spots other egos hold, shown as occupied (.reservation)
+                obs = book.apply(obs, i)
+            out = egos[i].step(obs)
+            if book is not None and reserve[i]:
+                book.update(i, out.decision, world.step_index * world.dt)
             commands.append(out.command)
             timings[i].append(out.timings)
             if out.decision is not None:
@@ -135,6 +147,9 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
                     target[i] = int(out.decision.spot_id)
         meter.add(world.step_index, waits_for(world, decisions))
         world.step_all(commands)
+        if book is not None:
+            for i in np.nonzero(driving & ~world.egos.driving)[0]:  # parked, crashed or timed out: its hold ends
+                book.release(int(i))
         holders = _holders(world)
         for i in range(k):
             who = holders.get(target[i])
@@ -143,6 +158,8 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
                 target[i] = -1
     grid = meter.summary(world.step_index)
     wall = time.perf_counter() - t0
+    if keep is not None:
+        keep["world"] = world
     fleet = ",".join(p.name for p in profiles)
     label = fleet_label([p.name for p in profiles])
     records = []

@@ -18,6 +18,8 @@ pipeline — §VI-A: "all compared methods only differ in how they choose the eg
     planner:                      # avp_planner parameters over planner.param.yaml — a planner profile
       use_beliefs: true
       use_predictions: true
+    coordination: none            # several egos only: reserve = plan to spots granted by the spot-reservation
+                                  # book (avp_planner.core.reservation; in-process fleets)
 
 In the live graph a method is the same 4-node graph as always (simulator, belief node, prediction node,
 planner) with per-node parameters: :func:`method_node_params` is the one mapping from a profile to them, used by
@@ -49,6 +51,7 @@ import yaml
 
 from avp_common.params import ParameterError, check_value
 
+COORDINATIONS = ("none", "reserve")  # among several egos (avp_planner.core.reservation)
 BELIEF_SOURCES = ("intent", "nawaz", "observation")  # = the belief node's belief_source (tests/test_experiment.py)
 TABLE_ORDER = ("bezier", "constant_velocity", "hybrid_astar", "learned", "implicit", "nawaz",  # rows of Table I
                "oracle", "blind")  # reference bounds below the paper's six (docs/experiment.md)
@@ -74,6 +77,7 @@ class MethodProfile:
     predictor: str
     ego_intent: bool
     ground_truth: bool = False  # the oracle bound: told the true targets and futures (in-process only, .oracle)
+    coordination: str = "none"  # "reserve": spots granted by the reservation book only (several egos, in-process)
     planner: dict[str, Any] = field(default_factory=dict)  # flat dotted keys
     unavailable_reason: str = ""
     source: str = ""
@@ -146,7 +150,7 @@ def profile_from_dict(data: Any, source: str) -> MethodProfile:
     """Validate a parsed profile; :class:`ProfileError` names ``source`` and the field."""
     if not isinstance(data, dict):
         raise ProfileError(f"{source}: top level must be a mapping")
-    known = {"name", "label", "group", "available", "unavailable_reason", "perception", "planner"}
+    known = {"name", "label", "group", "available", "unavailable_reason", "perception", "planner", "coordination"}
     unknown = sorted(set(data) - known)
     if unknown:
         raise ProfileError(f"{source}: field '{unknown[0]}': unknown key (known: {sorted(known)})")
@@ -177,11 +181,15 @@ def profile_from_dict(data: Any, source: str) -> MethodProfile:
         raise ProfileError(f"{source}: field 'planner.use_ego_intention': follows perception.ego_intent "
                            f"({ego_intent}); leave it out")
     flat = checked_params(flat, _planner_specs(), source, "planner", "avp_planner")
+    coordination = req(data, "coordination", str, "") if "coordination" in data else "none"
+    if coordination not in COORDINATIONS:
+        raise ProfileError(f"{source}: field 'coordination': {coordination!r} is not one of {list(COORDINATIONS)}")
     return MethodProfile(
         name=name, label=str(data.get("label", name)), group=str(data.get("group", "")),
         available=req(data, "available", bool, ""), beliefs=beliefs,
         predictor=req(per, "predictor", str, "perception."), ego_intent=ego_intent, ground_truth=ground_truth,
         planner=flat, unavailable_reason=str(data.get("unavailable_reason", "")), source=source,
+        coordination=coordination,
     )
 
 
@@ -269,6 +277,10 @@ def method_node_params(profile: MethodProfile, *, deterministic: bool = False, i
     ProfileError for a profile that cannot run (not available)."""
     if not profile.available:
         raise ProfileError(f"method {profile.name!r} is not available: {profile.unavailable_reason}")
+    if profile.coordination != "none":
+        raise ProfileError(f"method {profile.name!r} coordinates egos through the reservation book "
+                           f"(coordination: {profile.coordination}), in process only: run it with avp experiment "
+                           "--egos K --transport inproc")
     if profile.ground_truth:
         raise ProfileError(f"method {profile.name!r} is an oracle bound (perception.ground_truth): the live graph "
                            "never feeds ground truth to the ego; run it with avp experiment --transport inproc")

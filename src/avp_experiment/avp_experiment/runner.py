@@ -167,9 +167,10 @@ def episode_keys(methods: list[str], seeds: list[int], modes: tuple[bool, ...]) 
     return [(m, s, mode_name(r)) for s in seeds for r in modes for m in methods]
 
 
-def resolve_methods(spec: str, cfg: RunConfig = RunConfig(), transport: str = "inproc"
+def resolve_methods(spec: str, cfg: RunConfig = RunConfig(), transport: str = "inproc", egos: int = 1
                     ) -> tuple[list[MethodProfile], dict[str, str]]:
-    """(runnable profiles, {name: why skipped}) for 'all' or a comma-separated list of names / files."""
+    """(runnable profiles, {name: why skipped}) for 'all' or a comma-separated list of names / files. A profile that
+    coordinates egos (``coordination``) runs only with several egos."""
     names = available_names() if spec == "all" else [s.strip() for s in spec.split(",") if s.strip()]
     run, skipped = [], {}
     for n in names:
@@ -177,6 +178,8 @@ def resolve_methods(spec: str, cfg: RunConfig = RunConfig(), transport: str = "i
         why = check_method(prof)
         if not why and prof.ground_truth and transport != "inproc":
             why = "an oracle bound: ground truth reaches the ego in-process only (--transport inproc)"
+        if not why and prof.coordination != "none" and egos == 1:
+            why = f"coordinates several egos (coordination: {prof.coordination}): run it with --egos K (K >= 2)"
         if why:
             skipped[prof.name] = why
         else:
@@ -211,9 +214,11 @@ def run_experiment(args: argparse.Namespace) -> dict:
 
     egos, fleet = getattr(args, "egos", 1), getattr(args, "fleet", "")
     if (egos != 1 or fleet) and (args.transport != "inproc"):
-        raise ValueError("--egos/--fleet run in process (--transport inproc): the live graph drives one ego")
+        raise ValueError("--egos/--fleet: the experiment runs fleets in process (--transport inproc); over DDS "
+                         "`avp launch --egos K` drives them (tests/test_fleet_dds.py checks the two agree)")
     spec = ",".join(dict.fromkeys(parse_fleet(fleet))) if fleet else args.methods
-    profiles, skipped = resolve_methods(spec, cfg, args.transport)
+    n_egos = len(parse_fleet(fleet, egos if egos > 1 else None)) if fleet else egos
+    profiles, skipped = resolve_methods(spec, cfg, args.transport, n_egos)
     for name, why in skipped.items():
         print(f"[avp experiment] skipping method {name!r}: {why}", file=sys.stderr)
     if not profiles:

@@ -12,6 +12,11 @@ step 0 — observation and ground truth — is re-sent every dt; then a wall tim
 command if it answers the current observation (stamp; or one at most ``command_max_lag`` steps older)
 and arrived less than ``command_watchdog`` wall seconds ago; else the ego holds still (v = ω = 0) — so
 when a pipeline node dies the ego stops within one step.
+
+K egos (``egos.count``; :mod:`avp_sim.ego_channels`): ego i's observation, cmd and episode_status are
+``ego<i>/...``. Lock-step publishes every driving ego's observation k and steps once each of them has answered
+it; after ``lockstep_timeout`` it names the egos that have not and re-sends their observations. Real time applies
+each ego's latest command under its own watchdog.
 """
 
 from __future__ import annotations
@@ -31,13 +36,14 @@ from avp_common.conversions import lot_to_msg, observation_to_msg, step_to_ns, s
 from avp_common.msg_auth import Authenticator, episode_of, with_episode
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
-from avp_common.qos import DEBUG, GROUND_TRUTH, LATCHED, STATUS, STEP, STEP_INPUT
+from avp_common.qos import DEBUG, GROUND_TRUTH, LATCHED, STATUS
 from avp_common.ratelog import RateLimitedLog
-from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation
+from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth
 from avp_msgs.srv import ResetEpisode
 from avp_sim.core.factory import load_lot_param, make_world, world_config
 from avp_sim.core.scenario_source import requested_scenario, served_dirs
 from avp_sim.core.world import COLLISION, RUNNING, SUCCESS, TIMEOUT, World
+from avp_sim.ego_channels import EgoChannel, make_channels
 from avp_sim.markers import world_markers
 from avp_sim.params import SIM_PARAMS
 
@@ -50,16 +56,12 @@ _STATE = {RUNNING: EpisodeStatus.STATE_RUNNING, SUCCESS: EpisodeStatus.STATE_SUC
 #: matched (a test saw one of two ground-truth subscribers miss step 0). Only the first episode waits (the
 #: readers stay matched).
 SUBSCRIBER_SETTLE_S = 0.5
-#: why the node refuses several egos (docs/world.md, "Several egos")
-ONE_EGO = "the live graph drives one ego; several egos run in process (avp_experiment.fleet)"
 
 
 class SimNode(Node):
     def __init__(self) -> None:
         super().__init__("avp_sim")
         self.p = declare_and_validate(self, SIM_PARAMS)
-        if self.p["egos.count"] != 1:
-            raise ValueError(f"parameter 'egos.count': {self.p['egos.count']}: {ONE_EGO}")
         world_config(self.p)  # validates the sensor block at start-up
         self.lot = load_lot_param(self.p["lot_file"])
         self.scenario_dirs = served_dirs(self.p["scenario_dir"])  # what reset_episode may read (scenario_source)
@@ -71,13 +73,12 @@ class SimNode(Node):
         self.reject_warn = RateLimitedLog(self.get_logger().warning)
         self.auth = Authenticator(self, self.p["auth_inputs"])
         self.pub_lot = self.auth.publisher(type(lot_to_msg(self.lot)), "lot_map", LATCHED)
-        self.pub_obs = self.auth.publisher(Observation, "observation", STEP)
+        self.egos = make_channels(self, self.auth, self.p["egos.count"], self._on_cmd)
         self.pub_status = self.create_publisher(EpisodeStatus, "episode_status", STATUS)
         self.pub_gt = self.create_publisher(GroundTruth, "debug/ground_truth", GROUND_TRUTH)
         self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", DEBUG)
         self.pub_scan = self.create_publisher(LaserScan, "debug/scan", DEBUG)
         self.pub_clock = self.create_publisher(Clock, "/clock", 10)
-        self.sub_cmd = self.auth.subscription(TwistStamped, "cmd", self._on_cmd, STEP_INPUT)
         self.srv = self.create_service(ResetEpisode, "reset_episode", self._on_reset)
         self.pub_lot.publish(lot_to_msg(self.lot))
         self.world: World | None = None
@@ -87,7 +88,6 @@ class SimNode(Node):
         self.started = False  # step 0 published
         self.subscribers_since: float | None = None  # when the subscribers step 0 waits for were first all there
         self.last_pub_wall = 0.0
-        self.latest_cmd: tuple[float, float, float, int] | None = None  # (v, omega, wall time, stamp ns)
         if self.p["autostart"]:
             self._new_episode(self.seed, self.reactive)
         if self.lockstep:
@@ -101,8 +101,9 @@ class SimNode(Node):
     # ---------------------------------------------------------------- episodes
     def _new_episode(self, seed: int, reactive: bool, scenario: tuple[str, object] | None = None) -> World:
         world = make_world(self.lot, self.p, seed, reactive, scenario_data=scenario)
-        if world.egos.count != 1:
-            raise ValueError(f"scenario: egos: {world.egos.count} egos: {ONE_EGO}")
+        if world.egos.count != len(self.egos):
+            raise ValueError(f"scenario: egos: {world.egos.count} egos, but this simulator drives "
+                             f"{len(self.egos)} (parameter egos.count)")
         self.world = world
         # the episode id every message of this episode carries (avp_common.msg_auth, issue #27): the wall clock
         # in ns, strictly increasing, so that a replay of an earlier episode (or of an earlier run) is older
@@ -110,9 +111,8 @@ class SimNode(Node):
         seed, reactive = self.world.scenario.seed, self.world.scenario.reactive
         self.seed, self.reactive = seed, reactive
         self.started = False
-        self.latest_cmd = None
-        self.holding_since: int | None = None  # real time: step the ego began holding still (no command)
-        self.started_moving = False  # the first command of the episode came (no hold report before it)
+        for ch in self.egos:
+            ch.reset()
         self.debug_step = -1  # last step whose ground truth went out (a re-send repeats only the observation)
         dyn = [(v.id, v.target_spot_id, v.maneuver, v.passiveness) for v in self.world.scenario.dynamic_vehicles()]
         self.get_logger().info(f"episode seed={seed} reactive={reactive}: dynamic vehicles {dyn}")
@@ -132,12 +132,14 @@ class SimNode(Node):
         return resp
 
     # ---------------------------------------------------------------- stepping
-    def _publish_step(self) -> None:
+    def _publish_step(self, only: list[int] | None = None) -> None:
+        """Step k's messages: ground truth and markers once, the statuses, and the observation of every driving ego
+        (of the egos ``only``: a lock-step re-send)."""
         w = self.world
         assert w is not None
         stamp = step_to_time(w.step_index, self.dt)
         self.pub_clock.publish(Clock(clock=stamp))
-        obs = w.observe()
+        obs = w.observe(0)
         if w.step_index != self.debug_step:  # one ground-truth record per step, even when the step is re-sent
             self.debug_step = w.step_index
             self.pub_gt.publish(self._ground_truth_msg(w, stamp))
@@ -147,8 +149,13 @@ class SimNode(Node):
                 if self.pub_scan.get_subscription_count():
                     self.pub_scan.publish(self._scan_msg(obs, stamp))
         self.pub_status.publish(self._status_msg(w, stamp))
-        if not w.done:
-            self.pub_obs.publish(observation_to_msg(obs, with_episode("map", self.episode)))
+        driving = w.egos.driving
+        for ch in self.egos:
+            if ch.pub_status is not None:
+                ch.pub_status.publish(self._status_msg(w, stamp, ch.index))
+            if driving[ch.index] and (only is None or ch.index in only):
+                o = obs if ch.index == 0 else w.observe(ch.index)
+                ch.pub_obs.publish(observation_to_msg(o, with_episode("map", self.episode)))
         self.last_pub_wall = time.monotonic()
         self.started = True
 
@@ -157,8 +164,8 @@ class SimNode(Node):
         if w is None or w.done:
             return
         if not self.started:
-            n_subs = self.pub_obs.get_subscription_count()
-            n_cmd = self.count_publishers(self.sub_cmd.topic_name)
+            n_subs = min(ch.pub_obs.get_subscription_count() for ch in self.egos)
+            n_cmd = min(self.count_publishers(ch.cmd_topic) for ch in self.egos)
             n_debug = self.pub_gt.get_subscription_count()
             if self.p["wait_for_subscribers"]:
                 if (n_subs < self.p["min_subscribers"] or n_cmd < 1
@@ -171,12 +178,22 @@ class SimNode(Node):
                     return  # our writers have matched them; their readers may still be matching ours
             self._publish_step()
             return
+        while not w.done and not w.egos.driving.any():  # K egos: none in the lot drives (one parked, the next is
+            w.step_all([(0.0, 0.0)] * len(self.egos))  # not in yet): the lot steps without commands
+            self._publish_step()
+        if w.done:
+            return
         if time.monotonic() - self.last_pub_wall > self.p["lockstep_timeout"]:
+            late = [ch for ch in self.egos if w.egos.driving[ch.index] and ch.pending is None]
+            topics = ", ".join(ch.cmd_topic for ch in late)
+            who = "" if len(self.egos) == 1 else f" from ego {', '.join(str(ch.index) for ch in late)}"
             self.get_logger().warning(
-                f"lock-step: no command stamped step {w.step_index} on {self.sub_cmd.topic_name} for "
+                f"lock-step: no command stamped step {w.step_index}{who} on {topics} for "
                 f"{self.p['lockstep_timeout']} s; re-sending the observation"
             )
-            self._publish_step()
+            for ch in late:
+                ch.extra["late_steps"] = ch.extra.get("late_steps", 0) + 1
+            self._publish_step([ch.index for ch in late])
 
     def _realtime_tick(self) -> None:
         w = self.world
@@ -185,73 +202,85 @@ class SimNode(Node):
         if not self.started:
             self._publish_step()
             return
+        first = self.egos[0].latest_cmd
         if w.step_index == 0 and self.p["realtime_wait_first_command"] and (
-                self.latest_cmd is None or self.latest_cmd[3] != step_to_ns(0, self.dt)):
+                first is None or first[3] != step_to_ns(0, self.dt)):
             # the clock starts with the ego's first answer. Until then step 0 is re-sent whole — observation, ground
             # truth, markers — so that a recorder, monitor or viewer whose reader matches our volatile writers late
             # (DDS discovery) still gets step 0; every consumer keys ground truth by step (README, real time)
             self.debug_step = -1
             self._publish_step()
             return
-        v, om, fresh = 0.0, 0.0, False
-        if self.latest_cmd is not None:
-            cv, com, wall, stamp = self.latest_cmd
-            lag = (step_to_ns(w.step_index, self.dt) - stamp) / step_to_ns(1, self.dt)  # steps behind
-            if time.monotonic() - wall <= self.p["command_watchdog"] and 0 <= lag <= self.p["command_max_lag"]:
-                v, om, fresh = cv, com, True
-        self._report_hold(w.step_index, fresh)
-        w.step(v, om)
+        cmds = []
+        driving = w.egos.driving
+        for ch in self.egos:
+            v, om, fresh = 0.0, 0.0, False
+            if ch.latest_cmd is not None:
+                cv, com, wall, stamp = ch.latest_cmd
+                lag = (step_to_ns(w.step_index, self.dt) - stamp) / step_to_ns(1, self.dt)  # steps behind
+                if time.monotonic() - wall <= self.p["command_watchdog"] and 0 <= lag <= self.p["command_max_lag"]:
+                    v, om, fresh = cv, com, True
+            if driving[ch.index]:
+                self._report_hold(ch, w.step_index, fresh)
+            cmds.append((v, om))
+        w.step_all(cmds)
         self._publish_step()
 
-    def _report_hold(self, k: int, fresh: bool) -> None:
-        """Real time: one line when the ego starts holding still for want of a current command (a hung or dead
+    def _report_hold(self, ch: EgoChannel, k: int, fresh: bool) -> None:
+        """Real time: one line when an ego starts holding still for want of a current command (a hung or dead
         planner, or one waiting for its inputs), one when commands come again."""
-        if not fresh and self.holding_since is None and self.started_moving:
-            self.holding_since = k
+        if not fresh and ch.holding_since is None and ch.started_moving:
+            ch.holding_since = k
             self.get_logger().warning(
-                f"{self.sub_cmd.topic_name}: no current command for step {k} (command_watchdog "
+                f"{ch.cmd_topic}: no current command for step {k} (command_watchdog "
                 f"{self.p['command_watchdog']} s, command_max_lag {self.p['command_max_lag']}); the ego holds still")
-        elif fresh and self.holding_since is not None:
-            self.get_logger().info(f"{self.sub_cmd.topic_name}: commands again at step {k} after "
-                                   f"{k - self.holding_since} held steps")
-            self.holding_since = None
-        self.started_moving |= fresh
+        elif fresh and ch.holding_since is not None:
+            self.get_logger().info(f"{ch.cmd_topic}: commands again at step {k} after "
+                                   f"{k - ch.holding_since} held steps")
+            ch.holding_since = None
+        ch.started_moving |= fresh
 
-    def _on_cmd(self, msg: TwistStamped) -> None:
+    def _on_cmd(self, index: int, msg: TwistStamped) -> None:
+        ch = self.egos[index]
         v, om = float(msg.twist.linear.x), float(msg.twist.angular.z)
         if not (math.isfinite(v) and math.isfinite(om)):
-            self.reject(f"{self.sub_cmd.topic_name}: command with NaN/inf (v={v}, omega={om}) dropped")
+            self.reject(f"{ch.cmd_topic}: command with NaN/inf (v={v}, omega={om}) dropped")
             return
         w = self.world
-        if w is None or w.done:
+        if w is None or w.done or not w.egos.driving[index]:
             return
         if episode_of(msg.header.frame_id) != self.episode:  # an answer to another episode's observation (a replay)
-            self.reject_warn(f"{self.sub_cmd.topic_name}: command of another episode than the running one (a "
+            self.reject_warn(f"{ch.cmd_topic}: command of another episode than the running one (a "
                              "replay, or an answer to the episode before a reset); dropped")
             return
         expected = step_to_ns(w.step_index, self.dt)
         got = time_to_ns(msg.header.stamp)
         if not self.lockstep:
             if got > expected:
-                self.reject_warn(
-                    f"{self.sub_cmd.topic_name}: command stamped {got} ns is ahead of step {w.step_index}; dropped")
+                self.reject_warn(f"{ch.cmd_topic}: command stamped {got} ns is ahead of step {w.step_index}; dropped")
                 return
-            if self.latest_cmd is None or got >= self.latest_cmd[3]:  # never replaced by an older answer
-                self.latest_cmd = (v, om, time.monotonic(), got)
+            if ch.latest_cmd is None or got >= ch.latest_cmd[3]:  # never replaced by an older answer
+                ch.latest_cmd = (v, om, time.monotonic(), got)
             return
         if not self.started or got != expected:
             if got > expected:
-                self.reject_warn(
-                    f"{self.sub_cmd.topic_name}: command stamped {got} ns is ahead of step {w.step_index}; dropped")
+                self.reject_warn(f"{ch.cmd_topic}: command stamped {got} ns is ahead of step {w.step_index}; dropped")
             return  # stale commands (re-sent observations) are ignored
-        w.step(v, om)
+        ch.pending = (v, om)
+        driving = w.egos.driving
+        if any(driving[c.index] and c.pending is None for c in self.egos):
+            return  # lock-step waits for every driving ego's answer to step k
+        w.step_all([c.pending or (0.0, 0.0) for c in self.egos])
+        for c in self.egos:
+            c.pending = None
         self._publish_step()
         if w.done:
             self.get_logger().info(f"episode seed={self.seed} ended: {w.status} {w.metrics.as_dict()}")
 
     # ---------------------------------------------------------------- messages
-    def _status_msg(self, w: World, stamp) -> EpisodeStatus:
-        m = w.metrics
+    def _status_msg(self, w: World, stamp, ego: int | None = None) -> EpisodeStatus:
+        """The lot's status with ego 0's metrics, or (``ego``) ego i's status and metrics."""
+        m = w.metrics if ego is None else w.egos.metrics[ego]
         msg = EpisodeStatus()
         msg.header.stamp = stamp
         msg.step = w.step_index
@@ -260,7 +289,7 @@ class SimNode(Node):
         msg.t_final = float(w.config.t_final)
         msg.seed = int(self.seed)
         msg.reactive = bool(self.reactive)
-        msg.state = _STATE[w.status]
+        msg.state = _STATE[w.status if ego is None else w.egos.status[ego]]
         msg.lock_step = self.lockstep
         mm = msg.metrics
         mm.success, mm.collision, mm.collision_with = m.success, m.collision, m.collision_with
@@ -279,6 +308,12 @@ class SimNode(Node):
                          target_spot_id=-1)
         ego.pose = Pose2D(x=float(w.ego[0]), y=float(w.ego[1]), theta=float(w.ego[2]))
         agents = [ego]
+        for j in w.egos.others(0):  # K egos: the others in the lot, id = their index
+            e = AgentState(id=int(j), kind=AgentState.KIND_EGO, length=w.egos.length, width=w.egos.width,
+                           target_spot_id=-1)
+            pose = w.egos.poses[j]
+            e.pose = Pose2D(x=float(pose[0]), y=float(pose[1]), theta=float(pose[2]))
+            agents.append(e)
         for i in range(len(w.states)):
             a = AgentState(id=int(w.vehicle_ids[i]), kind=AgentState.KIND_VEHICLE, length=float(w.vehicle_dims[i, 0]),
                            width=float(w.vehicle_dims[i, 1]), is_static=not bool(w.is_dynamic[i]),

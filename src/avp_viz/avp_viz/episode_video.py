@@ -14,6 +14,10 @@ an in-process recomputation:
   wanted spots numbered;
 * the ego and its plan (``decision``: green = parking, blue = exploring; the goal spot outlined).
 
+Several egos (``avp demo --egos K``): the view is ego 0's (its topics under ``/avp/ego0/``); every other ego is drawn
+from the ground truth in its own colour (:data:`EGO_BGR`, those of the live scene) with its plan and chosen spot
+(``/avp/ego<i>/decision``).
+
 Frames are every ``stride``-th step, drawn at ``px_per_m`` and written as an animated GIF with Pillow (a pinned
 dependency; palette per frame, frame differences only), kept small by the stride and the scale.
 """
@@ -53,6 +57,7 @@ class EpisodeRecording:
     predictions: dict = field(default_factory=dict)  # step -> [PredictedTrajectory]
     decisions: dict = field(default_factory=dict)  # step -> PlannerDecision message
     status: object = None  # the last EpisodeStatus
+    other_decisions: dict = field(default_factory=dict)  # several egos: ego i (>= 1) -> step -> PlannerDecision
 
     @property
     def steps(self) -> list[int]:
@@ -61,10 +66,17 @@ class EpisodeRecording:
 
 TOPICS = ("/avp/lot_map", "/avp/observation", "/avp/debug/ground_truth", "/avp/beliefs", "/avp/intentions",
           "/avp/ego_intention", "/avp/predictions", "/avp/decision", "/avp/episode_status")
+#: ego i's colour (BGR) among several egos: avp_viz.scene.EGO_COLOURS
+EGO_BGR = [(int(255 * b), int(255 * g), int(255 * r)) for r, g, b in (
+    (0.9, 0.1, 0.1), (1.0, 0.55, 0.0), (0.6, 0.2, 0.9), (0.0, 0.8, 0.7), (0.95, 0.3, 0.7), (0.55, 0.8, 0.1),
+    (0.6, 0.4, 0.2), (0.1, 0.6, 1.0))]
+_VIEW = {"/avp/observation", "/avp/beliefs", "/avp/intentions", "/avp/ego_intention", "/avp/predictions",
+         "/avp/decision"}  # ego 0's own topics
 
 
-def read_recording(bag: Path) -> EpisodeRecording:
-    """The last episode of ``bag`` (ValueError if it lacks the lot map or ground truth)."""
+def read_recording(bag: Path, egos: int = 1) -> EpisodeRecording:
+    """The last episode of ``bag`` (ValueError if it lacks the lot map or ground truth); ``egos`` > 1: a graph of
+    several egos, seen from ego 0 (the module docstring)."""
     from avp_bag.reader import BagReader
     from avp_common.conversions import lot_from_msg, observation_from_msg, predictions_from_msg
     from avp_perception.conversions import intentions_from_msg
@@ -72,8 +84,15 @@ def read_recording(bag: Path) -> EpisodeRecording:
     rec: EpisodeRecording | None = None
     lot = None
     reader = BagReader(Path(bag))
-    for topic, msgtype, _t, raw in reader.messages(TOPICS):
+    rename = {f"/avp/ego0/{t[5:]}": t for t in _VIEW} if egos > 1 else {}
+    others = {f"/avp/ego{i}/decision": i for i in range(1, egos)}
+    for topic, msgtype, _t, raw in reader.messages([*TOPICS, *rename, *others]):
         msg = reader.deserialize(raw, msgtype)
+        if topic in others:
+            if rec is not None:
+                rec.other_decisions.setdefault(others[topic], {}).setdefault(int(msg.step), msg)
+            continue
+        topic = rename.get(topic, topic)
         if topic == "/avp/lot_map":
             lot = lot_from_msg(msg, source=f"{bag}:/avp/lot_map")
             rec = rec or EpisodeRecording(lot)
@@ -126,7 +145,8 @@ def render_frame(rec: EpisodeRecording, k: int, seen: np.ndarray, px_per_m: floa
     _draw_intentions(c, rec, k, obs, colour_of)
     _draw_predictions(c, rec, k, colour_of)
     d = rec.decisions.get(k)
-    _draw_plan_and_ego(c, rec.lot, d, obs)
+    _draw_plan_and_ego(c, rec.lot, d, obs, EGO_BGR[0] if rec.other_decisions else EGO)
+    _draw_other_egos(c, rec, k, with_first=obs is None)
     return np.vstack([_header(c, k, obs, d, title), c.img, _legend(c)])
 
 
@@ -216,16 +236,33 @@ def _draw_predictions(c: Canvas, rec: EpisodeRecording, k: int, colour_of: dict[
             c.text((sx - 0.4, sy - 1.2), f"#{rank}", EGO_RANK, 0.45)
 
 
-def _draw_plan_and_ego(c: Canvas, lot, d, obs) -> None:
+def _draw_other_egos(c: Canvas, rec: EpisodeRecording, k: int, with_first: bool = False) -> None:
+    """Several egos: egos 1..K-1 (ground truth) in their colours, each with its plan and chosen spot; ego 0 too
+    (``with_first``) on steps without its observation (it has parked)."""
+    gt = rec.ground_truth.get(k)
+    if gt is None or not rec.other_decisions:
+        return
+    for a in gt.agents:
+        i = int(a.id)
+        if a.kind != 0 or (i == 0 and not with_first):
+            continue
+        col = EGO_BGR[i % len(EGO_BGR)]
+        d = rec.other_decisions.get(i, {}).get(k)
+        if d is not None:
+            _draw_plan_and_ego(c, rec.lot, d, None, col, plan_colour=col)
+        c.poly(rect_corners(np.array([a.pose.x, a.pose.y, a.pose.theta]), a.length, a.width), col)
+
+
+def _draw_plan_and_ego(c: Canvas, lot, d, obs, ego_colour=EGO, plan_colour=None) -> None:
     """The planned path (parking or exploring), the chosen spot outlined, and the ego on top."""
     if d is not None:
-        col = PARK if d.mode == 1 else EXPLORE
+        col = plan_colour or (PARK if d.mode == 1 else EXPLORE)
         pts = np.array([[q.pose.position.x, q.pose.position.y] for q in d.plan.poses]).reshape(-1, 2)
         c.line(pts, col, 2)
         if d.mode == 1 and d.spot_id >= 0 and lot.has_spot(int(d.spot_id)):
             c.poly(lot.spot_corners[lot.spot_index(int(d.spot_id))], col, filled=False, thickness=3)
     if obs is not None:
-        c.poly(rect_corners(np.asarray(obs.ego_pose), obs.ego_length, obs.ego_width), EGO)
+        c.poly(rect_corners(np.asarray(obs.ego_pose), obs.ego_length, obs.ego_width), ego_colour)
 
 
 def _header(c: Canvas, k: int, obs, d, title: str) -> np.ndarray:
@@ -287,11 +324,11 @@ def write_gif(frames: list[np.ndarray], path: Path, frame_ms: int) -> Path:
 
 
 def episode_gif(bag: Path, path: Path, *, max_frames: int = 150, speed: float = 2.0, px_per_m: float | None = None,
-                title: str = "") -> dict:
+                title: str = "", egos: int = 1) -> dict:
     """Read ``bag``, draw at most about ``max_frames`` frames and write them to ``path`` playing at ``speed`` times
     sim time; ``px_per_m`` None: 12, or less so that the lot's larger side fits 960 px (the DLP lot: 6.9).
     Returns {"frames", "stride", "bytes", "steps"}."""
-    rec = read_recording(bag)
+    rec = read_recording(bag, egos)
     if px_per_m is None:
         xmin, ymin, xmax, ymax = rec.lot.bounds()
         px_per_m = min(12.0, 960.0 / max(xmax - xmin, ymax - ymin, 1e-9))

@@ -11,6 +11,11 @@ yellow, pedestrians white, each predicted trajectory of §V-C in magenta with it
 ego, its planned path of §V-D, green parking, blue exploring, and the chosen spot's outline). Everything is
 stamped with the simulated time of the step it shows. Pure functions of messages: :mod:`avp_viz.scene_node`
 publishes them.
+
+Several egos (``avp launch --egos K``): one scene node per ego, in ``/avp/ego<i>``, with frames prefixed ``ego<i>/``
+(``map -> ego<i>/odom -> ego<i>/base_link``, ``map -> ego<i>/agent_<id>``) on the one global ``/tf``, so that one
+viewer shows the whole lot in the frame ``map`` (namespaced ``/tf`` topics would need one viewer per ego); the ego, its
+plan and its chosen spot are drawn in the ego's colour (:data:`EGO_COLOURS`).
 """
 
 from __future__ import annotations
@@ -29,6 +34,9 @@ MAP, ODOM, BASE = "map", "odom", "base_link"
 #: marker namespaces, one per layer (a viewer can toggle each)
 LAYERS = ("lot", "spots", "vehicles", "pedestrians", "predictions", "plan", "chosen_spot", "ego")
 UNSEEN = (0.55, 0.55, 0.55, 0.35)
+#: ego i's colour among several egos (ego, plan, chosen spot); one ego keeps the red ego and green/blue plan
+EGO_COLOURS = ((0.9, 0.1, 0.1, 1.0), (1.0, 0.55, 0.0, 1.0), (0.6, 0.2, 0.9, 1.0), (0.0, 0.8, 0.7, 1.0),
+               (0.95, 0.3, 0.7, 1.0), (0.55, 0.8, 0.1, 1.0), (0.6, 0.4, 0.2, 1.0), (0.1, 0.6, 1.0, 1.0))
 
 
 def agent_frame(agent_id: int) -> str:
@@ -43,15 +51,16 @@ def _transform(parent: str, child: str, pose, stamp) -> TransformStamped:
     return t
 
 
-def static_transforms(stamp) -> TFMessage:
-    """``map -> odom``: identity (perfect localisation in the simulator)."""
-    return TFMessage(transforms=[_transform(MAP, ODOM, (0.0, 0.0, 0.0), stamp)])
+def static_transforms(stamp, prefix: str = "") -> TFMessage:
+    """``map -> odom``: identity (perfect localisation in the simulator). ``prefix``: ``ego<i>/`` among K egos."""
+    return TFMessage(transforms=[_transform(MAP, prefix + ODOM, (0.0, 0.0, 0.0), stamp)])
 
 
-def transforms(obs, stamp) -> TFMessage:
-    """``odom -> base_link`` (the ego) and ``map -> agent_<id>`` for each observed vehicle of observation ``obs``."""
-    tfs = [_transform(ODOM, BASE, obs.ego_pose, stamp)]
-    tfs += [_transform(MAP, agent_frame(v.id), v.pose, stamp) for v in obs.vehicles]
+def transforms(obs, stamp, prefix: str = "") -> TFMessage:
+    """``odom -> base_link`` (the ego) and ``map -> agent_<id>`` for each observed vehicle of observation ``obs``
+    (child frames prefixed with ``prefix``)."""
+    tfs = [_transform(prefix + ODOM, prefix + BASE, obs.ego_pose, stamp)]
+    tfs += [_transform(MAP, prefix + agent_frame(v.id), v.pose, stamp) for v in obs.vehicles]
     return TFMessage(transforms=tfs)
 
 
@@ -114,12 +123,12 @@ class SpotFill:
         return MarkerArray(markers=[m])
 
 
-def scene_markers(lot, obs, predictions, decision, stamp, trace=None) -> MarkerArray:
+def scene_markers(lot, obs, predictions, decision, stamp, trace=None, ego_rgba=None) -> MarkerArray:
     """``viz/scene``, one step's moving part (see the module docstring): observed vehicles and pedestrians,
     predictions, the ego, its plan and chosen spot. ``obs``: the core Observation; ``predictions``:
     PredictedTrajectoryArray message or None; ``decision``: PlannerDecision or None; ``trace``: the planner's
     DecisionTrace or None — while the ego waits for an agent, that agent is ringed in red and the cause is written
-    above the ego (issue #28)."""
+    above the ego (issue #28). ``ego_rgba``: among several egos, this ego's colour for it, its plan and chosen spot."""
     arr = MarkerArray()
     clear = Marker()
     clear.action = Marker.DELETEALL
@@ -140,10 +149,10 @@ def scene_markers(lot, obs, predictions, decision, stamp, trace=None) -> MarkerA
         m = marker("predictions", i, Marker.LINE_STRIP, stamp, (1.0, 0.2, 0.85, alpha), width=0.15)
         m.points = _pts([(q.x, q.y) for q in t.poses], 0.3)
         arr.markers.append(m)
-    arr.markers.append(box_marker("ego", 0, obs.ego_pose, obs.ego_length, obs.ego_width, 1.5, (0.9, 0.1, 0.1, 1.0),
-                                  stamp))
+    arr.markers.append(box_marker("ego", 0, obs.ego_pose, obs.ego_length, obs.ego_width, 1.5,
+                                  ego_rgba or EGO_COLOURS[0], stamp))
     if decision is not None:
-        arr.markers += _plan_markers(lot, decision, stamp)
+        arr.markers += _plan_markers(lot, decision, stamp, ego_rgba)
     if trace is not None and trace.cause:
         arr.markers += _blocking_markers(obs, trace, stamp)
     return arr
@@ -171,11 +180,11 @@ def _blocking_markers(obs, trace, stamp) -> list[Marker]:
     return out
 
 
-def _plan_markers(lot, decision, stamp) -> list[Marker]:
+def _plan_markers(lot, decision, stamp, ego_rgba=None) -> list[Marker]:
     out = []
     parking = decision.mode == decision.MODE_PARK
     if len(decision.plan.poses) >= 2:
-        rgba = (0.1, 0.85, 0.3, 1.0) if parking else (0.2, 0.5, 1.0, 1.0)
+        rgba = ego_rgba or ((0.1, 0.85, 0.3, 1.0) if parking else (0.2, 0.5, 1.0, 1.0))
         m = marker("plan", 0, Marker.LINE_STRIP, stamp, rgba, width=0.25)
         m.points = _pts([(p.pose.position.x, p.pose.position.y) for p in decision.plan.poses], 0.2)
         out.append(m)
@@ -183,7 +192,7 @@ def _plan_markers(lot, decision, stamp) -> list[Marker]:
     if parking and int(decision.spot_id) in idx:
         s = idx[int(decision.spot_id)]
         c = _corners(s.x, s.y, s.heading, s.length, s.width)
-        m = marker("chosen_spot", 0, Marker.LINE_STRIP, stamp, (0.1, 1.0, 0.3, 1.0), width=0.3)
+        m = marker("chosen_spot", 0, Marker.LINE_STRIP, stamp, ego_rgba or (0.1, 1.0, 0.3, 1.0), width=0.3)
         m.points = _pts(np.vstack([c, c[:1]]), 0.05)
         out.append(m)
     return out

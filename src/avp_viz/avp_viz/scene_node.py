@@ -38,6 +38,9 @@ SCENE_PARAMS = [
               "user's key (avp_common.msg_auth); others are dropped and their publishers named.", default=True),
     ParamSpec("publish_tf", bool, "Publish /tf and /tf_static (REP-105: map -> odom -> base_link, map -> "
               "agent_<id>). Off where another node owns the transform tree.", default=True),
+    ParamSpec("ego_index", int, "Among several egos (avp launch --egos K): this scene's ego. Its frames are prefixed "
+              "ego<i>/ on the one /tf, and the ego, its plan and chosen spot drawn in its colour (avp_viz.scene); "
+              "-1 = the one-ego graph.", min=-1, max=7, default=-1),
 ]
 #: /tf as tf2 wants it: reliable, volatile, deep enough for a burst (/tf_static takes LATCHED: transient local, one)
 TF = reader_qos(False, 100)
@@ -49,6 +52,9 @@ class SceneNode(Node):
         super().__init__("avp_scene")
         p = declare_and_validate(self, SCENE_PARAMS)
         self.publish_tf = p["publish_tf"]
+        i = p["ego_index"]
+        self.prefix = "" if i < 0 else f"ego{i}/"
+        self.ego_rgba = None if i < 0 else scene.EGO_COLOURS[i]
         self.lot = None
         self.obs: dict[int, object] = {}  # step -> (core Observation, stamp)
         self.beliefs: dict[int, np.ndarray] = {}
@@ -84,7 +90,7 @@ class SceneNode(Node):
         self.fill = scene.SpotFill(lot)
         self.pub_lot.publish(scene.lot_markers(lot, msg.header.stamp))
         if self.publish_tf:
-            self.pub_tf_static.publish(scene.static_transforms(msg.header.stamp))
+            self.pub_tf_static.publish(scene.static_transforms(msg.header.stamp, self.prefix))
 
     def _on_obs(self, msg: Observation) -> None:
         k = int(msg.step)
@@ -103,7 +109,7 @@ class SceneNode(Node):
                 if self.lot.has_spot(int(sid)):
                     self.seen[self.lot.spot_index(int(sid))] = True
         if self.publish_tf:
-            self.pub_tf.publish(scene.transforms(obs, msg.header.stamp))
+            self.pub_tf.publish(scene.transforms(obs, msg.header.stamp, self.prefix))
         if k - 1 in self.obs and k - 1 > self.published:  # step k - 1 is over: draw it with what came
             self._publish(k - 1, self.decisions.get(k - 1))
         self._trim()
@@ -143,7 +149,7 @@ class SceneNode(Node):
             self.pub_spots.publish(self.fill.marker(levels, stamp))
             self.levels = levels
         self.pub_scene.publish(scene.scene_markers(self.lot, obs, self.preds.get(k), decision, stamp,
-                                                   self.traces.get(k)))
+                                                   self.traces.get(k), self.ego_rgba))
         self.published = k
 
     def _forget(self) -> None:

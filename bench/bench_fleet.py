@@ -1,0 +1,99 @@
+#!/usr/bin/env python3
+"""In-process step time of a lot with K egos (docs/world.md, "Several egos"): the simulator core and K pipelines
+(:class:`MethodEgo` each: the belief node's core with the intent CNN, the prediction, the planner, wall-clock caps as
+in the live graph) on one thread. Per step it times the **lot step**: every driving ego's observation (ray-cast from
+its own pose) and pipeline, and the simulator's step of all of them. Printed: median and p95 per K, with the
+episodes' outcomes and the machine's load; K = 1 in the same run is the reference.
+
+Usage:
+    python bench/bench_fleet.py --lot src/avp_world/avp_world/maps/dlp_lot.yaml --scenario busy --egos 1,8 \\
+        [--method bezier] [--seeds 0-2] [--t-final 60] [--entry-interval 5] [--json out/bench_fleet.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def run_episode(lot, sim: dict, profile, seed: int, k: int) -> tuple[dict, list[float]]:
+    """One episode of ``k`` egos of ``profile``: (outcome, per-step wall seconds of the lot step)."""
+    from avp_experiment.ego import MethodEgo
+    from avp_sim.core.factory import make_world
+
+    world = make_world(lot, dict(sim, **{"egos.count": k}), seed, True)
+    egos = [MethodEgo(lot, profile, deterministic=False) for _ in range(k)]
+    times: list[float] = []
+    while not world.done:
+        t0 = time.perf_counter()
+        driving = world.egos.driving.copy()
+        cmds = [egos[i].step(world.observe(i)).command if driving[i] else (0.0, 0.0) for i in range(k)]
+        world.step_all(cmds)
+        times.append(time.perf_counter() - t0)
+    outcome = {"seed": seed, "egos": k, "status": world.status, "steps": world.step_index,
+               "parked": int(sum(s == "success" for s in world.egos.status)),
+               "collisions": int(sum(s == "collision" for s in world.egos.status)),
+               "moving_vehicles": int(world.is_dynamic.sum()), "pedestrians": len(world.ped_pos)}
+    return outcome, times
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--lot", default="")
+    ap.add_argument("--scenario", default="paper", choices=("paper", "busy"))
+    ap.add_argument("--egos", default="1,8", help="comma-separated K values")
+    ap.add_argument("--method", default="bezier")
+    ap.add_argument("--seeds", default="0-2", help="a-b or comma-separated")
+    ap.add_argument("--t-final", type=float, default=60.0)
+    ap.add_argument("--entry-interval", type=float, default=5.0, help="egos.entry_interval [s]")
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args(argv)
+    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_sim.core.factory import load_lot_param
+
+    seeds = []
+    for part in args.seeds.split(","):
+        a, _, b = part.partition("-")
+        seeds += list(range(int(a), int(b) + 1)) if b else [int(a)]
+    overrides = {"scenario.family": args.scenario, "egos.entry_interval": args.entry_interval}
+    if args.lot:
+        overrides["lot_file"] = str(Path(args.lot).resolve())
+    cfg = RunConfig(t_final=args.t_final, sim_overrides=overrides)
+    sim = sim_values(cfg)
+    lot = load_lot_param(sim["lot_file"])
+    profile = run_profile(args.method, cfg)
+    report = {"lot": lot.name, "scenario": args.scenario, "method": args.method, "seeds": seeds,
+              "t_final": args.t_final, "entry_interval": args.entry_interval, "cpus": os.cpu_count(),
+              "machine": platform.processor() or platform.machine(), "python": sys.version.split()[0], "runs": {}}
+    for k in [int(x) for x in args.egos.split(",")]:
+        all_t: list[float] = []
+        outcomes = []
+        t0 = time.perf_counter()
+        for seed in seeds:
+            outcome, times = run_episode(lot, sim, profile, seed, k)
+            outcomes.append(outcome)
+            all_t += times
+            print(f"K={k} seed {seed}: {outcome}; step median {1e3 * np.median(times):.1f} ms, p95 "
+                  f"{1e3 * np.percentile(times, 95):.1f} ms", flush=True)
+        t = np.asarray(all_t) * 1e3
+        row = {"steps": len(t), "median_ms": round(float(np.median(t)), 1), "p95_ms": round(float(np.percentile(t, 95)),
+               1), "max_ms": round(float(t.max()), 1), "wall_s": round(time.perf_counter() - t0, 1),
+               "load_end": [round(x, 2) for x in os.getloadavg()], "outcomes": outcomes}
+        report["runs"][str(k)] = row
+        print(f"K={k}: {row['steps']} lot steps, median {row['median_ms']} ms, p95 {row['p95_ms']} ms, max "
+              f"{row['max_ms']} ms (load {row['load_end']})", flush=True)
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(report, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

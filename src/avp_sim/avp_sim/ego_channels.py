@@ -1,0 +1,66 @@
+"""The simulator's topics of each ego (docs/world.md, "Several egos").
+
+One ego (K = 1, the paper): ``observation``, ``cmd`` and ``episode_status`` in the simulator's namespace, as always.
+K egos: ego i's are ``ego<i>/observation`` (tagged with ego i's key, :func:`avp_common.msg_auth.scoped_key`),
+``ego<i>/cmd`` (only a command tagged with ego i's key steers ego i) and ``ego<i>/episode_status`` (its own status and
+metrics), beside the lot's ``episode_status``. Ego i's pipeline runs in namespace ``/avp/ego<i>`` and finds them by
+their relative names (avp_bringup.graph.fleet_graph).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from geometry_msgs.msg import TwistStamped
+
+from avp_common.qos import STATUS, STEP, STEP_INPUT
+from avp_msgs.msg import EpisodeStatus, Observation
+
+#: the most egos one simulator drives (egos.count)
+MAX_EGOS = 8
+
+
+def ego_prefix(index: int, count: int) -> str:
+    """The relative topic prefix of ego ``index`` among ``count`` egos: '' for one ego, else ``ego<i>/``."""
+    return "" if count == 1 else f"ego{index}/"
+
+
+@dataclass
+class EgoChannel:
+    """Ego ``index``'s publishers and command subscription, and the commands it has sent."""
+
+    index: int
+    pub_obs: Any
+    sub_cmd: Any
+    pub_status: Any | None  # None for one ego: the lot's episode_status is its own
+    latest_cmd: tuple[float, float, float, int] | None = None  # real time: (v, omega, wall time, stamp ns)
+    pending: tuple[float, float] | None = None  # lock-step: the command answering the current step
+    holding_since: int | None = None  # real time: step the ego began holding still (no command)
+    started_moving: bool = False  # real time: its first command came
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def cmd_topic(self) -> str:
+        return self.sub_cmd.topic_name
+
+    def reset(self) -> None:
+        self.latest_cmd, self.pending, self.holding_since, self.started_moving = None, None, None, False
+
+
+def make_channels(node, auth, count: int, on_cmd: Callable[[int, TwistStamped], None]) -> list[EgoChannel]:
+    """The ``count`` egos' channels of the simulator ``node`` (with its Authenticator ``auth``)."""
+    if not 1 <= count <= MAX_EGOS:
+        raise ValueError(f"parameter 'egos.count': {count}: between 1 and {MAX_EGOS} egos")
+    channels = []
+    for i in range(count):
+        pre = ego_prefix(i, count)
+        ego = None if count == 1 else i
+        channels.append(EgoChannel(
+            index=i,
+            pub_obs=auth.publisher(Observation, pre + "observation", STEP, ego=ego),
+            sub_cmd=auth.subscription(TwistStamped, pre + "cmd", (lambda m, i=i: on_cmd(i, m)), STEP_INPUT),
+            pub_status=node.create_publisher(EpisodeStatus, pre + "episode_status", STATUS) if count > 1 else None,
+        ))
+    return channels
