@@ -273,3 +273,13 @@ def test_demo_of_two_egos_parks_both_and_records_both(ros_env, tmp_path, monkeyp
             assert counts.get(f"/avp/ego{i}/{t}", 0) > 0, (i, t, sorted(counts))
     assert tagged_ok[0] > 50 and tagged_ok[1] > 50
     assert counts["/avp/debug/ground_truth"] >= 300
+    from avp_bag.episode import ego_metrics_from_bag
+    from avp_bringup.why import explain
+
+    for i in (0, 1):  # `avp metrics --ego i` and `avp why --ego i` read ego i's own topics
+        m = ego_metrics_from_bag(bag, i)
+        assert m["state"] == "success" and m["parked_spot_id"] == metrics["egos"][i]["parked_spot_id"]
+        assert m["entered_step"] == (0 if i == 0 else 50)  # egos.entry_interval 5 s
+        assert f"ego {i}" in explain(str(bag), ego=i).splitlines()[0]
+    with pytest.raises(ValueError, match="give --ego i"):
+        explain(str(bag))

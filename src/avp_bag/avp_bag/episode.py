@@ -66,3 +66,33 @@ def metrics_from_bag(bag: Path) -> tuple[dict, dict]:
             "interrupted_agent_steps": int(lm.interrupted_agent_steps),
             "parking_time": nan_to_none(float(lm.parking_time)), "steps": int(lm.steps)}
     return recomputed, live
+
+
+def ego_metrics_from_bag(bag: Path, ego: int) -> dict:
+    """Several egos (``avp demo --egos K``): ego ``ego``'s state and metrics as the simulator published them live on
+    ``/avp/ego<i>/episode_status`` (the last episode), and the steps it was in the lot per the ground truth. The
+    independent recomputation of :func:`metrics_from_bag` covers the one-ego graph only (docs/world.md)."""
+    from avp_sim.core.metrics import nan_to_none
+
+    topic = f"/avp/ego{int(ego)}/episode_status"
+    reader = BagReader(bag)
+    status, steps = None, set()
+    for t, msgtype, _t, raw in reader.messages((topic, "/avp/debug/ground_truth")):
+        msg = reader.deserialize(raw, msgtype)
+        if t == topic:
+            status = msg
+        else:
+            if int(msg.step) == 0:
+                steps = set()
+            if any(a.kind == 0 and int(a.id) == ego for a in msg.agents):
+                steps.add(int(msg.step))
+    if status is None:
+        raise ValueError(f"{bag}: no {topic} messages (a bag of avp demo --egos K with more than {ego} egos?)")
+    names = {0: "idle", 1: "running", 2: "success", 3: "collision", 4: "timeout"}
+    lm = status.metrics
+    return {"ego": ego, "state": names[int(status.state)], "success": bool(lm.success), "collision": bool(lm.collision),
+            "collision_with": lm.collision_with, "collision_at_fault": bool(lm.collision_at_fault),
+            "spot_stolen": bool(lm.spot_stolen), "parked_spot_id": int(lm.parked_spot_id),
+            "interrupted_steps": int(lm.interrupted_steps), "interrupted_agent_steps": int(lm.interrupted_agent_steps),
+            "parking_time": nan_to_none(float(lm.parking_time)), "steps": int(lm.steps),
+            "steps_in_the_lot": len(steps), "entered_step": min(steps) if steps else None}

@@ -226,6 +226,15 @@ def cmd_metrics(args: argparse.Namespace) -> int:
 
     from avp_bag.episode import metrics_from_bag
 
+    if args.ego is not None:
+        from avp_bag.episode import ego_metrics_from_bag
+
+        try:
+            print(json.dumps(ego_metrics_from_bag(Path(args.bag), args.ego), indent=2))
+        except (ValueError, OSError) as exc:
+            print(f"[avp metrics] {exc}", file=sys.stderr)
+            return 2
+        return 0
     try:
         recomputed, live = metrics_from_bag(Path(args.bag))
     except (ValueError, OSError) as exc:
@@ -241,7 +250,7 @@ def cmd_why(args: argparse.Namespace) -> int:
     from avp_bringup.why import explain
 
     try:
-        print(explain(args.source, args.seed, args.method, args.mode))
+        print(explain(args.source, args.seed, args.method, args.mode, args.ego))
     except (ValueError, OSError) as exc:
         print(f"[avp why] {exc}", file=sys.stderr)
         return 2
@@ -385,12 +394,16 @@ def _add_bag_commands(sub) -> None:
     p.set_defaults(func=cmd_merge_bag)
     p = sub.add_parser("metrics", help="recompute an episode's metrics from a bag")
     p.add_argument("bag")
+    p.add_argument("--ego", type=int, default=None, metavar="I",
+                   help="ego I of a bag of several egos: its own episode status (the recomputation covers one ego)")
     p.set_defaults(func=cmd_metrics)
     p = sub.add_parser("why", help="why the ego was not moving: an episode's idle spells and their causes")
     p.add_argument("source", help="a bag, the --out folder of avp experiment, or a .jsonl file of its records")
     p.add_argument("--seed", type=int, help="the episode of a run folder or records file")
     p.add_argument("--method", default="bezier")
     p.add_argument("--mode", default="reactive", choices=["reactive", "non_reactive"])
+    p.add_argument("--ego", type=int, default=None, metavar="I", help="ego I of several (a bag of avp demo --egos K, "
+                   "or a fleet's records; --method: its method or the fleet label)")
     p.set_defaults(func=cmd_why)
     p = sub.add_parser("swap-planner", help="replace the running planner while the simulator keeps stepping")
     p.add_argument("profile", nargs="?", help="planner profile: a name of avp_planner/config/profiles/ or a "

@@ -17,20 +17,28 @@ from avp_planner.core.trace import DecisionTrace, spells_text
 TRACE_TOPIC = "/avp/avp_planner/debug/decision"
 
 
-def trace_from_bag(bag: Path) -> tuple[dict, float]:
-    """(trace summary, dt) of the last episode in ``bag``; ValueError when it holds no decision trace."""
+def trace_topic(ego: int | None = None) -> str:
+    """The planner's trace topic: of the one-ego graph, or of ego ``ego`` among several (/avp/ego<i>/...)."""
+    return TRACE_TOPIC if ego is None else TRACE_TOPIC.replace("/avp/", f"/avp/ego{int(ego)}/", 1)
+
+
+def trace_from_bag(bag: Path, ego: int | None = None) -> tuple[dict, float]:
+    """(trace summary, dt) of the last episode in ``bag`` (of ego ``ego`` of a graph of several); ValueError when it
+    holds no decision trace."""
     from avp_bag.reader import BagReader
     from avp_planner.trace_msg import trace_from_msg
 
+    topic = trace_topic(ego)
     reader = BagReader(bag)
     steps: dict[int, tuple] = {}
-    for _topic, msgtype, _t, raw in reader.messages((TRACE_TOPIC,)):
+    for _topic, msgtype, _t, raw in reader.messages((topic,)):
         step = trace_from_msg(reader.deserialize(raw, msgtype))
-        if step[0] == 0:
+        if steps and step[0] < min(steps):
             steps = {}  # a new episode: keep the last one
         steps[step[0]] = step
     if not steps:
-        raise ValueError(f"{bag}: no {TRACE_TOPIC} messages (recorded by avp demo/record since issue #28)")
+        raise ValueError(f"{bag}: no {topic} messages (recorded by avp demo/record since issue #28"
+                         + ("; a graph of several egos has /avp/ego<i>/...: give --ego i)" if ego is None else ")"))
     trace = DecisionTrace(0.1)
     for k in sorted(steps):
         trace.add_step(*steps[k])
@@ -44,9 +52,9 @@ def records_file(source: Path) -> Path | None:
     return source / "episodes.jsonl" if (source / "episodes.jsonl").is_file() else None
 
 
-def trace_from_run(out: Path, seed: int, method: str, mode: str) -> tuple[dict, float]:
-    """(trace summary, dt) of one record of an experiment folder or a .jsonl file of records; ValueError naming what
-    is missing."""
+def trace_from_run(out: Path, seed: int, method: str, mode: str, ego: int | None = None) -> tuple[dict, float]:
+    """(trace summary, dt) of one record of an experiment folder or a .jsonl file of records (of ego ``ego`` of a
+    fleet: ``method`` its method or the fleet's label); ValueError naming what is missing."""
     path = records_file(out)
     if path is None:
         raise ValueError(f"{out}: no episodes.jsonl (not an `avp experiment --out` folder)")
@@ -54,25 +62,30 @@ def trace_from_run(out: Path, seed: int, method: str, mode: str) -> tuple[dict, 
     for line in path.read_text().splitlines():
         if line.strip():
             r = json.loads(line)
-            if r.get("seed") == seed and r.get("method") == method and r.get("mode") == mode:
+            if ego is not None and (r.get("ego") != ego or method not in (r.get("method"), r.get("ego_method"))):
+                continue
+            if r.get("seed") == seed and (ego is not None or r.get("method") == method) and r.get("mode") == mode:
                 found = r
     if found is None:
-        raise ValueError(f"{path}: no episode of method {method!r}, seed {seed}, mode {mode!r}")
+        raise ValueError(f"{path}: no episode of method {method!r}, seed {seed}, mode {mode!r}"
+                         + (f", ego {ego}" if ego is not None else ""))
     if "decision_trace" not in found:
         raise ValueError(f"{path}: the {method} seed {seed} {mode} record has no decision_trace (recorded before "
                          "issue #28: run it again with avp experiment)")
     return found["decision_trace"], 0.1
 
 
-def explain(source: str, seed: int | None = None, method: str = "bezier", mode: str = "reactive") -> str:
-    """The text ``avp why`` prints for a bag or a run folder."""
+def explain(source: str, seed: int | None = None, method: str = "bezier", mode: str = "reactive",
+            ego: int | None = None) -> str:
+    """The text ``avp why`` prints for a bag or a run folder (``ego``: one ego of several)."""
     p = Path(source)
+    who = f", ego {ego}" if ego is not None else ""
     if records_file(p) is not None:
         if seed is None:
             raise ValueError("a run folder needs --seed (and --method, --mode)")
-        summary, dt = trace_from_run(p, seed, method, mode)
-        head = f"{p}: {method} seed {seed} {mode}"
+        summary, dt = trace_from_run(p, seed, method, mode, ego)
+        head = f"{p}: {method} seed {seed} {mode}{who}"
     else:
-        summary, dt = trace_from_bag(p)
-        head = f"{p}: the last episode of the bag"
+        summary, dt = trace_from_bag(p, ego)
+        head = f"{p}: the last episode of the bag{who}"
     return f"{head}\n{spells_text(summary, dt)}"
