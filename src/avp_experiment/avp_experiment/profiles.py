@@ -54,7 +54,8 @@ from avp_common.params import ParameterError, check_value
 COORDINATIONS = ("none", "reserve")  # among several egos (avp_planner.core.reservation)
 BELIEF_SOURCES = ("intent", "nawaz", "observation")  # = the belief node's belief_source (tests/test_experiment.py)
 TABLE_ORDER = ("bezier", "constant_velocity", "hybrid_astar", "learned", "implicit", "nawaz",  # rows of Table I
-               "oracle", "blind")  # reference bounds below the paper's six (docs/experiment.md)
+               "oracle", "blind",  # reference bounds below the paper's six (docs/experiment.md)
+               "reserve")  # the reference of several egos (coordination: reserve; skipped with one ego)
 # The planner's wall-clock caps are its only timing-dependent knobs (search.time_cap, decision.decision_time_cap,
 # decision.fallback_time_cap): the experiment lifts them so that iteration caps alone end searches and the
 # same command gives the same episodes (tests/test_dds_lockstep.py does the same).
