@@ -34,6 +34,34 @@ def read_episode(bag: Path) -> dict:
     return {"lot": lot, "ground_truth": [gts[k] for k in sorted(gts)], "status": status}
 
 
+#: a one-ego episode's driven car j is the vehicle DRIVEN_ID + 1 + j of the recomputation (slot 1 + j of
+#: avp_sim.core.egos)
+DRIVEN_ID = 900_000
+_AWAY = 1.0e6  # where a driven car is before it enters (no collision, no spot, out of every sensor's reach)
+
+
+def _with_driven(gts, ids, dims, dynamic, targets, veh, brk):
+    """The vehicle arrays with each driven car (``KIND_DRIVEN``, docs/teleop.md) appended: far away until it
+    enters, never braking for the ego (a person drives it)."""
+    driven = sorted({int(a.id) for g in gts for a in g.agents if a.kind == 3})
+    if not driven:
+        return ids, dims, dynamic, targets, veh, brk
+    first = {}
+    extra = np.full((len(gts), len(driven), 3), _AWAY)
+    for k, g in enumerate(gts):
+        for a in g.agents:
+            if a.kind == 3:
+                j = driven.index(int(a.id))
+                first.setdefault(j, a)
+                extra[k, j] = (a.pose.x, a.pose.y, a.pose.theta)
+    return (np.concatenate([ids, [DRIVEN_ID + 1 + j for j in driven]]).astype(np.int64),
+            np.concatenate([dims, [[first[j].length, first[j].width] for j in range(len(driven))]]),
+            np.concatenate([dynamic, np.ones(len(driven), dtype=bool)]),
+            np.concatenate([targets, -np.ones(len(driven), dtype=np.int64)]),
+            np.concatenate([veh, extra], axis=1),
+            np.concatenate([brk, np.zeros((len(gts), len(driven)), dtype=bool)], axis=1))
+
+
 def metrics_from_bag(bag: Path) -> tuple[dict, dict]:
     """(recomputed, live) metrics of the episode in ``bag``."""
     from avp_sim.core.metrics import metrics_from_log, nan_to_none
@@ -49,6 +77,7 @@ def metrics_from_bag(bag: Path) -> tuple[dict, dict]:
     veh = np.array([[[a.pose.x, a.pose.y, a.pose.theta] for a in g.agents if a.kind == 1] for g in gts]).reshape(
         len(gts), len(first), 3)
     brk = np.array([[a.braking for a in g.agents if a.kind == 1] for g in gts], dtype=bool).reshape(len(gts), -1)
+    ids, dims, dynamic, targets, veh, brk = _with_driven(gts, ids, dims, dynamic, targets, veh, brk)
     ego_agent = next(a for a in gts[0].agents if a.kind == 0)
     first_peds = [a for a in gts[0].agents if a.kind == 2]
     peds = (np.array([[[a.pose.x, a.pose.y] for a in g.agents if a.kind == 2] for g in gts]).reshape(
@@ -58,6 +87,9 @@ def metrics_from_bag(bag: Path) -> tuple[dict, dict]:
                                 ego, veh, dims, ids, dynamic, targets, brk, peds)
     names = {0: "idle", 1: "running", 2: "success", 3: "collision", 4: "timeout"}
     recomputed = {"state": state, **{k: nan_to_none(v) for k, v in m.as_dict().items()}}
+    kind, _, ident = recomputed["collision_with"].partition(":")
+    if kind == "vehicle" and int(ident or 0) > DRIVEN_ID:  # the name the simulator gives a driven car
+        recomputed["collision_with"] = f"driver:{int(ident) - DRIVEN_ID - 1}"
     lm = status.metrics
     live = {"state": names[int(status.state)], "success": bool(lm.success), "collision": bool(lm.collision),
             "collision_with": lm.collision_with, "collision_at_fault": bool(lm.collision_at_fault),

@@ -1,6 +1,7 @@
 """The ``avp`` command: run the live graph and its tools (ros2cli/launch are not on PyPI here).
 
   avp launch [--method NAME] [--params FILE] [--log-dir DIR] [--lot FILE] [--egos K] [--methods M1,M2,...]
+             [--drivers N] [--foxglove]
                                                    start the node graph (a Table I method; K egos, one pipeline
                                                    each in /avp/ego<i>); Ctrl-C stops it
   avp demo   [--method NAME] [--seed N] [--non-reactive] [--realtime] [--out DIR] [--params FILE] [--lot FILE]
@@ -11,6 +12,7 @@
   avp replay BAG [--rate R] [--start S] [--topics T ...]
                                                    republish a bag with its sim clock
   avp metrics BAG                                  recompute an episode's metrics from a bag
+  avp teleop [--driver J] [--stamped]             drive car J of the running graph from the keyboard
   avp swap-planner PROFILE|--node NODE [--keep-old] [--ego I]
                                                    replace the running planner (lifecycle) while the sim steps
   avp experiment [--scenarios N] [--seed-base S] [--mode reactive|non-reactive|both] [--methods M,...|all]
@@ -61,6 +63,10 @@ def cmd_launch(args: argparse.Namespace) -> int:
 
             load_lot(args.lot)  # a bad lot: one line naming the file and the field, before any node starts
             nodes[0] = with_params(nodes[0], lot_file=str(Path(args.lot).resolve()))
+        if args.drivers:
+            if not 0 <= args.drivers <= 4:
+                raise ValueError(f"--drivers: expected 0..4 driven cars, got {args.drivers}")
+            nodes[0] = with_params(nodes[0], **{"drivers.count": args.drivers, "mode": "realtime"})
     except ValueError as exc:
         print(f"[avp launch] {exc}", file=sys.stderr)
         return 2
@@ -73,7 +79,10 @@ def cmd_launch(args: argparse.Namespace) -> int:
     print("[avp] Ctrl-C stops the graph")
     stop = {"flag": False}
     signal.signal(signal.SIGTERM, lambda *_: stop.update(flag=True))
-    viewer = _foxglove(args)  # (bridge, executor) or None
+    viewer = _foxglove(args, drive=args.drivers > 0)  # (bridge, executor) or None
+    if args.drivers:
+        print(f"[avp] {args.drivers} driven car(s): `avp teleop --driver J` in another terminal, or Foxglove's Teleop "
+              "panel on /avp/driver<J>/cmd_vel (--foxglove)")
     try:
         while not stop["flag"]:
             if viewer:
@@ -113,7 +122,7 @@ def _fleet_methods(args: argparse.Namespace) -> list[str]:
     return names if len(names) > 1 else []
 
 
-def _foxglove(args: argparse.Namespace):
+def _foxglove(args: argparse.Namespace, drive: bool = False):
     """``--foxglove``: the Foxglove bridge node and an executor spinning it in this process, or None."""
     if not args.foxglove:
         return None
@@ -125,7 +134,7 @@ def _foxglove(args: argparse.Namespace):
     if not rclpy.ok():
         rclpy.init()
     executor = SingleThreadedExecutor()
-    bridge = foxglove_cli.start(args)
+    bridge = foxglove_cli.start(args, drive)
     executor.add_node(bridge)
     return bridge, executor
 
@@ -214,7 +223,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``avp`` argument parser: one sub-command per tool (see the module docstring)."""
-    from avp_bringup import cli_bag, demo
+    from avp_bringup import cli_bag, demo, teleop
     from avp_viz import foxglove_cli
 
     parser = argparse.ArgumentParser(prog="avp", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
@@ -229,12 +238,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--egos", type=int, default=1, help="automated cars, 1-8: one pipeline each in /avp/ego<i> "
                    "(docs/world.md, 'Several egos')")
     p.add_argument("--methods", help="one method per ego, comma-separated (e.g. bezier,blind); sets --egos")
+    p.add_argument("--drivers", type=int, default=0, help="cars a person drives (avp teleop, Foxglove's Teleop panel) "
+                   "on /avp/driver<j>/cmd_vel; the simulator then runs in real time (docs/teleop.md)")
     p.add_argument("--no-scene", action="store_true", help="leave out the scene node (/tf, /tf_static, viz/scene)")
     foxglove_cli.add_arguments(p)
     p.set_defaults(func=cmd_launch)
     p = sub.add_parser("demo", help="run one seeded episode through the live graph")
     demo.add_arguments(p)
     p.set_defaults(func=demo.run)
+    p = sub.add_parser("teleop", help="drive a driven car of the running graph from the keyboard (docs/teleop.md)")
+    teleop.add_arguments(p)
+    p.set_defaults(func=teleop.run)
     cli_bag.add_commands(sub)
     _add_live_commands(sub)
     _add_offline_commands(sub)
@@ -302,7 +316,7 @@ def _in_domain(args: argparse.Namespace) -> int:
             if claimed:
                 print(f"[avp] ROS_DOMAIN_ID={d} (a domain of this graph's own; set ROS_DOMAIN_ID to choose one)",
                       flush=True)
-        elif args.command in ("swap-planner", "record", "replay"):
+        elif args.command in ("swap-planner", "record", "replay", "teleop"):
             domain.join_running_domain()
     except (RuntimeError, ValueError) as exc:
         print(f"[avp {args.command}] {exc}", file=sys.stderr)

@@ -26,6 +26,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "instead of lock-step; the closed-loop step time then decides whether commands come in time")
     p.add_argument("--egos", type=int, default=1, help="automated cars, 1-8, each a pipeline of --method in "
                    "/avp/ego<i> (docs/world.md, 'Several egos'); the GIF shows all of them from ego 0's view")
+    p.add_argument("--drive", action="store_true", help="a car you drive in the same lot (real time): `avp teleop` in "
+                   "another terminal, or Foxglove's Teleop panel with --foxglove (docs/teleop.md)")
     p.add_argument("--no-gif", action="store_true", help="do not write episode.gif")
     p.add_argument("--t-final", type=float, default=None)
     p.add_argument("--out", default=str(avp_root() / "out" / "demo"))
@@ -67,7 +69,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         from avp_bag.recorder import fleet_topics
 
-        recorder = BagRecorder(bag, fleet_topics(args.egos))
+        topics = fleet_topics(args.egos)
+        if getattr(args, "drive", False):  # what the person sent
+            topics["/avp/driver0/cmd_vel"] = ("geometry_msgs/msg/Twist", False)
+        recorder = BagRecorder(bag, topics)
     except BagWriteError as exc:
         print(f"[avp demo] {exc}", file=sys.stderr)
         rclpy.try_shutdown()
@@ -82,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _mode(args: argparse.Namespace) -> str:
-    return "realtime" if args.realtime else "lockstep"
+    return "realtime" if args.realtime or getattr(args, "drive", False) else "lockstep"
 
 
 def _ego_node(nodes) -> str:
@@ -103,6 +108,8 @@ def _demo_nodes(args: argparse.Namespace) -> list:
 
     if args.ego == "planner" and not args.method:
         args.method = "bezier"  # the paper's method
+    if getattr(args, "drive", False):
+        args.realtime = True  # lock-step never waits for a person
     if not 1 <= args.egos <= 8:
         raise ValueError(f"--egos: expected 1..8 automated cars, got {args.egos}")
     if args.egos > 1:
@@ -130,6 +137,8 @@ def _demo_nodes(args: argparse.Namespace) -> list:
         extra["lot_file"] = str(Path(args.lot).resolve())
     if args.scenario:
         extra["scenario.family"] = args.scenario
+    if getattr(args, "drive", False):  # a person drives car 0 (docs/teleop.md), through the gate after the ego
+        extra.update({"drivers.count": 1, "drivers.enter_at": 3.0})
     nodes[0] = with_params(sim, **extra)
     return nodes
 
@@ -151,7 +160,7 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
     executor = SingleThreadedExecutor()
     executor.add_node(monitor)
     executor.add_node(recorder)
-    bridge = foxglove_cli.start(args)  # --foxglove: the live view
+    bridge = foxglove_cli.start(args, getattr(args, "drive", False))  # --foxglove: the live view (and Teleop)
     if bridge is not None:
         executor.add_node(bridge)
     graph = Graph(nodes, log_dir, args.params)
@@ -161,6 +170,9 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
     print(f"[avp demo] {egos}method {_method(args)}, seed {args.seed} ({'non-' if args.non_reactive else ''}"
           f"reactive), {_mode(args)}, through the live graph over DDS ({', '.join(n.key for n in nodes)}); node logs "
           f"in {log_dir}/")
+    if getattr(args, "drive", False):
+        print("[avp demo] drive car 0: `avp teleop` in another terminal (arrows/wasd, space stops), or Foxglove's "
+              "Teleop panel on /avp/driver0/cmd_vel (--foxglove); it enters through the gate 3 s in", flush=True)
     try:
         n_subs = nodes[0].extra_params["min_subscribers"]
         _start_episode(monitor, executor, graph, ResetEpisode, args, n_subs, log_dir)

@@ -49,6 +49,44 @@ class EgoChannel:
         self.latest_cmd, self.pending, self.holding_since, self.started_moving = None, None, None, False
 
 
+@dataclass
+class DriverChannel:
+    """Driven car j's command subscription (``driver<j>/cmd_vel``, Twist or TwistStamped; docs/teleop.md) and its
+    newest command with the wall time it came."""
+
+    index: int  # j
+    slot: int  # its slot in the world's cars (K + j)
+    sub: Any
+    latest: tuple[float, float, float] | None = None  # (v, omega, wall time)
+
+    def command(self, now: float, watchdog: float) -> tuple[float, float]:
+        """The newest command, or a stop when it is older than ``watchdog`` s (or none came)."""
+        if self.latest is None or now - self.latest[2] > watchdog:
+            return 0.0, 0.0
+        return self.latest[0], self.latest[1]
+
+
+def make_drivers(node, count: int, n_egos: int, stamped: bool,
+                 on_cmd: Callable[[int, float, float], None]) -> list[DriverChannel]:
+    """The ``count`` driven cars' subscriptions: best effort, so that reliable and best-effort publishers (a
+    teleop node, Foxglove's bridge) both match; untagged (a person's keyboard or viewer, not the pipeline)."""
+    from geometry_msgs.msg import Twist
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    qos = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.BEST_EFFORT)
+    out = []
+    def callback(j: int):
+        def cb(m) -> None:
+            t = m.twist if stamped else m
+            on_cmd(j, float(t.linear.x), float(t.angular.z))
+        return cb
+
+    for j in range(count):
+        sub = node.create_subscription(TwistStamped if stamped else Twist, f"driver{j}/cmd_vel", callback(j), qos)
+        out.append(DriverChannel(j, n_egos + j, sub))
+    return out
+
+
 def make_channels(node, auth, count: int, on_cmd: Callable[[int, TwistStamped], None]) -> list[EgoChannel]:
     """The ``count`` egos' channels of the simulator ``node`` (with its Authenticator ``auth``)."""
     if not 1 <= count <= MAX_EGOS:

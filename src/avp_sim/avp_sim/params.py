@@ -92,6 +92,20 @@ SIM_PARAMS: list[ParamSpec] = [
     ParamSpec("egos.entry_interval", float, "Seconds between two egos' entries through the gate (each enters once "
               "its time has come and the gate is clear; its parking time counts from its entry).", "", "",
               min=0.0, max=600.0, default=5.0),
+    ParamSpec("drivers.count", int, "Cars a person drives (docs/teleop.md): their controls come from "
+              "driver<j>/cmd_vel (geometry_msgs/Twist, or TwistStamped with drivers.stamped), clamped to eq. (1)'s "
+              "limits. Not in the paper. Needs mode realtime (lock-step never waits for a person).", "", "", min=0,
+              max=4, default=0),
+    ParamSpec("drivers.enter_at", float, "Seconds into the episode when the first driven car may enter through the "
+              "gate (it enters once the gate is clear; the next ones egos.entry_interval apart).", "", "", min=0.0,
+              max=600.0, default=0.0),
+    ParamSpec("drivers.poses", str, "Where the driven cars enter: 'x,y,theta' for each, separated by ';' ('' = the "
+              "gate, as the egos).", "", "", default=""),
+    ParamSpec("drivers.watchdog", float, "A driver's command older than this (wall seconds) stops the car: a lost "
+              "connection never leaves it driving.", "", "", min=0.01, max=10.0, default=0.5),
+    ParamSpec("drivers.stamped", bool, "Take geometry_msgs/TwistStamped on driver<j>/cmd_vel (teleop_twist_keyboard "
+              "stamped:=true) instead of Twist (Foxglove's Teleop panel, teleop_twist_keyboard's default).",
+              default=False),
     ParamSpec("ego_max_speed", float, "Ego speed limit; commands are clipped to it and to |ω| <= |v|/R_min.",
               "v", "eq. (1)", min=0.0, default=5.0),
     ParamSpec("auth_inputs", bool, "Take only commands tagged with the user's key (avp_common.msg_auth, "

@@ -43,7 +43,7 @@ from avp_msgs.srv import ResetEpisode
 from avp_sim.core.factory import load_lot_param, make_world, world_config
 from avp_sim.core.scenario_source import requested_scenario, served_dirs
 from avp_sim.core.world import COLLISION, RUNNING, SUCCESS, TIMEOUT, World
-from avp_sim.ego_channels import EgoChannel, make_channels
+from avp_sim.ego_channels import EgoChannel, make_channels, make_drivers
 from avp_sim.markers import world_markers
 from avp_sim.params import SIM_PARAMS
 
@@ -62,8 +62,8 @@ class SimNode(Node):
     def __init__(self) -> None:
         super().__init__("avp_sim")
         self.p = declare_and_validate(self, SIM_PARAMS)
-        world_config(self.p)  # validates the sensor block at start-up
         self.lot = load_lot_param(self.p["lot_file"])
+        world_config(self.p, self.lot)  # validates the sensor block and the driven cars' poses at start-up
         self.scenario_dirs = served_dirs(self.p["scenario_dir"])  # what reset_episode may read (scenario_source)
 
         self.dt = self.p["dt"]
@@ -74,6 +74,11 @@ class SimNode(Node):
         self.auth = Authenticator(self, self.p["auth_inputs"])
         self.pub_lot = self.auth.publisher(type(lot_to_msg(self.lot)), "lot_map", LATCHED)
         self.egos = make_channels(self, self.auth, self.p["egos.count"], self._on_cmd)
+        if self.p["drivers.count"] and self.lockstep:
+            raise ValueError(f"parameter 'drivers.count': {self.p['drivers.count']} driven cars need mode realtime "
+                             "(lock-step never waits for a person)")
+        self.drivers = make_drivers(self, self.p["drivers.count"], len(self.egos), self.p["drivers.stamped"],
+                                    self._on_driver)
         self.pub_status = self.create_publisher(EpisodeStatus, "episode_status", STATUS)
         self.pub_gt = self.create_publisher(GroundTruth, "debug/ground_truth", GROUND_TRUTH)
         self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", DEBUG)
@@ -101,8 +106,8 @@ class SimNode(Node):
     # ---------------------------------------------------------------- episodes
     def _new_episode(self, seed: int, reactive: bool, scenario: tuple[str, object] | None = None) -> World:
         world = make_world(self.lot, self.p, seed, reactive, scenario_data=scenario)
-        if world.egos.count != len(self.egos):
-            raise ValueError(f"scenario: egos: {world.egos.count} egos, but this simulator drives "
+        if world.egos.n_auto != len(self.egos):
+            raise ValueError(f"scenario: egos: {world.egos.n_auto} egos, but this simulator drives "
                              f"{len(self.egos)} (parameter egos.count)")
         self.world = world
         # the episode id every message of this episode carries (avp_common.msg_auth, issue #27): the wall clock
@@ -113,6 +118,8 @@ class SimNode(Node):
         self.started = False
         for ch in self.egos:
             ch.reset()
+        for d in self.drivers:
+            d.latest = None
         self.debug_step = -1  # last step whose ground truth went out (a re-send repeats only the observation)
         dyn = [(v.id, v.target_spot_id, v.maneuver, v.passiveness) for v in self.world.scenario.dynamic_vehicles()]
         self.get_logger().info(f"episode seed={seed} reactive={reactive}: dynamic vehicles {dyn}")
@@ -223,6 +230,8 @@ class SimNode(Node):
             if driving[ch.index]:
                 self._report_hold(ch, w.step_index, fresh)
             cmds.append((v, om))
+        now = time.monotonic()
+        cmds += [w.clip_command(*d.command(now, self.p["drivers.watchdog"])) for d in self.drivers]
         w.step_all(cmds)
         self._publish_step()
 
@@ -239,6 +248,13 @@ class SimNode(Node):
                                    f"{k - ch.holding_since} held steps")
             ch.holding_since = None
         ch.started_moving |= fresh
+
+    def _on_driver(self, j: int, v: float, om: float) -> None:
+        """Driven car j's newest command (applied at the next step, clamped to eq. (1)'s limits)."""
+        if not (math.isfinite(v) and math.isfinite(om)):
+            self.reject(f"{self.drivers[j].sub.topic_name}: command with NaN/inf (v={v}, omega={om}) dropped")
+            return
+        self.drivers[j].latest = (v, om, time.monotonic())
 
     def _on_cmd(self, index: int, msg: TwistStamped) -> None:
         ch = self.egos[index]
@@ -308,16 +324,20 @@ class SimNode(Node):
                          target_spot_id=-1)
         ego.pose = Pose2D(x=float(w.ego[0]), y=float(w.ego[1]), theta=float(w.ego[2]))
         agents = [ego]
-        for j in w.egos.others(0):  # K egos: the others in the lot, id = their index
-            e = AgentState(id=int(j), kind=AgentState.KIND_EGO, length=w.egos.length, width=w.egos.width,
-                           target_spot_id=-1)
+        for j in w.egos.others(0):  # K egos: the others in the lot, id = their index; driven car j: KIND_DRIVEN, j
+            driven = bool(w.egos.is_driver[j])
+            e = AgentState(id=int(j - w.egos.n_auto if driven else j),
+                           kind=AgentState.KIND_DRIVEN if driven else AgentState.KIND_EGO, length=w.egos.length,
+                           width=w.egos.width, target_spot_id=-1)
             pose = w.egos.poses[j]
             e.pose = Pose2D(x=float(pose[0]), y=float(pose[1]), theta=float(pose[2]))
             agents.append(e)
+        # braking: for ego 0 (the message's "the ego"); with one car in the lot the same as w.braking
+        braking = w.braking if w.egos.count == 1 else w.braking_for[:, 0]
         for i in range(len(w.states)):
             a = AgentState(id=int(w.vehicle_ids[i]), kind=AgentState.KIND_VEHICLE, length=float(w.vehicle_dims[i, 0]),
                            width=float(w.vehicle_dims[i, 1]), is_static=not bool(w.is_dynamic[i]),
-                           braking=bool(w.braking[i]), target_spot_id=int(w.target_spot[i]))
+                           braking=bool(braking[i]), target_spot_id=int(w.target_spot[i]))
             a.pose = Pose2D(x=float(w.states[i, 0]), y=float(w.states[i, 1]), theta=float(w.states[i, 2]))
             agents.append(a)
         for i in range(len(w.ped_pos)):

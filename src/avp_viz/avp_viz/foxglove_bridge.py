@@ -8,8 +8,9 @@ Foxglove to ``ws://HOST:PORT`` (default ``ws://127.0.0.1:8765``) and open docs/f
 
 Latched topics (``/tf_static``, the lot map) are sent again once a second, so a client that connects after the
 graph started still gets them (the WebSocket protocol has no latching). The server binds to loopback unless
-``--foxglove-host`` says otherwise: anyone who reaches the port sees the graph's data (read-only: the bridge
-offers no client publishing, services or parameters).
+``--foxglove-host`` says otherwise: anyone who reaches the port sees the graph's data. It offers no services or
+parameters; with driven cars (``drive``) it offers ``clientPublish`` on their ``/avp/driver<j>/cmd_vel`` topics only
+(:mod:`avp_viz.foxglove_drive`), else none.
 """
 
 from __future__ import annotations
@@ -31,12 +32,24 @@ class FoxgloveBridge(Node):
     """A foxglove-sdk WebSocket server fed with the graph's topics (see the module docstring)."""
 
     def __init__(self, port: int = 8765, host: str = "127.0.0.1",
-                 topics: dict[str, tuple[str, bool]] | None = None) -> None:
+                 topics: dict[str, tuple[str, bool]] | None = None, drive: bool = False) -> None:
         import foxglove
 
         super().__init__("avp_foxglove")
         topics = dict(VIEW_TOPICS if topics is None else topics)
-        self.server = foxglove.start_server(name="avp", host=host, port=port)
+        self.drive = None
+        if drive:  # Foxglove's Teleop panel may drive the driven cars, and nothing else (foxglove_drive)
+            from foxglove.websocket import Capability
+
+            from avp_viz.foxglove_drive import DriveListener
+
+            self.drive = DriveListener(self)
+            self.server = foxglove.start_server(name="avp", host=host, port=port,
+                                                capabilities=[Capability.ClientPublish],
+                                                supported_encodings=["json", "cdr"], server_listener=self.drive)
+            self.drive.server = self.server
+        else:
+            self.server = foxglove.start_server(name="avp", host=host, port=port)
         self.port = self.server.port
         self.clock_ns = 0
         self.latched: dict[str, bytes] = {}

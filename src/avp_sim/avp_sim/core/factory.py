@@ -51,10 +51,12 @@ def scenario_params(p: dict[str, Any]) -> ScenarioParams:
     )
 
 
-def world_config(p: dict[str, Any]) -> WorldConfig:
+def world_config(p: dict[str, Any], lot: LotMap | None = None) -> WorldConfig:
+    """The world's settings of the simulator parameters ``p`` (driven cars' poses checked against ``lot``)."""
     return WorldConfig(t_final=p["t_final"], sensor=sensor_config(p), ego_max_speed=p["ego_max_speed"],
                        agents_yield=p["agents_yield"], n_egos=p["egos.count"],
-                       entry_interval=p["egos.entry_interval"])
+                       entry_interval=p["egos.entry_interval"], n_drivers=p["drivers.count"],
+                       driver_enter_at=p["drivers.enter_at"], driver_poses=driver_poses(lot, p))
 
 
 def make_world(lot: LotMap, p: dict[str, Any], seed: int, reactive: bool, scenario_file: str = "",
@@ -68,7 +70,7 @@ def make_world(lot: LotMap, p: dict[str, Any], seed: int, reactive: bool, scenar
         scenario = load_scenario_file(lot, scenario_file, seed, reactive, scenario_params(p))
     else:
         scenario = generate_scenario(lot, p, seed, reactive)
-    return World(lot, scenario, world_config(p))
+    return World(lot, scenario, world_config(p, lot))
 
 
 def busy_params(p: dict[str, Any]) -> BusyParams:
@@ -88,3 +90,30 @@ def generate_scenario(lot: LotMap, p: dict[str, Any], seed: int, reactive: bool)
         return generate_busy_scenario(lot, seed, reactive, dt=p["dt"], t_hist=p["t_hist"], t_final=p["t_final"],
                                       busy=busy_params(p))
     return generate_paper_scenario(lot, seed, reactive, scenario_params(p))
+
+
+def driver_poses(lot, p: dict) -> tuple:
+    """``drivers.poses`` ('x,y,theta;x,y,theta', '' = the gate) as ((x, y, theta), ...); ValueError naming the
+    parameter for a malformed value, more poses than driven cars, or a pose whose car lies outside the lot."""
+    import math
+
+    import numpy as np
+
+    from avp_world.geometry import polygon_contains_points, rect_corners
+
+    text = str(p.get("drivers.poses", "")).strip()
+    poses = []
+    for part in (text.split(";") if text else []):
+        try:
+            pose = tuple(float(v) for v in part.split(","))
+        except ValueError:
+            pose = ()
+        if len(pose) != 3 or not all(math.isfinite(v) for v in pose):
+            raise ValueError(f"parameter 'drivers.poses': {part!r}: expected 'x,y,theta' (finite numbers)")
+        poses.append(pose)
+    if len(poses) > int(p["drivers.count"]):
+        raise ValueError(f"parameter 'drivers.poses': {len(poses)} poses for {p['drivers.count']} driven cars")
+    for j, pose in enumerate(poses if lot is not None else ()):
+        if not polygon_contains_points(lot.boundary, rect_corners(np.asarray(pose), 4.6, 1.85)).all():
+            raise ValueError(f"parameter 'drivers.poses': driven car {j} at {list(pose)} lies outside the lot")
+    return tuple(poses)

@@ -51,6 +51,9 @@ class WorldConfig:
     agents_yield: bool = False  # agents also brake for each other (§III-B: for the ego only; .agent_yield)
     n_egos: int = 1  # K automated cars in the lot (egos.count; .egos); 1 = the paper
     entry_interval: float = 5.0  # s between two egos' entries through the gate (egos.entry_interval)
+    n_drivers: int = 0  # D cars driven from outside (drivers.count; .egos, docs/teleop.md)
+    driver_enter_at: float = 0.0  # s: when the first driven car may enter (drivers.enter_at)
+    driver_poses: tuple = ()  # where driven car j enters ((x, y, theta) each; none: the gate) (drivers.poses)
 
 
 class World:
@@ -99,7 +102,8 @@ class World:
         self._occupancy_step = -1  # occupancy() cache: state changes only in step()
         self.egos = Egos(np.array(sc.ego_start, dtype=float), config.n_egos,
                          int(round(config.entry_interval / self.dt)), self.hist, sc.ego.length, sc.ego.width,
-                         tuple((pose, int(round(t / self.dt))) for pose, t in sc.ego_entries))
+                         tuple((pose, int(round(t / self.dt))) for pose, t in sc.ego_entries),
+                         config.n_drivers, int(round(config.driver_enter_at / self.dt)), config.driver_poses)
         self.status = RUNNING
         self.braking = np.zeros(n, dtype=bool)  # braking for the ego (§III-B)
         self.braking_for = np.zeros((n, self.egos.count), dtype=bool)  # ... for which ego (set by each step)
@@ -287,17 +291,18 @@ class World:
         """K = 1: the ego's. K > 1: running while any ego runs or may still enter; then success if every ego
         parked, collision if any collided, else timeout (an ego that never entered times out)."""
         eg = self.egos
-        if eg.count == 1:
+        if eg.n_auto == 1:  # one ego (and any driven cars, which the episode never waits for)
             return eg.status[0]
         if self.step_index * self.dt >= self.config.t_final - 1e-9:
             for i in eg.waiting():
                 eg.status[i] = TIMEOUT
                 eg.metrics[i].steps = self.step_index
-        if any(s == RUNNING for s in eg.status):
+        auto = eg.status[:eg.n_auto]
+        if any(s == RUNNING for s in auto):
             return RUNNING
-        if all(s == SUCCESS for s in eg.status):
+        if all(s == SUCCESS for s in auto):
             return SUCCESS
-        return COLLISION if COLLISION in eg.status else TIMEOUT
+        return COLLISION if COLLISION in auto else TIMEOUT
 
     @property
     def done(self) -> bool:

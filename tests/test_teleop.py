@@ -1,0 +1,322 @@
+"""A person at the wheel (docs/teleop.md): driven cars in the simulator, `avp teleop`, Foxglove's clientPublish with an
+allow-list. Oracles: eq. (1) integrated here (numpy), shapely footprints, a websocket client speaking the Foxglove
+protocol, a pseudo-terminal."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import select
+import struct
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from shapely.geometry import Polygon
+
+from avp_bringup.teleop import TeleopState, split_keys
+from avp_world.geometry import rect_corners
+
+UP = math.pi / 2
+BOTTOM = "21.5,3.5,1.5707963267948966"  # the bottom of the paper lot's middle road, facing up
+
+
+def _eq1(pose, v: float, omega: float, dt: float = 0.1) -> np.ndarray:
+    """Eq. (1), the unicycle step, written out here as the oracle."""
+    x, y, th = pose
+    return np.array([x + v * math.cos(th) * dt, y + v * math.sin(th) * dt, th + omega * dt])
+
+
+def _footprint(pose) -> Polygon:
+    return Polygon(rect_corners(np.asarray(pose, dtype=float), 4.6, 1.85))
+
+
+def test_teleop_keys():
+    s = TeleopState()
+    for k in split_keys("ww\x1b[A\x1b[D" + "a"):
+        s.key(k)
+    assert (s.v, s.omega) == (1.5, 0.2)
+    for k in split_keys("\x1b[B" "d" "x"):
+        s.key(k)
+    assert (s.v, s.omega) == (1.0, 0.1)
+    s.key(" ")
+    assert (s.v, s.omega, s.quit) == (0.0, 0.0, False)
+    for _ in range(30):
+        s.key("s")
+    assert s.v == -5.0  # clamped to eq. (1)'s limit
+    s.key("q")
+    assert s.quit and s.v == 0.0
+    assert "/avp/driver0/cmd_vel: v +0.0 m/s" in s.line("/avp/driver0/cmd_vel")
+
+
+def test_a_driven_car_in_the_world_moves_by_eq1_collides_with_fault_and_never_holds_the_episode(paper_lot):
+    from avp_experiment.run_config import RunConfig, sim_values
+    from avp_sim.core.factory import make_world
+
+    p = sim_values(RunConfig(t_final=30.0))
+    p.update({"drivers.count": 1, "drivers.poses": BOTTOM})
+    w = make_world(paper_lot, p, 3, True)
+    assert (w.egos.count, w.egos.n_auto, list(w.egos.is_driver)) == (2, 1, [False, True])
+    w.step_all([(0.0, 0.0), (0.0, 0.0)])  # it enters after the first step
+    pose = w.egos.poses[1].copy()
+    for u in [(1.0, 0.0)] * 10 + [(1.0, 0.3)] * 10 + [(9.0, 0.0)]:
+        w.step_all([(0.0, 0.0), u])
+        clipped = w.clip_command(*u)
+        pose = _eq1(pose, *clipped)
+        assert _footprint(w.egos.poses[1]).symmetric_difference(_footprint(pose)).area < 1e-6
+    assert w.clip_command(9.0, 0.0)[0] == 5.0  # speeds above the limit are clamped
+    # the ego turns hard into a parked car: its episode is over, and so is the lot's, the driven car still driving
+    while not w.done:
+        w.step_all([(3.0, 0.9), (1.0, 0.0)])
+    assert w.status == "collision" and w.egos.status == ["collision", "running"] and w.step_index < 80
+    assert w.egos.ego_name("vehicle:900001") == "driver:0"
+
+
+def _sim(tmp_path, **extra):
+    from avp_bringup.graph import Graph, NodeSpec
+
+    spec = NodeSpec("avp_sim", "avp_sim", "sim_node", "config/sim.param.yaml", {
+        "mode": "realtime", "realtime_wait_first_command": False, "drivers.count": 1, "drivers.poses": BOTTOM,
+        "seed": 3, "t_final": 120.0, "publish_markers": False, **extra})
+    return Graph([spec], tmp_path / "logs")
+
+
+class _Driven:
+    """Ground truth of driven car 0, step by step."""
+
+    def __init__(self, node):
+        from avp_common.qos import GROUND_TRUTH
+        from avp_msgs.msg import AgentState, GroundTruth
+
+        self.poses: dict[int, np.ndarray] = {}
+        self.ego_seen = False
+
+        def cb(m) -> None:
+            for a in m.agents:
+                if a.kind == AgentState.KIND_DRIVEN and a.id == 0:
+                    self.poses[int(m.step)] = np.array([a.pose.x, a.pose.y, a.pose.theta])
+
+        node.create_subscription(GroundTruth, "/avp/debug/ground_truth", cb, GROUND_TRUTH)
+
+    def moves(self) -> list[tuple[int, float, float]]:
+        """(step, speed, yaw rate) of each step's motion, read back through eq. (1)."""
+        ks = sorted(self.poses)
+        out = []
+        for a, b in zip(ks, ks[1:], strict=False):
+            if b != a + 1:
+                continue
+            d = self.poses[b] - self.poses[a]
+            th = self.poses[a][2]
+            out.append((b, float(d[0] * math.cos(th) + d[1] * math.sin(th)) / 0.1, float(d[2]) / 0.1))
+        return out
+
+
+def _spin_for(node, seconds: float, each=None) -> None:
+    import rclpy
+
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < seconds:
+        rclpy.spin_once(node, timeout_sec=0.02)
+        if each is not None:
+            each()
+
+
+@pytest.mark.parametrize("stamped", [False, True])
+def test_twist_commands_drive_the_car_and_a_stale_one_stops_it(ros_env, tmp_path, monkeypatch, stamped):
+    import rclpy
+    from geometry_msgs.msg import Twist, TwistStamped
+
+    for k, v in ros_env.items():
+        monkeypatch.setenv(k, v)
+    rclpy.init()
+    node = rclpy.create_node("driver_probe", namespace="/avp")
+    pub = node.create_publisher(TwistStamped if stamped else Twist, "driver0/cmd_vel", 10)
+    driven = _Driven(node)
+    graph = _sim(tmp_path, **{"drivers.stamped": stamped})
+    graph.start()
+    cmd = {"v": 0.0, "w": 0.0}
+    last = {"t": 0.0}
+
+    def send() -> None:
+        if time.monotonic() - last["t"] >= 0.05:  # 20 Hz
+            t = Twist()
+            t.linear.x, t.angular.z = cmd["v"], cmd["w"]
+            pub.publish(TwistStamped(twist=t) if stamped else t)
+            last["t"] = time.monotonic()
+
+    try:
+        t0 = time.monotonic()
+        while len(driven.poses) < 5 and time.monotonic() - t0 < 60:
+            _spin_for(node, 0.2)
+        assert driven.poses, "the driven car never entered"
+        start = driven.poses[min(driven.poses)]
+        assert _footprint(start).symmetric_difference(_footprint([21.5, 3.5, UP])).area < 1e-6
+        cmd.update(v=1.0, w=0.0)
+        _spin_for(node, 1.5, send)
+        cmd.update(v=1.0, w=0.3)
+        _spin_for(node, 1.5, send)
+        cmd.update(v=50.0, w=0.0)  # far above the limit
+        _spin_for(node, 0.5, send)
+        k_stop = max(driven.poses)
+        _spin_for(node, 3.0)  # nothing sent: the watchdog (0.5 s) stops the car
+    finally:
+        graph.stop()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    moves = driven.moves()
+    seen = {(round(v, 6), round(w, 6)) for _, v, w in moves}
+    # every step's motion is eq. (1) with one of the commands sent, clamped (or a stop)
+    assert seen <= {(0.0, 0.0), (1.0, 0.0), (1.0, 0.3), (5.0, 0.0)}, seen
+    assert {(1.0, 0.0), (1.0, 0.3), (5.0, 0.0)} <= seen, seen
+    assert all(abs(v) <= 5.0 + 1e-9 for _, v, _ in moves)
+    after = [(k, v) for k, v, _ in moves if k > k_stop]
+    moving_after = [k for k, v in after if v != 0.0]
+    assert len(after) >= 15 and len(moving_after) <= 7, after  # stopped within the watchdog plus a step or two
+    assert all(v == 0.0 for k, v in after[-10:])
+    # footprints (shapely) of the recorded poses against eq. (1) integrated from the first one
+    ks = sorted(driven.poses)
+    pose = driven.poses[ks[0]]
+    for (k, v, w) in moves:
+        pose = _eq1(driven.poses[k - 1], v, w)
+        assert _footprint(driven.poses[k]).symmetric_difference(_footprint(pose)).area < 1e-6
+
+
+def test_foxglove_clients_may_drive_only_the_driven_cars(ros_env, tmp_path, monkeypatch):
+    import threading
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from websockets.sync.client import connect
+
+    from avp_viz.foxglove_bridge import FoxgloveBridge
+
+    for k, v in ros_env.items():
+        monkeypatch.setenv(k, v)
+    rclpy.init()
+    bridge = FoxgloveBridge(port=0, drive=True)
+    probe = rclpy.create_node("fox_probe", namespace="/avp")
+    driven = _Driven(probe)
+    ex = SingleThreadedExecutor()
+    ex.add_node(bridge)
+    ex.add_node(probe)
+    stop = threading.Event()
+    spinner = threading.Thread(target=lambda: [ex.spin_once(timeout_sec=0.05) for _ in iter(stop.is_set, True)])
+    spinner.start()
+    graph = _sim(tmp_path)
+    graph.start()
+    status: list[dict] = []
+    try:
+        with connect(f"ws://127.0.0.1:{bridge.port}", subprotocols=["foxglove.sdk.v1"]) as ws:
+            info = json.loads(ws.recv(timeout=10))
+            assert info["op"] == "serverInfo" and "clientPublish" in info["capabilities"], info
+            ws.send(json.dumps({"op": "advertise", "channels": [
+                {"id": 1, "topic": "/avp/driver0/cmd_vel", "encoding": "json", "schemaName": "geometry_msgs/msg/Twist"},
+                {"id": 2, "topic": "/avp/cmd", "encoding": "json", "schemaName": "geometry_msgs/msg/TwistStamped"},
+                {"id": 3, "topic": "/avp/driver0/cmd_vel", "encoding": "json", "schemaName": "std_msgs/msg/String"},
+            ]}))
+            t0 = time.monotonic()
+            while len(driven.poses) < 5 and time.monotonic() - t0 < 60:
+                time.sleep(0.1)
+            twist = json.dumps({"linear": {"x": 2.0, "y": 0, "z": 0}, "angular": {"x": 0, "y": 0, "z": 0}}).encode()
+            t1 = time.monotonic()
+            while time.monotonic() - t1 < 2.0:
+                for ch in (1, 2, 3):
+                    ws.send(b"\x01" + struct.pack("<I", ch) + twist)
+                time.sleep(0.1)
+                try:
+                    while True:
+                        m = ws.recv(timeout=0.01)
+                        if isinstance(m, str) and json.loads(m).get("op") == "status":
+                            status.append(json.loads(m))
+                except TimeoutError:
+                    pass
+    finally:
+        graph.stop()
+        stop.set()
+        spinner.join()
+        bridge.close()
+        bridge.destroy_node()
+        probe.destroy_node()
+        rclpy.try_shutdown()
+    assert bridge.drive.forwarded > 5
+    assert {r.split(": ", 1)[1] for r in bridge.drive.refused} == {"/avp/cmd", "/avp/driver0/cmd_vel"}
+    assert any("refused" in s["message"] and "/avp/cmd" in s["message"] for s in status), status
+    moved = [v for _, v, _ in driven.moves() if v != 0.0]
+    assert moved and set(np.round(moved, 6)) == {2.0}  # the Teleop-style client drove it at 2 m/s
+
+
+def test_avp_teleop_in_a_pseudo_terminal_sends_what_the_keys_say(ros_env, monkeypatch):
+    import pty
+
+    import rclpy
+    from geometry_msgs.msg import Twist
+
+    for k, v in ros_env.items():
+        monkeypatch.setenv(k, v)
+    rclpy.init()
+    node = rclpy.create_node("teleop_probe")
+    got: list[tuple[float, float]] = []
+    node.create_subscription(Twist, "/avp/driver1/cmd_vel", lambda m: got.append((m.linear.x, m.angular.z)), 10)
+    pid, fd = pty.fork()
+    if pid == 0:  # the child: avp teleop on the pseudo-terminal
+        os.execve(sys.executable, [sys.executable, "-m", "avp_bringup.cli", "teleop", "--driver", "1"],
+                  dict(os.environ))
+    screen = bytearray()
+
+    def spin(timeout: float) -> None:  # and read the terminal: a full pty would block the child
+        rclpy.spin_once(node, timeout_sec=timeout)
+        while select.select([fd], [], [], 0)[0]:
+            try:
+                chunk = os.read(fd, 4096)
+            except OSError:
+                return
+            if not chunk:
+                return
+            screen.extend(chunk)
+
+    try:
+        t0 = time.monotonic()
+        while not got and time.monotonic() - t0 < 60:
+            spin(0.1)
+        assert got and got[-1] == (0.0, 0.0)
+        for keys, want in ((b"ww\x1b[A", (1.5, 0.0)), (b"a\x1b[D", (1.5, 0.2)), (b"s", (1.0, 0.2)), (b" ", (0.0, 0.0)),
+                           (b"\x1b[B", (-0.5, 0.0))):
+            os.write(fd, keys)
+            t1 = time.monotonic()
+            while (not got or got[-1] != want) and time.monotonic() - t1 < 10:
+                spin(0.05)
+            assert got[-1] == want, (keys, got[-5:])
+        n = len(got)
+        t1 = time.monotonic()
+        while time.monotonic() - t1 < 1.0:
+            spin(0.05)
+        assert 4 <= len(got) - n <= 16  # ~10 Hz whether or not a key is pressed
+        os.write(fd, b"q")
+        t1 = time.monotonic()
+        done = 0
+        while time.monotonic() - t1 < 20 and not done:
+            spin(0.05)
+            done, status = os.waitpid(pid, os.WNOHANG)
+        assert done, "avp teleop did not quit on q"
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    assert os.waitstatus_to_exitcode(status) == 0
+    assert got[-1] == (0.0, 0.0)  # q sends a stop
+    assert b"/avp/driver1/cmd_vel: v" in bytes(screen)
+
+
+def test_the_pipeline_never_reads_a_drivers_commands():
+    """No ego-side module subscribes to a driver's topic: the driven car is an observed vehicle like any other."""
+    src = Path(__file__).resolve().parents[1] / "src"
+    ego_side = [*src.glob("avp_planner/avp_planner/**/*.py"), *src.glob("avp_perception/avp_perception/**/*.py"),
+                src / "avp_experiment/avp_experiment/ego.py"]
+    assert ego_side
+    for f in ego_side:
+        text = f.read_text()
+        assert "cmd_vel" not in text and "driver0" not in text and "KIND_DRIVEN" not in text, f
+    sim = (src / "avp_sim/avp_sim/core/world.py").read_text()
+    assert "observe" in sim and "cmd_vel" not in sim  # the world knows poses, never a person's commands
