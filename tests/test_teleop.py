@@ -320,3 +320,52 @@ def test_the_pipeline_never_reads_a_drivers_commands():
         assert "cmd_vel" not in text and "driver0" not in text and "KIND_DRIVEN" not in text, f
     sim = (src / "avp_sim/avp_sim/core/world.py").read_text()
     assert "observe" in sim and "cmd_vel" not in sim  # the world knows poses, never a person's commands
+
+
+def test_demo_drive_records_the_driven_car_and_metrics_recompute_it(ros_env, tmp_path, monkeypatch):
+    """`avp demo --drive` (real time): a scripted person drives car 0 in after the ego; the ego parks, the bag has the
+    driven car's commands and ground truth, and `avp metrics` recomputes the live metrics from it."""
+    import subprocess
+
+    import rclpy
+    from geometry_msgs.msg import Twist
+
+    from avp_bag.episode import metrics_from_bag
+
+    for k, v in ros_env.items():
+        monkeypatch.setenv(k, v)
+    out, bag = tmp_path / "demo", tmp_path / "bag"
+    demo = subprocess.Popen([sys.executable, "-m", "avp_bringup.cli", "demo", "--drive", "--seed", "1", "--t-final",
+                             "60", "--no-gif", "--out", str(out), "--bag", str(bag)], env=ros_env,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    rclpy.init()
+    node = rclpy.create_node("person", namespace="/avp")
+    pub = node.create_publisher(Twist, "driver0/cmd_vel", 10)
+    driven = _Driven(node)
+    try:
+        t0 = time.monotonic()
+        while not driven.poses and demo.poll() is None and time.monotonic() - t0 < 300:
+            rclpy.spin_once(node, timeout_sec=0.1)
+        assert driven.poses, "the driven car never entered"
+        t1 = time.monotonic()
+        while time.monotonic() - t1 < 2.0:  # 2 s at 0.8 m/s down the road from the gate, then let go
+            t = Twist()
+            t.linear.x = 0.8
+            pub.publish(t)
+            _spin_for(node, 0.1)
+        text = demo.communicate(timeout=600)[0]
+    finally:
+        if demo.poll() is None:
+            demo.kill()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    assert demo.returncode == 0, text[-3000:]
+    assert any(v > 0 for _, v, _ in driven.moves())
+    recomputed, live = metrics_from_bag(bag)
+    assert recomputed == live, (recomputed, live)
+    assert live["state"] in ("success", "collision", "timeout")
+    from rosbags.rosbag2 import Reader
+
+    with Reader(bag) as reader:
+        topics = {c.topic: c.msgcount for c in reader.connections}
+    assert topics.get("/avp/driver0/cmd_vel", 0) >= 10, topics
