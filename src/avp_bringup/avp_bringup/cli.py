@@ -224,9 +224,11 @@ def main(argv: list[str] | None = None) -> int:
 def build_parser() -> argparse.ArgumentParser:
     """The ``avp`` argument parser: one sub-command per tool (see the module docstring)."""
     from avp_bringup import cli_bag, demo, teleop
+    from avp_common.version import __version__
     from avp_viz import foxglove_cli
 
     parser = argparse.ArgumentParser(prog="avp", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"avp {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("launch", help="start the node graph")
     p.add_argument("--params", help="extra ROS 2 parameter file applied after the defaults")
