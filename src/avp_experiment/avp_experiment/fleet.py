@@ -4,8 +4,10 @@ each the others are observed vehicles.
 
 One record per ego-episode: the §VI-B record of :func:`~.metrics.episode_record` for that ego, plus its index, the
 fleet, its entry time, the spots it lost (to an agent or to another ego, counted apart) and the episode's gridlock
-(:mod:`.gridlock`). A spot is *lost* when the spot an ego is driving to park in (its decision's target) is taken by
-another vehicle (an agent or ego that comes to lie inside it) before the ego parks there.
+(:mod:`.gridlock`). A spot is *lost* when the spot an ego is driving to park in (its decision's target, taken when
+the spot was free) is taken by another vehicle (an agent or ego that comes to lie inside it) before the ego parks
+there. The first fleet records (docs/results/fleet/README.md) also counted a target that another vehicle already lay
+in, once per decision: for them, count the episodes with a loss, not the losses.
 """
 
 from __future__ import annotations
@@ -123,6 +125,7 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
     target = [-1] * k  # the spot each ego is driving to park in
     lost = [{"agent": 0, "ego": 0} for _ in range(k)]
     meter = GridlockMeter(world.dt)
+    holders: dict[int, str] = _holders(world)
     while not world.done:
         driving = world.egos.driving.copy()
         commands, decisions = [], {}
@@ -143,8 +146,10 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
             if out.decision is not None:
                 traces[i].add(out.step, out.decision)
                 decisions[i] = out.decision
-                if out.decision.mode == "park":
-                    target[i] = int(out.decision.spot_id)
+                spot = int(out.decision.spot_id)
+                # a spot another vehicle already lies in is no spot to lose: only a free one becomes the target
+                if out.decision.mode == "park" and holders.get(spot) in (None, f"ego:{i}"):
+                    target[i] = spot
         meter.add(world.step_index, waits_for(world, decisions))
         world.step_all(commands)
         if book is not None:
