@@ -79,7 +79,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
     print("[avp] Ctrl-C stops the graph")
     stop = {"flag": False}
     signal.signal(signal.SIGTERM, lambda *_: stop.update(flag=True))
-    viewer = _foxglove(args, drive=args.drivers > 0)  # (bridge, executor) or None
+    viewer = _foxglove(args, drive=args.drivers > 0, egos=len(fleet) or 1)  # (bridge, executor) or None
     if args.drivers:
         print(f"[avp] {args.drivers} driven car(s): `avp teleop --driver J` in another terminal, or Foxglove's Teleop "
               "panel on /avp/driver<J>/cmd_vel (--foxglove)")
@@ -122,7 +122,7 @@ def _fleet_methods(args: argparse.Namespace) -> list[str]:
     return names if len(names) > 1 else []
 
 
-def _foxglove(args: argparse.Namespace, drive: bool = False):
+def _foxglove(args: argparse.Namespace, drive: bool = False, egos: int = 1):
     """``--foxglove``: the Foxglove bridge node and an executor spinning it in this process, or None."""
     if not args.foxglove:
         return None
@@ -134,7 +134,7 @@ def _foxglove(args: argparse.Namespace, drive: bool = False):
     if not rclpy.ok():
         rclpy.init()
     executor = SingleThreadedExecutor()
-    bridge = foxglove_cli.start(args, drive)
+    bridge = foxglove_cli.start(args, drive, egos)
     executor.add_node(bridge)
     return bridge, executor
 

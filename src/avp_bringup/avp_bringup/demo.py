@@ -160,7 +160,7 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
     executor = SingleThreadedExecutor()
     executor.add_node(monitor)
     executor.add_node(recorder)
-    bridge = foxglove_cli.start(args, getattr(args, "drive", False))  # --foxglove: the live view (and Teleop)
+    bridge = foxglove_cli.start(args, getattr(args, "drive", False), args.egos)  # --foxglove: live (and Teleop)
     if bridge is not None:
         executor.add_node(bridge)
     graph = Graph(nodes, log_dir, args.params)

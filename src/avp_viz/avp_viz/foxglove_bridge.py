@@ -28,6 +28,18 @@ VIEW_TOPICS: dict[str, tuple[str, bool]] = {t: GRAPH_TOPICS[t] for t in (
 LATCH_RESEND = 1.0  # s between re-sends of a latched topic's last message
 
 
+def view_topics(egos: int = 1) -> dict[str, tuple[str, bool]]:
+    """What the viewer gets: :data:`VIEW_TOPICS`, or with several egos the lot's (/tf, /tf_static, episode status)
+    and each ego's scene, command and status under /avp/ego<i>/ (docs/world.md, "Several egos")."""
+    if egos == 1:
+        return dict(VIEW_TOPICS)
+    out = {t: GRAPH_TOPICS[t] for t in ("/tf", "/tf_static", "/avp/episode_status")}
+    for i in range(egos):
+        for t in ("viz/lot", "viz/spots", "viz/scene", "plan", "cmd", "episode_status"):
+            out[f"/avp/ego{i}/{t}"] = GRAPH_TOPICS[f"/avp/{t}"]
+    return out
+
+
 class FoxgloveBridge(Node):
     """A foxglove-sdk WebSocket server fed with the graph's topics (see the module docstring)."""
 
@@ -36,7 +48,7 @@ class FoxgloveBridge(Node):
         import foxglove
 
         super().__init__("avp_foxglove")
-        topics = dict(VIEW_TOPICS if topics is None else topics)
+        topics = view_topics() if topics is None else dict(topics)
         self.drive = None
         if drive:  # Foxglove's Teleop panel may drive the driven cars, and nothing else (foxglove_drive)
             from foxglove.websocket import Capability

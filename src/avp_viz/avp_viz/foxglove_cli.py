@@ -15,14 +15,14 @@ def add_arguments(p) -> None:
                    help="the address it binds [127.0.0.1: this machine only; 0.0.0.0 opens it to the network]")
 
 
-def start(args, drive: bool = False):
+def start(args, drive: bool = False, egos: int = 1):
     """The bridge of ``args`` (``--foxglove``), or None; prints where to connect. ``drive``: the graph has driven
     cars, which Foxglove's Teleop panel may drive (avp_viz.foxglove_drive)."""
     if not getattr(args, "foxglove", False):
         return None
-    from avp_viz.foxglove_bridge import FoxgloveBridge
+    from avp_viz.foxglove_bridge import FoxgloveBridge, view_topics
 
-    bridge = FoxgloveBridge(args.foxglove_port, args.foxglove_host, drive=drive)
+    bridge = FoxgloveBridge(args.foxglove_port, args.foxglove_host, topics=view_topics(egos), drive=drive)
     print(f"[avp] Foxglove: connect to ws://{args.foxglove_host}:{bridge.port} (layout: docs/foxglove_layout.json)",
           flush=True)
     return bridge
