@@ -1,4 +1,4 @@
-"""Regenerate the files derived from the parameter specs: the planner's and perception's YAML, README tables.
+"""Regenerate the files derived from the parameter specs: the planner's and perception's YAML, docs/parameters.md.
 
 Run after changing a settings dataclass: `source tools/env.sh && python tools/gen_params.py`.
 tests/test_params.py fails while they are out of date.
@@ -29,13 +29,13 @@ def main() -> int:
                f"from\n# avp_perception/params.py and avp_perception/{src}; `avp params {node}` prints the "
                "table.\n")
         (ROOT / f"src/avp_perception/config/{name}.param.yaml").write_text(hdr + yaml_block(specs))
-    readme = ROOT / "README.md"
-    s = readme.read_text()
-    start, end = s.index("### avp_sim"), s.index("## Dependencies and why")
+    doc = ROOT / "docs/parameters.md"
+    s = doc.read_text()
+    start = s.index("### avp_sim")  # the tables run from here to the end of the file
     tables = subprocess.run([sys.executable, "-m", "avp_bringup.cli", "params"], capture_output=True, text=True,
                             check=True).stdout.strip()
-    readme.write_text(s[:start] + tables + "\n\n" + s[end:])
-    print("regenerated the planner and perception parameter files and the README parameter tables")
+    doc.write_text(s[:start] + tables + "\n")
+    print("regenerated the planner and perception parameter files and the parameter tables in docs/parameters.md")
     return 0
 
 

@@ -127,7 +127,7 @@ def declare_and_validate(node, specs: list[ParamSpec], param_file: str = "") -> 
 
 
 def markdown_table(specs: list[ParamSpec]) -> str:
-    """README table: parameter | type | default | paper | description."""
+    """Table of docs/parameters.md: parameter | type | default | paper | description."""
     rows = ["| parameter | type | default | paper | description |", "|---|---|---|---|---|"]
     for s in specs:
         rng = ""

@@ -3,7 +3,7 @@
 ROS-free. The core settings dataclasses (:class:`~avp_perception.core.bev.BEVConfig`,
 :class:`~avp_perception.core.prediction.PredictionConfig`) are the single source of the defaults and
 descriptions (``specs_from_dataclass``); this module adds the node-only rows, the paper's symbols and
-sections, and ranges. ``python tools/gen_params.py`` writes the YAML files and the README tables.
+sections, and ranges. ``python tools/gen_params.py`` writes the YAML files and the tables of docs/parameters.md.
 """
 
 from __future__ import annotations

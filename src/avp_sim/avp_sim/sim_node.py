@@ -214,7 +214,7 @@ class SimNode(Node):
                 first is None or first[3] != step_to_ns(0, self.dt)):
             # the clock starts with the ego's first answer. Until then step 0 is re-sent whole — observation, ground
             # truth, markers — so that a recorder, monitor or viewer whose reader matches our volatile writers late
-            # (DDS discovery) still gets step 0; every consumer keys ground truth by step (README, real time)
+            # (DDS discovery) still gets step 0; every consumer keys ground truth by step (docs/graph.md, real time)
             self.debug_step = -1
             self._publish_step()
             return
