@@ -369,3 +369,8 @@ def test_demo_drive_records_the_driven_car_and_metrics_recompute_it(ros_env, tmp
     with Reader(bag) as reader:
         topics = {c.topic: c.msgcount for c in reader.connections}
     assert topics.get("/avp/driver0/cmd_vel", 0) >= 10, topics
+    from avp_bag.episode import ego_metrics_from_bag
+
+    car = ego_metrics_from_bag(bag, 0, driver=True)  # `avp metrics BAG --driver 0`: the driven car's own record
+    assert car["driver"] == 0 and car["entered_step"] is not None and car["steps_in_the_lot"] > 0, car
+    assert car["interrupted_steps"] >= 0 and car["collision"] == (car["collision_with"] != "")

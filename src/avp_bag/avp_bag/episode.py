@@ -100,13 +100,15 @@ def metrics_from_bag(bag: Path) -> tuple[dict, dict]:
     return recomputed, live
 
 
-def ego_metrics_from_bag(bag: Path, ego: int) -> dict:
+def ego_metrics_from_bag(bag: Path, ego: int, driver: bool = False) -> dict:
     """Several egos (``avp demo --egos K``): ego ``ego``'s state and metrics as the simulator published them live on
     ``/avp/ego<i>/episode_status`` (the last episode), and the steps it was in the lot per the ground truth. The
-    independent recomputation of :func:`metrics_from_bag` covers the one-ego graph only (docs/world.md)."""
+    independent recomputation of :func:`metrics_from_bag` covers the one-ego graph only (docs/world.md). ``driver``:
+    driven car ``ego``'s record (``/avp/driver<j>/episode_status``: the agents it made brake, its collisions)."""
     from avp_sim.core.metrics import nan_to_none
 
-    topic = f"/avp/ego{int(ego)}/episode_status"
+    topic = f"/avp/{'driver' if driver else 'ego'}{int(ego)}/episode_status"
+    kind = 3 if driver else 0
     reader = BagReader(bag)
     status, steps = None, set()
     for t, msgtype, _t, raw in reader.messages((topic, "/avp/debug/ground_truth")):
@@ -116,13 +118,14 @@ def ego_metrics_from_bag(bag: Path, ego: int) -> dict:
         else:
             if int(msg.step) == 0:
                 steps = set()
-            if any(a.kind == 0 and int(a.id) == ego for a in msg.agents):
+            if any(a.kind == kind and int(a.id) == ego for a in msg.agents):
                 steps.add(int(msg.step))
     if status is None:
-        raise ValueError(f"{bag}: no {topic} messages (a bag of avp demo --egos K with more than {ego} egos?)")
+        raise ValueError(f"{bag}: no {topic} messages (a bag of avp demo --egos K or --drive?)")
     names = {0: "idle", 1: "running", 2: "success", 3: "collision", 4: "timeout"}
     lm = status.metrics
-    return {"ego": ego, "state": names[int(status.state)], "success": bool(lm.success), "collision": bool(lm.collision),
+    return {"driver" if driver else "ego": ego, "state": names[int(status.state)], "success": bool(lm.success),
+            "collision": bool(lm.collision),
             "collision_with": lm.collision_with, "collision_at_fault": bool(lm.collision_at_fault),
             "spot_stolen": bool(lm.spot_stolen), "parked_spot_id": int(lm.parked_spot_id),
             "interrupted_steps": int(lm.interrupted_steps), "interrupted_agent_steps": int(lm.interrupted_agent_steps),

@@ -105,11 +105,12 @@ def cmd_metrics(args: argparse.Namespace) -> int:
 
     from avp_bag.episode import metrics_from_bag
 
-    if args.ego is not None:
+    if args.ego is not None or args.driver is not None:
         from avp_bag.episode import ego_metrics_from_bag
 
         try:
-            print(json.dumps(ego_metrics_from_bag(Path(args.bag), args.ego), indent=2))
+            who = args.driver if args.driver is not None else args.ego
+            print(json.dumps(ego_metrics_from_bag(Path(args.bag), who, driver=args.driver is not None), indent=2))
         except (ValueError, OSError) as exc:
             print(f"[avp metrics] {exc}", file=sys.stderr)
             return 2
@@ -165,6 +166,8 @@ def add_commands(sub) -> None:
     p.add_argument("bag")
     p.add_argument("--ego", type=int, default=None, metavar="I",
                    help="ego I of a bag of several egos: its own episode status (the recomputation covers one ego)")
+    p.add_argument("--driver", type=int, default=None, metavar="J",
+                   help="driven car J of a bag of avp demo --drive: the agents it made brake, its collisions")
     p.set_defaults(func=cmd_metrics)
     p = sub.add_parser("why", help="why the ego was not moving: an episode's idle spells and their causes")
     p.add_argument("source", help="a bag, the --out folder of avp experiment, or a .jsonl file of its records")

@@ -72,6 +72,7 @@ def run(args: argparse.Namespace) -> int:
         topics = fleet_topics(args.egos)
         if getattr(args, "drive", False):  # what the person sent
             topics["/avp/driver0/cmd_vel"] = ("geometry_msgs/msg/Twist", False)
+            topics["/avp/driver0/episode_status"] = ("avp_msgs/msg/EpisodeStatus", True)
         recorder = BagRecorder(bag, topics)
     except BagWriteError as exc:
         print(f"[avp demo] {exc}", file=sys.stderr)

@@ -57,6 +57,7 @@ class DriverChannel:
     index: int  # j
     slot: int  # its slot in the world's cars (K + j)
     sub: Any
+    pub_status: Any = None  # driver<j>/episode_status: its own metrics (interrupted steps it caused, collisions)
     latest: tuple[float, float, float] | None = None  # (v, omega, wall time)
 
     def command(self, now: float, watchdog: float) -> tuple[float, float]:
@@ -83,7 +84,8 @@ def make_drivers(node, count: int, n_egos: int, stamped: bool,
 
     for j in range(count):
         sub = node.create_subscription(TwistStamped if stamped else Twist, f"driver{j}/cmd_vel", callback(j), qos)
-        out.append(DriverChannel(j, n_egos + j, sub))
+        out.append(DriverChannel(j, n_egos + j, sub,
+                                 node.create_publisher(EpisodeStatus, f"driver{j}/episode_status", STATUS)))
     return out
 
 
