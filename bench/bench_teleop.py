@@ -3,8 +3,10 @@
 driven car (a process of its own, on a ROS domain of its own), and this process publishing ``--commands`` Twists on
 ``/avp/driver0/cmd_vel`` at ``--rate`` Hz, each with a speed no other command has (small, alternating in sign, so
 the car stays where it is). For every command the step that applied it is found in ``debug/ground_truth`` (the
-car's displacement over that step, read back through eq. (1), is that speed); its latency is the wall time from the
-publication to the reception of that step's ground truth, so it includes the ground truth's own trip. Commands a
+car's displacement over that step, read back through eq. (1), is that speed). Two latencies: **applied** — from the
+publication to the DDS source timestamp of that step's ground truth, which the simulator publishes right after the
+step that applied the command (the same machine's clock) — and **seen** — to this process receiving it, which adds
+the ground truth's own trip. Commands a
 newer one replaced before a step came are counted apart (never applied, as intended). Target: p95 at most one step
 (dt = 100 ms).
 
@@ -34,9 +36,11 @@ def main(argv: list[str] | None = None) -> int:
 
     import rclpy
     from geometry_msgs.msg import Twist
+    from rclpy.serialization import deserialize_message
 
     from avp_bringup.domain import _try_lock
     from avp_bringup.graph import Graph, NodeSpec
+    from avp_common.drain import draining_subscription
     from avp_common.qos import GROUND_TRUTH
     from avp_msgs.msg import AgentState, GroundTruth
 
@@ -49,14 +53,16 @@ def main(argv: list[str] | None = None) -> int:
     rclpy.init()
     node = rclpy.create_node("bench_teleop", namespace="/avp")
     pub = node.create_publisher(Twist, "driver0/cmd_vel", 10)
-    poses: dict[int, tuple[np.ndarray, int]] = {}  # step -> (pose, reception ns)
+    poses: dict[int, tuple[np.ndarray, int, int]] = {}  # step -> (pose, source ns, reception ns), system clock
 
-    def on_gt(m) -> None:
+    def on_gt(raw, info) -> None:
+        m = deserialize_message(raw, GroundTruth)
         for a in m.agents:
             if a.kind == AgentState.KIND_DRIVEN and a.id == 0:
-                poses[int(m.step)] = (np.array([a.pose.x, a.pose.y, a.pose.theta]), time.monotonic_ns())
+                poses[int(m.step)] = (np.array([a.pose.x, a.pose.y, a.pose.theta]), int(info["source_timestamp"]),
+                                      time.time_ns())
 
-    node.create_subscription(GroundTruth, "/avp/debug/ground_truth", on_gt, GROUND_TRUTH)
+    draining_subscription(node, GroundTruth, "/avp/debug/ground_truth", on_gt, GROUND_TRUTH, with_info=True)
     graph.start()
     sent: dict[float, int] = {}  # speed -> publication ns
     try:
@@ -71,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
                 rclpy.spin_once(node, timeout_sec=max(0.0, nxt - time.monotonic()))
             t = Twist()
             t.linear.x = v
-            sent[v] = time.monotonic_ns()  # a value repeats every 100 commands: keep the latest publication
+            sent[v] = time.time_ns()  # a value repeats every 100 commands: keep the latest publication
             pub.publish(t)
             nxt += period
             _match(poses, sent)
@@ -83,11 +89,10 @@ def main(argv: list[str] | None = None) -> int:
         graph.stop()
         node.destroy_node()
         rclpy.try_shutdown()
-    lat = np.array(_LAT) / 1e6
-    report = {"commands": args.commands, "rate_hz": args.rate, "applied": len(lat),
-              "median_ms": round(float(np.median(lat)), 1), "p95_ms": round(float(np.percentile(lat, 95)), 1),
-              "max_ms": round(float(lat.max()), 1), "load_end": [round(x, 2) for x in os.getloadavg()],
-              "cpus": os.cpu_count()}
+    applied, seen = np.array(_LAT) / 1e6, np.array(_SEEN) / 1e6
+    report = {"commands": args.commands, "rate_hz": args.rate, "applied": len(applied),
+              "applied_ms": _stats(applied), "seen_ms": _stats(seen),
+              "load_end": [round(x, 2) for x in os.getloadavg()], "cpus": os.cpu_count()}
     print(json.dumps(report))
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
@@ -95,8 +100,14 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-_LAT: list[int] = []
+_LAT: list[int] = []  # publication -> the applying step's ground truth sent [ns]
+_SEEN: list[int] = []  # publication -> received here [ns]
 _DONE: set[int] = set()
+
+
+def _stats(x: np.ndarray) -> dict:
+    return {"median": round(float(np.median(x)), 1), "p95": round(float(np.percentile(x, 95)), 1),
+            "max": round(float(x.max()), 1)}
 
 
 def _match(poses: dict, sent: dict) -> None:
@@ -105,10 +116,12 @@ def _match(poses: dict, sent: dict) -> None:
         if k in _DONE or k - 1 not in poses:
             continue
         _DONE.add(k)
-        (a, _), (b, t_rx) = poses[k - 1], poses[k]
+        (a, _, _), (b, t_src, t_rx) = poses[k - 1], poses[k]
         v = round(float((b[0] - a[0]) * math.cos(a[2]) + (b[1] - a[1]) * math.sin(a[2])) / 0.1, 6)
         if v in sent and t_rx > sent[v]:
-            _LAT.append(t_rx - sent.pop(v))
+            t_pub = sent.pop(v)
+            _LAT.append(t_src - t_pub)
+            _SEEN.append(t_rx - t_pub)
 
 
 if __name__ == "__main__":
