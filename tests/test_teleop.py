@@ -363,7 +363,7 @@ def test_demo_drive_records_the_driven_car_and_metrics_recompute_it(ros_env, tmp
     assert any(v > 0 for _, v, _ in driven.moves())
     recomputed, live = metrics_from_bag(bag)
     assert recomputed == live, (recomputed, live)
-    assert live["state"] in ("success", "collision", "timeout")
+    assert live["state"] == "success", live  # the ego parks (seed 1) with the driven car behind it
     from rosbags.rosbag2 import Reader
 
     with Reader(bag) as reader:

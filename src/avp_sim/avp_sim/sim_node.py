@@ -160,11 +160,11 @@ class SimNode(Node):
         for ch in self.egos:
             if ch.pub_status is not None:
                 ch.pub_status.publish(self._status_msg(w, stamp, ch.index))
-        for d in self.drivers:  # a driven car's own record: the agents it made brake, its collisions (docs/teleop.md)
-            d.pub_status.publish(self._status_msg(w, stamp, d.slot))
             if driving[ch.index] and (only is None or ch.index in only):
                 o = obs if ch.index == 0 else w.observe(ch.index)
                 ch.pub_obs.publish(observation_to_msg(o, with_episode("map", self.episode)))
+        for d in self.drivers:  # a driven car's own record: the agents it made brake, its collisions (docs/teleop.md)
+            d.pub_status.publish(self._status_msg(w, stamp, d.slot))
         self.last_pub_wall = time.monotonic()
         self.started = True
 
