@@ -13,16 +13,16 @@ from avp_planner.core.settings import DEFAULT_SETTINGS
 NODE_PARAMS = [
     ParamSpec("autostart", bool, "Lifecycle: configure and activate at start-up; false = stay unconfigured until "
               "`avp swap-planner` (or a lifecycle change_state call) brings the node up.", default=True),
-    ParamSpec("use_beliefs", bool, "Wait for and use beliefs (from the belief node, #4); false = beliefs from "
+    ParamSpec("use_beliefs", bool, "Wait for and use beliefs (from the belief node); false = beliefs from "
               "observation only.", "b_t", "§V-B", default=False),
-    ParamSpec("use_predictions", bool, "Wait for and use predicted trajectories (#4); false = none.", "",
-              "§V-C", default=False),
+    ParamSpec("use_predictions", bool, "Wait for and use predicted trajectories (the prediction node's); false = "
+              "none.", "", "§V-C", default=False),
     ParamSpec("auth_inputs", bool, "Take lot_map, observation, beliefs, predictions and ego_intention only when "
               "tagged with the user's key (avp_common.msg_auth); others are dropped and their publishers named.",
               default=True),
     ParamSpec("stale_input_timeout", float, "Real time only (the simulator's episode_status says lock_step false): "
               "an observation whose beliefs / predictions / ego_intention have not come within this many wall "
-              "seconds is answered with v = ω = 0 and one log line (a hung perception node, issue #20); 0 = off. "
+              "seconds is answered with v = ω = 0 and one log line (a hung perception node); 0 = off. "
               "Lock-step always waits: a late input never changes the episode.", "", "", min=0.0, max=60.0,
               default=0.5),
     ParamSpec("realtime_decision_deadline", float, "Real time only: a decision's searches stop this many wall "

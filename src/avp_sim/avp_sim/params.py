@@ -36,7 +36,7 @@ SIM_PARAMS: list[ParamSpec] = [
     ParamSpec("autostart", bool, "Start the first episode at launch (else wait for the reset service).",
               default=True),
     ParamSpec("scenario.family", str, "Scenario family: 'paper' (the §VI-A protocol: 1-2 dynamic vehicles, contested "
-              "spots) or 'busy' (issue #18: 20+ parking and exiting cars, 10+ pedestrians, spots freeing and filling; "
+              "spots) or 'busy' (20+ parking and exiting cars, 10+ pedestrians, spots freeing and filling; "
               "avp_sim/core/busy.py; beyond the paper, whose §VII names these as its limits).", "", "§VI-A, §VII",
               choices=("paper", "busy"), default="paper"),
     ParamSpec("busy.occupancy_min", float, "busy: least share of spots taken at the start.", "", "",
