@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from bench_closed_loop import _seeds  # noqa: E402  (bench/ is the script's directory: one seed-range parser)
 
 
 def run_episode(lot, sim: dict, profile, seed: int, k: int) -> tuple[dict, list[float]]:
@@ -58,10 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     from avp_experiment.run_config import RunConfig, run_profile, sim_values
     from avp_sim.core.factory import load_lot_param
 
-    seeds = []
-    for part in args.seeds.split(","):
-        a, _, b = part.partition("-")
-        seeds += list(range(int(a), int(b) + 1)) if b else [int(a)]
+    seeds = _seeds(args.seeds)
     overrides = {"scenario.family": args.scenario, "egos.entry_interval": args.entry_interval}
     if args.lot:
         overrides["lot_file"] = str(Path(args.lot).resolve())

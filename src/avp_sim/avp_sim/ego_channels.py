@@ -10,7 +10,7 @@ their relative names (avp_bringup.graph.fleet_graph).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from geometry_msgs.msg import TwistStamped
@@ -39,7 +39,6 @@ class EgoChannel:
     pending: tuple[float, float] | None = None  # lock-step: the command answering the current step
     holding_since: int | None = None  # real time: step the ego began holding still (no command)
     started_moving: bool = False  # real time: its first command came
-    extra: dict = field(default_factory=dict)
 
     @property
     def cmd_topic(self) -> str:
@@ -75,13 +74,14 @@ def make_drivers(node, count: int, n_egos: int, stamped: bool,
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     qos = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.BEST_EFFORT)
-    out = []
+
     def callback(j: int):
         def cb(m) -> None:
             t = m.twist if stamped else m
             on_cmd(j, float(t.linear.x), float(t.angular.z))
         return cb
 
+    out = []
     for j in range(count):
         sub = node.create_subscription(TwistStamped if stamped else Twist, f"driver{j}/cmd_vel", callback(j), qos)
         out.append(DriverChannel(j, n_egos + j, sub,

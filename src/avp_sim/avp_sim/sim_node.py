@@ -200,8 +200,6 @@ class SimNode(Node):
                 f"lock-step: no command stamped step {w.step_index}{who} on {topics} for "
                 f"{self.p['lockstep_timeout']} s; re-sending the observation"
             )
-            for ch in late:
-                ch.extra["late_steps"] = ch.extra.get("late_steps", 0) + 1
             self._publish_step([ch.index for ch in late])
 
     def _realtime_tick(self) -> None:
@@ -233,7 +231,7 @@ class SimNode(Node):
                 self._report_hold(ch, w.step_index, fresh)
             cmds.append((v, om))
         now = time.monotonic()
-        cmds += [w.clip_command(*d.command(now, self.p["drivers.watchdog"])) for d in self.drivers]
+        cmds += [d.command(now, self.p["drivers.watchdog"]) for d in self.drivers]  # step_all clamps them (eq. 1)
         w.step_all(cmds)
         self._publish_step()
 

@@ -100,6 +100,7 @@ def driver_poses(lot, p: dict) -> tuple:
     import numpy as np
 
     from avp_world.geometry import polygon_contains_points, rect_corners
+    from avp_world.vehicle import DEFAULT_VEHICLE
 
     text = str(p.get("drivers.poses", "")).strip()
     poses = []
@@ -113,7 +114,8 @@ def driver_poses(lot, p: dict) -> tuple:
         poses.append(pose)
     if len(poses) > int(p["drivers.count"]):
         raise ValueError(f"parameter 'drivers.poses': {len(poses)} poses for {p['drivers.count']} driven cars")
+    car = DEFAULT_VEHICLE  # a driven car has the ego's body (avp_sim.core.egos)
     for j, pose in enumerate(poses if lot is not None else ()):
-        if not polygon_contains_points(lot.boundary, rect_corners(np.asarray(pose), 4.6, 1.85)).all():
+        if not polygon_contains_points(lot.boundary, rect_corners(np.asarray(pose), car.length, car.width)).all():
             raise ValueError(f"parameter 'drivers.poses': driven car {j} at {list(pose)} lies outside the lot")
     return tuple(poses)
