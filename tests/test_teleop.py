@@ -88,18 +88,23 @@ class _Driven:
     """Ground truth of driven car 0, step by step."""
 
     def __init__(self, node):
+        from rclpy.serialization import deserialize_message
+
+        from avp_common.drain import draining_subscription
         from avp_common.qos import GROUND_TRUTH
         from avp_msgs.msg import AgentState, GroundTruth
 
         self.poses: dict[int, np.ndarray] = {}
-        self.ego_seen = False
+        self.sent_ns: dict[int, int] = {}  # step -> when the simulator sent its ground truth (DDS source timestamp)
 
-        def cb(m) -> None:
+        def cb(raw, info) -> None:
+            m = deserialize_message(raw, GroundTruth)
             for a in m.agents:
                 if a.kind == AgentState.KIND_DRIVEN and a.id == 0:
                     self.poses[int(m.step)] = np.array([a.pose.x, a.pose.y, a.pose.theta])
+                    self.sent_ns[int(m.step)] = int(info["source_timestamp"])
 
-        node.create_subscription(GroundTruth, "/avp/debug/ground_truth", cb, GROUND_TRUTH)
+        draining_subscription(node, GroundTruth, "/avp/debug/ground_truth", cb, GROUND_TRUTH, with_info=True)
 
     def moves(self) -> list[tuple[int, float, float]]:
         """(step, speed, yaw rate) of each step's motion, read back through eq. (1)."""
@@ -145,7 +150,7 @@ def test_twist_commands_drive_the_car_and_a_stale_one_stops_it(ros_env, tmp_path
             t = Twist()
             t.linear.x, t.angular.z = cmd["v"], cmd["w"]
             pub.publish(TwistStamped(twist=t) if stamped else t)
-            last["t"] = time.monotonic()
+            last["t"], last["ns"] = time.monotonic(), time.time_ns()
 
     try:
         t0 = time.monotonic()
@@ -160,7 +165,6 @@ def test_twist_commands_drive_the_car_and_a_stale_one_stops_it(ros_env, tmp_path
         _spin_for(node, 1.5, send)
         cmd.update(v=50.0, w=0.0)  # far above the limit
         _spin_for(node, 0.5, send)
-        k_stop = max(driven.poses)
         _spin_for(node, 3.0)  # nothing sent: the watchdog (0.5 s) stops the car
     finally:
         graph.stop()
@@ -172,10 +176,12 @@ def test_twist_commands_drive_the_car_and_a_stale_one_stops_it(ros_env, tmp_path
     assert seen <= {(0.0, 0.0), (1.0, 0.0), (1.0, 0.3), (5.0, 0.0)}, seen
     assert {(1.0, 0.0), (1.0, 0.3), (5.0, 0.0)} <= seen, seen
     assert all(abs(v) <= 5.0 + 1e-9 for _, v, _ in moves)
-    after = [(k, v) for k, v, _ in moves if k > k_stop]
-    moving_after = [k for k, v in after if v != 0.0]
-    assert len(after) >= 15 and len(moving_after) <= 7, after  # stopped within the watchdog plus a step or two
-    assert all(v == 0.0 for k, v in after[-10:])
+    # stopped within the watchdog plus a step, by the simulator's own clock (the DDS source timestamps of the ground
+    # truth, not when it reached this process: on a loaded machine that comes late), with 0.5 s for the last
+    # command's trip and the step's work; and it stays stopped
+    last_moving = max(k for k, v, _ in moves if v != 0.0)
+    assert (driven.sent_ns[last_moving] - last["ns"]) * 1e-9 <= 0.5 + 0.1 + 0.5, (last_moving, moves[-20:])
+    assert len([k for k, _, _ in moves if k > last_moving]) >= 10 and moves[-1][1] == 0.0
     # footprints (shapely) of the recorded poses against eq. (1) integrated from the first one
     ks = sorted(driven.poses)
     pose = driven.poses[ks[0]]
