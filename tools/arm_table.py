@@ -2,11 +2,12 @@
 
     python tools/arm_table.py NAME=EPISODES.jsonl[:METHOD] [NAME=...] [--ref NAME] [--mode reactive]
 
-Each arm is an episodes file (an `avp experiment` folder's episodes.jsonl, or any file of records), optionally
-restricted to one method. Prints Markdown: per arm the seeds, success with its 95 % Wilson interval, timeouts,
-collisions (at fault: the ego moved in the step it collided, docs/metrics.md), spots stolen and the mean
-interrupted timesteps; then each arm against ``--ref`` (default: the first) on the seeds both have: the successes
-of each and the exact McNemar p of the discordant pairs. A (method, seed, mode) recorded twice counts once.
+Each arm is an episodes file (an `avp experiment` folder's episodes.jsonl or episodes.jsonl.gz, or any file of
+records, plain or gzip-compressed), optionally restricted to one method. Prints Markdown: per arm the seeds, success
+with its 95 % Wilson interval, timeouts, collisions (at fault: the ego moved in the step it collided,
+docs/metrics.md), spots stolen and the mean interrupted timesteps; then each arm against ``--ref`` (default: the
+first) on the seeds both have: the successes of each and the exact McNemar p of the discordant pairs. A (method,
+seed, mode) recorded twice counts once.
 """
 
 from __future__ import annotations
@@ -19,17 +20,21 @@ from pathlib import Path
 from motion_table import mcnemar
 
 from avp_experiment.metrics import wilson
+from avp_experiment.results import open_records
 
 
 def load(spec: str, mode: str) -> tuple[str, dict[int, dict]]:
     name, _, rest = spec.partition("=")
     path, _, method = rest.partition(":")
     out: dict[int, dict] = {}
-    for line in Path(path).read_text().splitlines():
-        r = json.loads(line)
-        if (method and r["method"] != method) or (mode and r["mode"] != mode):
-            continue
-        out.setdefault(int(r["seed"]), r)
+    with open_records(Path(path)) as lines:  # a .jsonl or .jsonl.gz file, or a run folder's records
+        for line in lines:
+            if not line.strip():
+                continue
+            r = json.loads(line)
+            if (method and r["method"] != method) or (mode and r["mode"] != mode):
+                continue
+            out.setdefault(int(r["seed"]), r)
     return name, out
 
 

@@ -14,15 +14,18 @@ import json
 import sys
 from pathlib import Path
 
+from avp_experiment.results import open_records
+
 IGNORED = {"timings", "wall_time", "wall_s", "transport"}  # machine-dependent fields
 
 
 def _records(folder: str) -> dict[tuple, dict]:
     out = {}
-    for line in (Path(folder) / "episodes.jsonl").read_text().splitlines():
-        if line.strip():
-            r = json.loads(line)
-            out[(r["method"], r["seed"], r["mode"])] = {k: v for k, v in r.items() if k not in IGNORED}
+    with open_records(Path(folder)) as lines:  # its episodes.jsonl or episodes.jsonl.gz
+        for line in lines:
+            if line.strip():
+                r = json.loads(line)
+                out[(r["method"], r["seed"], r["mode"])] = {k: v for k, v in r.items() if k not in IGNORED}
     return out
 
 

@@ -19,17 +19,19 @@ from motion_table import mcnemar  # noqa: E402  (tools/ is the script's director
 
 from avp_experiment.fleet import FLEET_PREFIX
 from avp_experiment.metrics import wilson
+from avp_experiment.results import open_records
 
 
 def episodes(folders: list[Path], planner_tag: dict[Path, str]) -> dict[str, dict[int, list[dict]]]:
     """fleet name -> seed -> the episode's records (one per ego)."""
     out: dict[str, dict[int, list[dict]]] = {}
     for f in folders:
-        for line in (f / "episodes.jsonl").read_text().splitlines():
-            if line.strip():
-                r = json.loads(line)
-                name = r["method"][len(FLEET_PREFIX):].split(",")[0] + planner_tag.get(f, "")
-                out.setdefault(name, {}).setdefault(r["seed"], []).append(r)
+        with open_records(f) as lines:  # its episodes.jsonl or episodes.jsonl.gz
+            for line in lines:
+                if line.strip():
+                    r = json.loads(line)
+                    name = r["method"][len(FLEET_PREFIX):].split(",")[0] + planner_tag.get(f, "")
+                    out.setdefault(name, {}).setdefault(r["seed"], []).append(r)
     return out
 
 

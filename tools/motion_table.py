@@ -18,15 +18,17 @@ import sys
 from pathlib import Path
 
 from avp_experiment.metrics import wilson
+from avp_experiment.results import open_records
 
 
 def _records(folder: str, method: str) -> dict:
     out = {}
-    for line in (Path(folder) / "episodes.jsonl").read_text().splitlines():
-        if line.strip():
-            r = json.loads(line)
-            if r["method"] == method:
-                out[(r["seed"], r["mode"])] = r
+    with open_records(Path(folder)) as lines:  # its episodes.jsonl or episodes.jsonl.gz
+        for line in lines:
+            if line.strip():
+                r = json.loads(line)
+                if r["method"] == method:
+                    out[(r["seed"], r["mode"])] = r
     return out
 
 

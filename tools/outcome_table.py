@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 from avp_experiment.metrics import wilson
+from avp_experiment.results import open_records
 
 
 def _collisions(rs: list[dict], prefix: str) -> str:
@@ -29,11 +30,12 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--mode", default="", help="only this mode (reactive | non_reactive)")
     args = ap.parse_args(argv)
     seen: dict[tuple, dict] = {}
-    for line in (Path(args.out) / "episodes.jsonl").read_text().splitlines():
-        if line.strip():
-            r = json.loads(line)
-            if not args.mode or r["mode"] == args.mode:
-                seen.setdefault((r["method"], r["seed"], r["mode"]), r)
+    with open_records(Path(args.out)) as lines:  # OUT's episodes.jsonl or episodes.jsonl.gz
+        for line in lines:
+            if line.strip():
+                r = json.loads(line)
+                if not args.mode or r["mode"] == args.mode:
+                    seen.setdefault((r["method"], r["seed"], r["mode"]), r)
     by: dict[str, list[dict]] = {}
     for r in seen.values():
         by.setdefault(r["method"], []).append(r)

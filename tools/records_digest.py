@@ -30,6 +30,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from compare_records import IGNORED  # noqa: E402  (the timing fields, one definition)
 
+from avp_experiment.results import open_records, records_file  # noqa: E402
+
 OUTCOME = ("status", "steps", "parked_spot_id", "interrupted_steps", "collision", "collision_at_fault",
            "spot_stolen")
 FORMAT = 1
@@ -53,18 +55,19 @@ def record_digest(r: dict) -> dict:
 
 def read_run(folder: Path) -> tuple[dict, dict[str, dict]]:
     """(run.json's config and intent hash, the folder's records by key); a clear error for a bad folder."""
-    episodes = folder / "episodes.jsonl"
+    episodes = records_file(folder) if folder.is_dir() else folder / "episodes.jsonl"  # or episodes.jsonl.gz
     if not episodes.is_file():
         raise SystemExit(f"records_digest: {episodes} not found (an `avp experiment --out` folder is needed)")
     records: dict[str, dict] = {}
-    for n, line in enumerate(episodes.read_text().splitlines(), 1):
-        if not line.strip():
-            continue
-        try:
-            r = json.loads(line)
-            records[_key(r)] = r
-        except (ValueError, KeyError, TypeError) as e:
-            raise SystemExit(f"records_digest: {episodes}:{n}: not an episode record ({e})") from None
+    with open_records(episodes) as f:
+        for n, line in enumerate(f, 1):
+            if not line.strip():
+                continue
+            try:
+                r = json.loads(line)
+                records[_key(r)] = r
+            except (ValueError, KeyError, TypeError) as e:
+                raise SystemExit(f"records_digest: {episodes}:{n}: not an episode record ({e})") from None
     run = {}
     if (folder / "run.json").is_file():
         meta = json.loads((folder / "run.json").read_text())

@@ -65,6 +65,7 @@ def _ego_view(lot, sim: dict, cfg, method: str, seed: int, spot_id: int) -> dict
 def main(argv: list[str]) -> int:
     from probe_episodes import run_config
 
+    from avp_experiment.results import open_records
     from avp_experiment.run_config import sim_values
     from avp_sim.core.factory import load_lot_param, make_world
 
@@ -80,7 +81,8 @@ def main(argv: list[str]) -> int:
     lot = load_lot_param(sim["lot_file"])
     for spec in a.records:
         path, _, method = spec.partition(":")
-        recs = [json.loads(line) for line in open(path) if line.strip()]
+        with open_records(path) as lines:  # .jsonl or .jsonl.gz
+            recs = [json.loads(line) for line in lines if line.strip()]
         recs = [r for r in recs if r["mode"] == "reactive" and (not method or r["method"] == method)]
         stolen = [r for r in recs if r["spot_stolen"]]
         counts = {"started": 0, "not_started": 0, "seen_before_aim": 0, "never_seen": 0, "seen_after_aim": 0}

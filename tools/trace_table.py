@@ -3,7 +3,7 @@ per method, from the records' ``decision_trace`` (avp_planner.core.trace).
 
     python tools/trace_table.py RECORDS.jsonl [RECORDS.jsonl ...] [--status timeout]
 
-Each file's records keep their method name; a file name other than episodes.jsonl labels its records
+Each file's records keep their method name; a file name other than episodes.jsonl(.gz) labels its records
 ``<method>+<file stem>`` unless the stem is ``diag`` (so that variants of one method stay apart).
 """
 
@@ -14,16 +14,19 @@ import sys
 from collections import Counter
 from pathlib import Path
 
+from avp_experiment.results import open_records, records_stem
+
 
 def load(paths: list[str]) -> dict[str, list[dict]]:
     out: dict[str, list[dict]] = {}
     for p in paths:
-        stem = Path(p).stem
-        for line in Path(p).read_text().splitlines():
-            if line.strip():
-                r = json.loads(line)
-                label = r["method"] if stem in ("episodes", "diag") else f"{r['method']}+{stem}"
-                out.setdefault(label, []).append(r)
+        stem = records_stem(p)
+        with open_records(Path(p)) as lines:  # .jsonl or .jsonl.gz
+            for line in lines:
+                if line.strip():
+                    r = json.loads(line)
+                    label = r["method"] if stem in ("episodes", "diag") else f"{r['method']}+{stem}"
+                    out.setdefault(label, []).append(r)
     return out
 
 

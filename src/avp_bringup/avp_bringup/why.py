@@ -46,26 +46,31 @@ def trace_from_bag(bag: Path, ego: int | None = None) -> tuple[dict, float]:
 
 
 def records_file(source: Path) -> Path | None:
-    """The episode records of ``source``: itself if a .jsonl file, its episodes.jsonl if a run folder, else None."""
-    if source.is_file() and source.suffix == ".jsonl":
-        return source
-    return source / "episodes.jsonl" if (source / "episodes.jsonl").is_file() else None
+    """The episode records of ``source``: itself if a .jsonl or .jsonl.gz file, its episodes.jsonl (or
+    episodes.jsonl.gz) if a run folder, else None."""
+    from avp_experiment.results import records_file as found
+
+    path = found(source)
+    return path if path.is_file() and path.name.endswith((".jsonl", ".jsonl.gz")) else None
 
 
 def trace_from_run(out: Path, seed: int, method: str, mode: str, ego: int | None = None) -> tuple[dict, float]:
-    """(trace summary, dt) of one record of an experiment folder or a .jsonl file of records (of ego ``ego`` of a
-    fleet: ``method`` its method or the fleet's label); ValueError naming what is missing."""
+    """(trace summary, dt) of one record of an experiment folder or a .jsonl(.gz) file of records (of ego ``ego`` of
+    a fleet: ``method`` its method or the fleet's label); ValueError naming what is missing."""
+    from avp_experiment.results import open_records
+
     path = records_file(out)
     if path is None:
         raise ValueError(f"{out}: no episodes.jsonl (not an `avp experiment --out` folder)")
     found = None
-    for line in path.read_text().splitlines():
-        if line.strip():
-            r = json.loads(line)
-            if ego is not None and (r.get("ego") != ego or method not in (r.get("method"), r.get("ego_method"))):
-                continue
-            if r.get("seed") == seed and (ego is not None or r.get("method") == method) and r.get("mode") == mode:
-                found = r
+    with open_records(path) as f:
+        for line in f:
+            if line.strip():
+                r = json.loads(line)
+                if ego is not None and (r.get("ego") != ego or method not in (r.get("method"), r.get("ego_method"))):
+                    continue
+                if r.get("seed") == seed and (ego is not None or r.get("method") == method) and r.get("mode") == mode:
+                    found = r
     if found is None:
         raise ValueError(f"{path}: no episode of method {method!r}, seed {seed}, mode {mode!r}"
                          + (f", ego {ego}" if ego is not None else ""))

@@ -25,7 +25,7 @@ import numpy as np
 
 from avp_experiment.episodes import _WORKER, _init_worker, run_episode_inproc
 from avp_experiment.metrics import comparable
-from avp_experiment.results import RESULTS_FILE, RUN_FILE, read_results
+from avp_experiment.results import RUN_FILE, read_results, records_file
 from avp_experiment.run_config import RunConfig, run_profile
 
 
@@ -112,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     try:
         cfg = _config(out)
-        records = read_results(out / RESULTS_FILE)
+        records = read_results(records_file(out))
     except (OSError, KeyError, ValueError) as e:
         print(f"[failures] cannot read the run in {out}: {e}", file=sys.stderr)
         return 2

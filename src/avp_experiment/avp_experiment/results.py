@@ -1,17 +1,24 @@
 """The results folder of ``avp experiment`` (:mod:`.runner`): what the episodes depend on (``OUT/run.json``: run
 config, intent weights, avp_sim values, method profile digests; a mismatch refuses the folder), the episode
 records (``OUT/episodes.jsonl``: one fsync'ed JSON line each, a line cut by an interruption dropped) and the log
-of invocations (``OUT/runs.jsonl``)."""
+of invocations (``OUT/runs.jsonl``).
+
+Committed records are compressed (``episodes.jsonl.gz``, ``gzip -9n``): :func:`records_file` finds a folder's
+records under either name and :func:`open_records` reads either, so every reader (the summary, ``avp why``, the
+tools) takes a compressed folder as it takes a plain one. The writer appends to the plain file only: the runner
+refuses to add episodes to a folder holding only ``episodes.jsonl.gz`` (gunzip it first)."""
 
 from __future__ import annotations
 
 import argparse
+import gzip
 import hashlib
 import json
 import os
 from collections.abc import Iterable
 from dataclasses import asdict
 from pathlib import Path
+from typing import TextIO
 
 from avp_experiment.profiles import MethodProfile, load_profile
 from avp_experiment.run_config import Key, RunConfig, sim_values
@@ -20,6 +27,7 @@ LOCK_FILE = ".lock"
 RESULTS_FILE = "episodes.jsonl"
 RUN_FILE = "run.json"
 RUNS_LOG = "runs.jsonl"
+GZ = ".gz"
 
 
 def mode_name(reactive: bool) -> str:
@@ -142,16 +150,46 @@ def check_run_file(out: Path, ident: dict) -> dict:
 # ------------------------------------------------------------------------------------------ results file
 
 
+def records_file(source: str | Path) -> Path:
+    """The episode records of ``source``: a folder's ``episodes.jsonl``, else its ``episodes.jsonl.gz``; a file is
+    itself, or ``X.jsonl.gz`` when ``X.jsonl`` is not there but that is. When neither is there, the plain name."""
+    source = Path(source)
+    plain = source / RESULTS_FILE if source.is_dir() else source
+    packed = plain.with_name(plain.name + GZ)
+    return packed if not plain.exists() and packed.is_file() else plain
+
+
+def open_records(path: str | Path) -> TextIO:
+    """A text stream of a file of JSON lines, plain (``.jsonl``) or gzip-compressed (``.jsonl.gz``); a folder reads
+    as its :func:`records_file`."""
+    path = records_file(path)
+    if path.name.endswith(GZ):
+        return gzip.open(path, "rt", encoding="utf-8")
+    return path.open(encoding="utf-8")
+
+
+def records_stem(path: str | Path) -> str:
+    """A records file's name without ``.jsonl``/``.jsonl.gz`` (``episodes`` for both of a run folder's)."""
+    name = Path(path).name.removesuffix(GZ)
+    return name.removesuffix(".jsonl")
+
+
 def read_results(path: Path) -> list[dict]:
-    """Records of a JSONL file; a last line cut off by an interruption is removed from the file."""
+    """Records of a JSONL file (or of a ``.jsonl.gz`` one, or of a folder's :func:`records_file`); a last line cut
+    off by an interruption is removed from a plain file."""
+    path = records_file(path)
     if not path.is_file():
         return []
-    data = path.read_bytes()
-    if data and not data.endswith(b"\n"):  # an interrupted write: drop the partial line
-        cut = data.rfind(b"\n") + 1
-        with path.open("r+b") as f:
-            f.truncate(cut)
-        data = data[:cut]
+    if path.name.endswith(GZ):  # committed records: read as they are
+        with gzip.open(path, "rb") as f:
+            data = f.read()
+    else:
+        data = path.read_bytes()
+        if data and not data.endswith(b"\n"):  # an interrupted write: drop the partial line
+            cut = data.rfind(b"\n") + 1
+            with path.open("r+b") as f:
+                f.truncate(cut)
+            data = data[:cut]
     out = []
     for n, line in enumerate(data.decode().splitlines(), 1):
         if not line.strip():

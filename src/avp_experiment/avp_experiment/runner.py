@@ -61,6 +61,7 @@ from avp_experiment.results import (  # noqa: F401 - re-exported: the runner's A
     profile_digest,
     read_results,
     record_key,
+    records_file,
     run_identity,
 )
 from avp_experiment.run_config import (  # noqa: F401 - re-exported: the runner's API
@@ -252,7 +253,7 @@ def _run_locked(args: argparse.Namespace, out: Path, cfg: RunConfig, profiles: l
 
     check_run_file(out, ident)
     path = out / RESULTS_FILE
-    records = dedupe_egos(read_results(path))
+    records = dedupe_egos(read_results(records_file(out)))
     count = Counter(record_key(r) for r in records)
     done = {k for k, c in count.items() if c >= max(1, len(fleet_names(k[0])))}  # a fleet: every ego's record
     seeds, bad_seeds = valid_seeds(args.scenarios, args.seed_base, sim_values(cfg), out / SEEDS_FILE)
@@ -266,6 +267,9 @@ def _run_locked(args: argparse.Namespace, out: Path, cfg: RunConfig, profiles: l
     n_run = 0
     errors: list[str] = []
     started, t0, commit = time.strftime("%Y-%m-%dT%H:%M:%S%z"), time.perf_counter(), code_commit()
+    if todo and not args.summary_only and records_file(out) != path:
+        raise ValueError(f"{records_file(out)}: the records of this folder are compressed; the runner appends to "
+                         f"{path}: run `gunzip {records_file(out)}` first, then the same command")
     if todo and not args.summary_only:
         from tqdm import tqdm
 

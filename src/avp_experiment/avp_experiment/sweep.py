@@ -78,7 +78,7 @@ def table(settings: list[str], cells: dict[tuple[str, str, str], dict], methods:
 def _run_settings(args: argparse.Namespace, settings: dict[str, dict[str, list[str]]],
                   run_one: Callable[[argparse.Namespace], dict]) -> tuple[dict, list[str], list[str], list[str]]:
     """Run the table once per named setting ({name: {'sim_param': [...], 'planner_param': [...]}})."""
-    from avp_experiment.results import RESULTS_FILE, read_results
+    from avp_experiment.results import read_results, records_file
 
     cells: dict[tuple[str, str, str], dict] = {}
     methods: list[str] = []
@@ -93,7 +93,7 @@ def _run_settings(args: argparse.Namespace, settings: dict[str, dict[str, list[s
         report = run_one(sub)
         errors += report.get("errors", [])
         by: dict[tuple[str, str], list[dict]] = {}
-        for r in read_results(Path(sub.out) / RESULTS_FILE):
+        for r in read_results(records_file(sub.out)):
             by.setdefault((r["method"], r["mode"]), []).append(r)
         for (m, mode), recs in by.items():
             cells[(name, m, mode)] = cell_stats(recs)
