@@ -20,6 +20,8 @@ sys.path.insert(0, str(ROOT / "tools"))
 
 import records_digest  # noqa: E402
 
+from avp_experiment.results import open_records  # noqa: E402
+
 CONFIG = {"t_final": 100.0, "protocol": "paper", "planner_overrides": {}, "sim_overrides": {}}
 
 
@@ -32,7 +34,8 @@ def _run_dir(tmp: Path, records: list[dict], config: dict = CONFIG) -> Path:
 
 @pytest.fixture
 def records() -> list[dict]:
-    lines = (ROOT / "docs/results/episodes.jsonl").read_text().splitlines()[:12]
+    with open_records(ROOT / "docs/results/episodes.jsonl.gz") as f:  # committed compressed
+        lines = [next(f) for _ in range(12)]
     return [json.loads(line) for line in lines]
 
 
