@@ -278,8 +278,8 @@ def test_failure_analysis_reruns_failed_episodes(tmp_path):
     from avp_world.lot import load_bundled_lot
 
     out = tmp_path / "run"
-    # Nawaz et al., seed 59, non-reactive: a failure of the published sweep (docs/results) that does not depend on
-    # the intent weights (the method never ranks spots with the CNN): it collides at t = 12.5 s with the agents'
+    # Nawaz et al., seed 59, non-reactive: a failure of the published sweep (docs/results/table1) that does not depend
+    # on the intent weights (the method never ranks spots with the CNN): it collides at t = 12.5 s with the agents'
     # reaction assumed only once seen (the `wary` profile; with the shipped assumption it does not collide)
     assert main(["--scenarios", "1", "--seed-base", "59", "--methods", "nawaz", "--mode", "non-reactive",
                  "--planner-param", "collision.reactive_evidence=lot",

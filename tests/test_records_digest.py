@@ -34,7 +34,7 @@ def _run_dir(tmp: Path, records: list[dict], config: dict = CONFIG) -> Path:
 
 @pytest.fixture
 def records() -> list[dict]:
-    with open_records(ROOT / "docs/results/episodes.jsonl.gz") as f:  # committed compressed
+    with open_records(ROOT / "docs/results/table1/episodes.jsonl.gz") as f:  # committed compressed
         lines = [next(f) for _ in range(12)]
     return [json.loads(line) for line in lines]
 

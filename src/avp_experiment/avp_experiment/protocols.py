@@ -14,7 +14,7 @@ only differ in how they choose the ego's parking spot" — and scenario generati
     planner:    # avp_planner parameters, over planner.param.yaml and under each method profile's own block
       control.v_max: 3.0
 
-``default`` (empty) is the protocol of the earlier sweeps (docs/results): today's shipped parameters.
+``default`` (empty) is the protocol of the earlier sweeps (docs/results/table1): today's shipped parameters.
 :data:`SAFETY_EXTRAS` names the planner behaviours beyond the paper's §V-D that the ablation switches
 (``avp experiment --ablation``).
 """
