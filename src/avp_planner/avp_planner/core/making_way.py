@@ -1,6 +1,6 @@
 """``make_way`` (issue #28, mechanism e): step out of the way of an agent that stands because the ego is in its path.
 
-The gridlock of the busy lot (docs/results/busy_dlp/unfreezing, "Fourth look"): a reactive car (§III-B) stands
+The gridlock of the busy lot (docs/research/unfreezing.md): a reactive car (§III-B) stands
 because its next poses meet the ego, and the ego stands because that car blocks every plan. The simulator's agents
 never back off or re-plan, so the gridlock is permanent unless the ego moves. A standing car's Bézier hypotheses are
 standing too (§V-C follows the curve at the car's own speed, 0), so nothing predicted says the ego is in its way;

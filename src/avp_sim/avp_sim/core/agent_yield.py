@@ -3,7 +3,7 @@
 §III-B's reactive agent brakes when its next n_pass planned footprints meet the **ego's** current footprint; nothing
 makes it stop for another agent. On the paper's lot, with one or two moving cars and no pedestrians, they do not meet.
 On the busy lot they do: a car that stops for the ego is driven into by the cars behind it, and cars drive through
-pedestrians (tools/agent_overlaps.py, docs/results/busy_dlp/unfreezing, "Seventh look").
+pedestrians (tools/agent_overlaps.py, docs/research/unfreezing.md).
 
 With ``agents_yield`` the same rule applies between the agents, with the same look-ahead n_pass (so non-reactive
 agents, n_pass = 0, still follow their plans whatever happens). Agent i's next n_pass planned footprints are checked
