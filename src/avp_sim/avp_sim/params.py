@@ -92,6 +92,9 @@ SIM_PARAMS: list[ParamSpec] = [
     ParamSpec("egos.entry_interval", float, "Seconds between two egos' entries through the gate (each enters once "
               "its time has come and the gate is clear; its parking time counts from its entry).", "", "",
               min=0.0, max=600.0, default=5.0),
+    ParamSpec("egos.entry_clearance", float, "The gate is clear for the next ego or driven car only when no vehicle "
+              "or ego comes within this distance of its start footprint (0: only an overlap blocks it, and a car "
+              "may appear touching the one ahead).", "", "", min=0.0, max=10.0, default=1.0),
     ParamSpec("drivers.count", int, "Cars a person drives (docs/teleop.md): their controls come from "
               "driver<j>/cmd_vel (geometry_msgs/Twist, or TwistStamped with drivers.stamped), clamped to eq. (1)'s "
               "limits. Not in the paper. Needs mode realtime (lock-step never waits for a person).", "", "", min=0,

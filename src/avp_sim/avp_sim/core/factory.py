@@ -55,7 +55,8 @@ def world_config(p: dict[str, Any], lot: LotMap | None = None) -> WorldConfig:
     """The world's settings of the simulator parameters ``p`` (driven cars' poses checked against ``lot``)."""
     return WorldConfig(t_final=p["t_final"], sensor=sensor_config(p), ego_max_speed=p["ego_max_speed"],
                        agents_yield=p["agents_yield"], n_egos=p["egos.count"],
-                       entry_interval=p["egos.entry_interval"], n_drivers=p["drivers.count"],
+                       entry_interval=p["egos.entry_interval"], entry_clearance=p["egos.entry_clearance"],
+                       n_drivers=p["drivers.count"],
                        driver_enter_at=p["drivers.enter_at"], driver_poses=driver_poses(lot, p))
 
 

@@ -51,6 +51,7 @@ class WorldConfig:
     agents_yield: bool = False  # agents also brake for each other (§III-B: for the ego only; .agent_yield)
     n_egos: int = 1  # K automated cars in the lot (egos.count; .egos); 1 = the paper
     entry_interval: float = 5.0  # s between two egos' entries through the gate (egos.entry_interval)
+    entry_clearance: float = 1.0  # m: nothing within this of the start footprint for the gate to be clear
     n_drivers: int = 0  # D cars driven from outside (drivers.count; .egos, docs/teleop.md)
     driver_enter_at: float = 0.0  # s: when the first driven car may enter (drivers.enter_at)
     driver_poses: tuple = ()  # where driven car j enters ((x, y, theta) each; none: the gate) (drivers.poses)
@@ -244,12 +245,14 @@ class World:
         return self.status
 
     def _enter_due_ego(self) -> None:
-        """The first ego whose entry time has come enters at the gate, if no vehicle or ego stands on it."""
+        """The first ego whose entry time has come enters at the gate, if no vehicle or ego stands on it or within
+        ``entry_clearance`` of it (a car never appears touching the one ahead)."""
         eg = self.egos
         for i in eg.waiting():
             if self.step_index < eg.due_step[i]:
                 return
-            gate = rect_corners(eg.starts[i], eg.length, eg.width)[None]
+            margin = 2.0 * self.config.entry_clearance
+            gate = rect_corners(eg.starts[i], eg.length + margin, eg.width + margin)[None]
             blockers = [self.vehicle_corners()]
             if eg.present.any():
                 blockers.append(eg.corners(np.nonzero(eg.present)[0]))
