@@ -1,6 +1,6 @@
 # The two commands of the README. Both set up what is missing first (idempotent, tools/bootstrap.sh).
 SHELL := /bin/bash
-.PHONY: setup demo test test-fast stress-dds bench lint clean records-check
+.PHONY: setup demo test test-fast stress-dds bench lint clean records-check results results-table
 
 setup:
 	@bash tools/bootstrap.sh
@@ -9,16 +9,22 @@ demo: setup
 	@source tools/env.sh && avp demo --seed $${SEED:-1} --method $${METHOD:-bezier} \
 		$${REALTIME:+--realtime}
 
+# Every test, TEST_WORKERS (4) test processes at once (pytest-xdist; a module's tests stay in one process, each DDS
+# test holds a ROS domain of its own). TEST_WORKERS=0 runs them one after another.
 test: setup
-	@source tools/env.sh && python -m pytest -q tests
+	@source tools/env.sh && w=$${TEST_WORKERS:-4} && \
+		python -m pytest -q $$( [ "$$w" = 0 ] || echo "-n $$w --dist loadscope" ) tests
 
 # the unit tests alone: no node processes, no Ray cluster (the markers of tests/conftest.py)
 test-fast: setup
-	@source tools/env.sh && python -m pytest -q -m "not dds and not ray" tests
+	@source tools/env.sh && w=$${TEST_WORKERS:-2} && \
+		python -m pytest -q $$( [ "$$w" = 0 ] || echo "-n $$w --dist loadscope" ) -m "not dds and not ray" tests
 
-# the DDS tests RUNS times in a row beside HOGS busy loops, to catch discovery races before CI does
+# the DDS tests RUNS times in a row beside HOGS busy loops, TEST_WORKERS at once as make test runs them, to catch
+# discovery races before CI does
 stress-dds: setup
-	@source tools/env.sh && python tools/stress_dds.py --runs $${RUNS:-10} --hogs $${HOGS:-2}
+	@source tools/env.sh && python tools/stress_dds.py --runs $${RUNS:-10} --hogs $${HOGS:-2} \
+		--workers $${TEST_WORKERS:-4}
 
 bench: setup
 	@source tools/env.sh && python bench/bench_sensing.py
@@ -34,6 +40,19 @@ records-check: setup
 		echo "protocol $$p:" && \
 		python tools/records_digest.py check out/records_check/$$p docs/results/reference_records/$${p}_50x8x2.json \
 			|| exit 1; done
+
+# Every figure of the README's results table (config/suites/headline.yaml): `make results` runs the whole suite into
+# out/results (hours on 2 cores; resumable, WORKERS=N, or BACKEND=ray), `make results QUICK=1` a small one into
+# out/results_quick (minutes). Each writes OUT/headline.md. `make results-table` regenerates the README's table from
+# the committed records (docs/experiment.md, "The headline table").
+results: setup
+	@source tools/env.sh && out=$${OUT:-out/results$(if $(QUICK),_quick)} && \
+		avp experiment --suite headline $(if $(QUICK),--quick) --out $$out --workers $${WORKERS:-2} \
+			--backend $${BACKEND:-local} --no-progress && cat $$out/headline.md
+
+results-table: setup
+	@source tools/env.sh && python -m avp_experiment.headline table --committed --json docs/results/headline.json \
+		--readme README.md && echo "README.md: table regenerated from docs/results/headline.json"
 
 lint: setup
 	@source tools/env.sh && python -m ruff check src tests bench tools

@@ -1,9 +1,10 @@
 """Run the DDS tests again and again, optionally beside CPU hogs, to catch races before CI does.
 
-    python tools/stress_dds.py [--runs 10] [--hogs 2] [--out out/stress_dds] [-- PYTEST ARGS ...]
-    make stress-dds RUNS=10 HOGS=2
+    python tools/stress_dds.py [--runs 10] [--hogs 2] [--workers 4] [--out out/stress_dds] [-- PYTEST ARGS ...]
+    make stress-dds RUNS=10 HOGS=2 [TEST_WORKERS=4]
 
-Each run is one ``python -m pytest -m dds tests`` (the tests that start node processes or talk over DDS: the
+Each run is one ``python -m pytest -m dds tests`` (with ``--workers N`` > 0: ``-n N --dist loadscope``, N test
+processes at once, as ``make test`` runs them) (the tests that start node processes or talk over DDS: the
 ``dds`` marker, tests/conftest.py), in a fresh process. ``--hogs H`` starts H busy-loop processes for the whole loop,
 as a loaded CI machine would be. Every run's counts and failed test ids are appended to OUT/runs.jsonl and its
 pytest output kept as OUT/run_<i>.log; the last line printed is the total. Exit status 1 if any run failed.
@@ -50,10 +51,14 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--runs", type=int, default=10, help="how many times to run the DDS tests [10]")
     ap.add_argument("--hogs", type=int, default=0, help="busy-loop processes beside the tests [0]")
+    ap.add_argument("--workers", type=int, default=0,
+                    help="test processes at once (pytest-xdist, as make test); 0 = one after another [0]")
     ap.add_argument("--out", type=Path, default=ROOT / "out/stress_dds", help="where the logs go")
     args = ap.parse_args(argv)
-    if args.runs < 1 or args.hogs < 0:
-        ap.error("--runs must be >= 1 and --hogs >= 0")
+    if args.runs < 1 or args.hogs < 0 or args.workers < 0:
+        ap.error("--runs must be >= 1, --hogs and --workers >= 0")
+    if args.workers:
+        extra = ["-n", str(args.workers), "--dist", "loadscope", *extra]
     args.out.mkdir(parents=True, exist_ok=True)
     hogs = [hog() for _ in range(args.hogs)]
     failed_runs = 0
@@ -67,6 +72,7 @@ def main(argv: list[str] | None = None) -> int:
             counts = summarise(r.stdout)
             failures = sorted(set(re.findall(r"^(?:FAILED|ERROR) (\S+)", r.stdout, re.M)))
             rec = {"run": i, "rc": r.returncode, "wall_s": round(time.monotonic() - t0, 1), "hogs": args.hogs,
+                   "workers": args.workers,
                    "loadavg_end": [round(x, 2) for x in os.getloadavg()], **counts, "failures": failures}
             with (args.out / "runs.jsonl").open("a") as f:
                 f.write(json.dumps(rec) + "\n")

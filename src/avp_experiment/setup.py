@@ -14,6 +14,7 @@ setup(
         ("share/" + package_name, ["package.xml", "README.md"]),
         ("share/" + package_name + "/config/methods", glob("config/methods/*.yaml")),
         ("share/" + package_name + "/config/protocols", glob("config/protocols/*.yaml")),
+        ("share/" + package_name + "/config/suites", glob("config/suites/*.yaml")),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

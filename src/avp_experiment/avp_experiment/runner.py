@@ -200,6 +200,14 @@ def run_experiment(args: argparse.Namespace) -> dict:
         import_ray()  # one line saying how to install it, before anything is written
     elif getattr(args, "address", None):
         raise ValueError("--address is for --backend ray")
+    if getattr(args, "suite", None):
+        from avp_experiment.headline import run_suite
+
+        if getattr(args, "sweep", None) or getattr(args, "ablation", False):
+            raise ValueError("--suite runs its own grid: no --sweep or --ablation with it")
+        return run_suite(args, run_experiment, _cell_args)
+    if getattr(args, "quick", False):
+        raise ValueError("--quick is for --suite")
     if getattr(args, "sweep", None) or getattr(args, "ablation", False):
         from avp_experiment.sweep import run_ablation, run_sweep
 
@@ -386,11 +394,20 @@ def run_command(args: argparse.Namespace) -> int:
     return 1 if report["errors"] else 0
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="avp experiment", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     add_arguments(p)
-    return run_command(p.parse_args(argv))
+    return p
+
+
+def _cell_args(argv: list[str]) -> argparse.Namespace:
+    """The namespace of one suite cell's ``avp experiment`` arguments (:mod:`.headline`)."""
+    return _parser().parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_command(_parser().parse_args(argv))
 
 
 if __name__ == "__main__":

@@ -1,0 +1,309 @@
+"""The headline suite: one command for every figure of the README's results table.
+
+    avp experiment --suite headline [--quick] --out OUT [--workers N] [--backend ray]   # run it (resumable)
+    python -m avp_experiment.headline table OUT            # OUT/headline.json + OUT/headline.md from that run
+    python -m avp_experiment.headline table --committed --json docs/results/headline.json --readme README.md
+
+The suite (``config/suites/headline.yaml``) is a grid: rows are what a user can pick (a method, or the paper's method
+with a planner profile), columns the settings it is judged in; a cell is one ``avp experiment`` run of the column's
+arguments then the row's, into ``OUT/<column>/<row>/``, so an interrupted suite resumes cell by cell and episode by
+episode. ``--quick`` runs each column's ``quick`` scenario count (minutes, for a contributor).
+
+The table is computed from records only: from a suite's folder, or (``--committed``) from the committed records the
+suite file names per cell. The README holds the committed table between the markers ``<!-- headline:begin -->`` and
+``<!-- headline:end -->``; tests/test_headline.py fails when it and the committed records disagree. Rates carry 95 %
+Wilson intervals, means a normal 95 % interval (1.96 standard errors).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+
+import yaml
+
+from avp_experiment.metrics import Z95, wilson
+from avp_experiment.results import read_results
+
+BEGIN, END = "<!-- headline:begin -->", "<!-- headline:end -->"
+METRICS = ("success", "failed_or_stolen", "busy", "fleet")
+
+
+def suites_dir() -> Path:
+    """The shipped suites (package share directory, else the source tree)."""
+    from avp_common.share import SRC, package_share
+
+    d = package_share("avp_experiment") / "config" / "suites"
+    return d if d.is_dir() else SRC / "avp_experiment" / "config" / "suites"
+
+
+def load_suite(name_or_path: str = "headline") -> dict:
+    """A suite by name (``config/suites/<name>.yaml``) or path; ValueError names the file and what is wrong."""
+    p = Path(name_or_path)
+    if not p.suffix:
+        p = suites_dir() / f"{name_or_path}.yaml"
+    if not p.is_file():
+        shipped = sorted(q.stem for q in suites_dir().glob("*.yaml"))
+        raise ValueError(f"unknown suite {name_or_path!r}; shipped: {shipped}")
+    suite = yaml.safe_load(p.read_text())
+    rows, cols = suite.get("rows"), suite.get("columns")
+    if not isinstance(rows, list) or not isinstance(cols, list) or not rows or not cols:
+        raise ValueError(f"{p}: a suite has non-empty lists 'rows' and 'columns'")
+    for c in cols:
+        if c.get("metric") not in METRICS:
+            raise ValueError(f"{p}: column {c.get('id')!r}: metric must be one of {METRICS}")
+    ids = {r["id"] for r in rows}
+    for col, cells in (suite.get("committed") or {}).items():
+        if col not in {c["id"] for c in cols} or not set(cells) <= ids:
+            raise ValueError(f"{p}: committed.{col}: unknown column or row {sorted(set(cells) - ids)}")
+    suite["source"] = str(p)
+    return suite
+
+
+def runs_in(row: Mapping, col: Mapping) -> bool:
+    return col["id"] in row.get("only", [col["id"]])
+
+
+def cell_argv(col: Mapping, row: Mapping, quick: bool) -> list[str]:
+    """The ``avp experiment`` arguments of one cell (the column's, then the row's; no --out)."""
+    argv = [str(a) for a in col["args"]]
+    if quick:
+        i = argv.index("--scenarios")
+        argv[i + 1] = str(col["quick"])
+    argv += ["--methods", row["methods"]]
+    for kv in row.get("planner", []):
+        argv += ["--planner-param", kv]
+    return argv
+
+
+def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], dict],
+              parse: Callable[[list[str]], argparse.Namespace]) -> dict:
+    """Every cell of ``args.suite`` into ``args.out/<column>/<row>``; the table of what came out last."""
+    suite = load_suite(args.suite)
+    out = Path(args.out)
+    report = {"cells": 0, "ran": 0, "errors": 0}
+    for col in suite["columns"]:
+        for row in suite["rows"]:
+            if not runs_in(row, col):
+                continue
+            cell = parse(cell_argv(col, row, args.quick))
+            for keep in ("workers", "backend", "address", "no_progress", "transport", "intent_weights"):
+                setattr(cell, keep, getattr(args, keep))
+            cell.out = str(out / col["id"] / row["id"])
+            print(f"[avp experiment] suite {suite['name']}: {col['id']} / {row['id']}", file=sys.stderr, flush=True)
+            r = run_one(cell)
+            report["cells"] += 1
+            report["ran"] += r.get("ran", 0)
+            report["errors"] += len(r.get("errors", []) or [])
+    table = suite_table(suite, out)
+    write_table(table, out / "headline.json", out / "headline.md")
+    print(f"[avp experiment] suite {suite['name']}: {out / 'headline.md'}", file=sys.stderr)
+    report["errors"] = [None] * report["errors"]  # the runner's convention: a list of failed episodes
+    return report
+
+
+# ------------------------------------------------------------------------------------------ statistics
+
+
+def _rate(k: int, n: int) -> dict:
+    lo, hi = wilson(k, n)
+    return {"k": k, "n": n, "percent": round(100.0 * k / n, 1), "ci95": [round(100 * lo, 1), round(100 * hi, 1)]}
+
+
+def _mean(values: Sequence[float]) -> dict:
+    n = len(values)
+    m = sum(values) / n
+    sd = math.sqrt(sum((v - m) ** 2 for v in values) / (n - 1)) if n > 1 else 0.0
+    half = Z95 * sd / math.sqrt(n)
+    return {"n": n, "mean": round(m, 1), "ci95": [round(m - half, 1), round(m + half, 1)]}
+
+
+def cell_stats(metric: str, records: Sequence[Mapping]) -> dict | None:
+    """The figures of one cell from its records (None without records)."""
+    if not records:
+        return None
+    n = len(records)
+    if metric == "success":
+        return {"success": _rate(sum(bool(r["success"]) for r in records), n)}
+    if metric == "failed_or_stolen":
+        return {"failed_or_stolen": _rate(sum((not r["success"]) or bool(r["spot_stolen"]) for r in records), n)}
+    if metric == "busy":
+        return {"success": _rate(sum(bool(r["success"]) for r in records), n),
+                "spot_stolen": _rate(sum(bool(r["spot_stolen"]) for r in records), n),
+                "at_fault": sum(bool(r.get("collision_at_fault")) for r in records),
+                "interrupted_steps": _mean([float(r["interrupted_steps"]) for r in records])}
+    # fleet: parks per ego-episode; an ego-ego spot loss per episode (any ego lost one: docs/results/fleet)
+    episodes: dict[tuple, bool] = {}
+    for r in records:
+        key = (r["seed"], r["mode"])
+        episodes[key] = episodes.get(key, False) or bool(r.get("spots_lost_to_ego"))
+    return {"success": _rate(sum(bool(r["success"]) for r in records), n),
+            "episodes_with_ego_loss": _rate(sum(episodes.values()), len(episodes)),
+            "ego_ego_collisions": sum(str(r.get("collision_with", "")).startswith("ego") for r in records),
+            "gridlock": sum(bool(r.get("gridlock")) for r in records)}
+
+
+def _select(records: Sequence[Mapping], spec: Mapping) -> list[Mapping]:
+    lo, hi = spec.get("seeds", [-math.inf, math.inf])
+    mode = spec.get("mode", "").replace("-", "_")
+    return [r for r in records if r["method"] == spec["method"] and lo <= r["seed"] <= hi
+            and (not mode or r["mode"] == mode)]
+
+
+def committed_records(specs: Sequence[Mapping], root: Path) -> tuple[list[Mapping], list[str]]:
+    """The records a committed cell names (several files are one cell: their seeds must not overlap), its notes."""
+    records: list[Mapping] = []
+    seen: set[tuple] = set()
+    for spec in specs:
+        rs = _select(read_results(root / spec["file"]), spec)
+        if not rs:
+            raise ValueError(f"{spec['file']}: no record of method {spec['method']!r} in the seeds named")
+        for r in rs:
+            key = (r["seed"], r["mode"], r.get("ego"))
+            if key in seen:
+                raise ValueError(f"{spec['file']}: seed {r['seed']} ({r['mode']}) is in two files of one cell")
+            seen.add(key)
+        records += rs
+    return records, [s["note"] for s in specs if s.get("note")]
+
+
+def suite_table(suite: Mapping, out: Path | None = None, root: Path | None = None) -> dict:
+    """{columns, rows, cells: {column: {row: stats+sources}}} from a suite run (``out``) or the committed records
+    (``root``: the repository)."""
+    cells: dict[str, dict] = {}
+    for col in suite["columns"]:
+        cells[col["id"]] = {}
+        for row in suite["rows"]:
+            if not runs_in(row, col):
+                continue
+            if root is not None:
+                specs = suite.get("committed", {}).get(col["id"], {}).get(row["id"])
+                if not specs:
+                    continue
+                records, notes = committed_records(specs, root)
+                sources = sorted({s["file"] for s in specs})
+            else:
+                folder = out / col["id"] / row["id"]
+                records, notes, sources = read_results(folder), [], [str(folder)]
+            stats = cell_stats(col["metric"], records)
+            if stats is not None:
+                cells[col["id"]][row["id"]] = {**stats, "sources": sources, "notes": notes}
+    return {"suite": suite["name"], "columns": [{k: c[k] for k in ("id", "title", "metric")} for c in suite["columns"]],
+            "rows": [{"id": r["id"], "label": r["label"]} for r in suite["rows"]], "cells": cells,
+            "na": {c["id"]: [r["id"] for r in suite["rows"] if not runs_in(r, c)] for c in suite["columns"]}}
+
+
+# ------------------------------------------------------------------------------------------ rendering
+
+
+def _pct(s: Mapping) -> str:
+    lo, hi = s["ci95"]
+    return f"{s['percent']:.1f} [{lo:.1f}, {hi:.1f}] ({s['n']})"
+
+
+def _cells(metric: str, s: Mapping | None) -> list[str]:
+    """The Markdown cells of one (column, row): one per sub-column of the metric."""
+    if s is None:
+        return ["not run"] + [""] * (2 if metric == "busy" else 0)
+    if metric == "failed_or_stolen":
+        return [_pct(s["failed_or_stolen"])]
+    if metric == "success":
+        return [_pct(s["success"])]
+    if metric == "busy":
+        m = s["interrupted_steps"]
+        return [_pct(s["success"]) + (f"; {s['at_fault']} at fault" if s["at_fault"] else ""), _pct(s["spot_stolen"]),
+                f"{m['mean']:.1f} [{m['ci95'][0]:.1f}, {m['ci95'][1]:.1f}]"]
+    lost = s["episodes_with_ego_loss"]
+    extra = [f"a spot lost to the other ego in {lost['k']} of {lost['n']} episodes"]
+    extra += [f"{s['ego_ego_collisions']} ego-ego collisions"] if s["ego_ego_collisions"] else []
+    extra += [f"{s['gridlock']} gridlocked"] if s["gridlock"] else []
+    return [_pct(s["success"]) + "; " + ", ".join(extra)]
+
+
+def render(table: Mapping) -> str:
+    """The Markdown table (and its footnotes) of :func:`suite_table`'s output."""
+    head, sub = ["pick"], [":--"]
+    for c in table["columns"]:
+        if c["metric"] == "busy":
+            head += [c["title"] + ": parks", "spots lost", "interrupted steps (mean)"]
+            sub += ["--:"] * 3
+        else:
+            head.append(c["title"])
+            sub.append("--:")
+    lines = ["| " + " | ".join(head) + " |", "|" + "|".join(sub) + "|"]
+    notes: list[str] = []
+    for row in table["rows"]:
+        cells = [row["label"]]
+        for c in table["columns"]:
+            s = table["cells"][c["id"]].get(row["id"])
+            width = 3 if c["metric"] == "busy" else 1
+            if row["id"] in table["na"].get(c["id"], []):
+                cells += ["–"] * width
+                continue
+            out = _cells(c["metric"], s)
+            for note in (s or {}).get("notes", []):
+                if note not in notes:
+                    notes.append(note)
+                out[0] += "<sup>" + str(notes.index(note) + 1) + "</sup>"
+            cells += out
+        lines.append("| " + " | ".join(cells) + " |")
+    lines.append("")
+    lines.append("Percent [95 % Wilson interval] (episodes); interrupted steps: mean [95 % interval]. \"not run\": "
+                 "no committed records at full size yet (`make results` makes them); \"–\": does not apply.")
+    lines += [f"<sup>{i + 1}</sup> {n}." for i, n in enumerate(notes)]
+    return "\n".join(lines) + "\n"
+
+
+def write_table(table: Mapping, json_path: Path, md_path: Path | None = None) -> None:
+    json_path.parent.mkdir(parents=True, exist_ok=True)
+    json_path.write_text(json.dumps(table, indent=1, sort_keys=True) + "\n")
+    if md_path is not None:
+        md_path.write_text(render(table))
+
+
+def replace_block(text: str, block: str) -> str:
+    """``text`` with what lies between the headline markers replaced by ``block``."""
+    if text.count(BEGIN) != 1 or text.count(END) != 1:
+        raise ValueError(f"the README must hold {BEGIN} and {END} once each")
+    head, rest = text.split(BEGIN)
+    _, tail = rest.split(END)
+    return f"{head}{BEGIN}\n{block}{END}{tail}"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m avp_experiment.headline", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    t = sub.add_parser("table", help="the table of a suite run (OUT) or of the committed records (--committed)")
+    t.add_argument("out", nargs="?", help="a suite's --out folder")
+    t.add_argument("--suite", default="headline")
+    t.add_argument("--committed", action="store_true", help="from the committed records the suite file names")
+    t.add_argument("--root", default=".", help="the repository (committed records are under it) [.]")
+    t.add_argument("--json", help="write the table's JSON here [OUT/headline.json]")
+    t.add_argument("--readme", help="replace the table between the headline markers of this file")
+    args = ap.parse_args(argv)
+    if args.committed == bool(args.out):
+        ap.error("give a suite's OUT folder or --committed, one of them")
+    try:
+        suite = load_suite(args.suite)
+        table = suite_table(suite, root=Path(args.root)) if args.committed else suite_table(suite, Path(args.out))
+    except (ValueError, OSError) as exc:
+        print(f"[headline] {exc}", file=sys.stderr)
+        return 2
+    json_path = Path(args.json) if args.json else (Path(args.out) / "headline.json" if args.out else None)
+    if json_path:
+        write_table(table, json_path, json_path.with_suffix(".md"))
+    if args.readme:
+        p = Path(args.readme)
+        p.write_text(replace_block(p.read_text(), render(table)))
+    if not json_path and not args.readme:
+        print(render(table), end="")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,93 @@
+"""The headline results table (avp_experiment.headline, `make results`): the README's table is the one the committed
+records give, every cell of the suite is a valid `avp experiment` command, and a suite runs and tabulates."""
+
+from __future__ import annotations
+
+import gzip
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from avp_experiment.headline import BEGIN, END, cell_argv, load_suite, render, replace_block, suite_table
+from avp_experiment.metrics import wilson
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def committed() -> dict:
+    return suite_table(load_suite("headline"), root=ROOT)
+
+
+def test_the_readme_table_is_the_one_the_committed_records_give(committed):
+    readme = (ROOT / "README.md").read_text()
+    block = readme.split(BEGIN)[1].split(END)[0]
+    assert block.strip() == render(committed).strip(), "README.md's table is stale: run `make results-table`"
+    stored = json.loads((ROOT / "docs/results/headline.json").read_text())
+    assert stored == json.loads(json.dumps(committed)), "docs/results/headline.json is stale: `make results-table`"
+
+
+def test_a_cell_agrees_with_its_records_read_independently(committed):
+    # the shipped default on the busy lot: read the committed file with gzip + json alone, count, and compute Wilson
+    path = ROOT / "docs/results/busy_dlp/default_reaction_assumed/episodes.jsonl.gz"
+    with gzip.open(path, "rt") as f:
+        recs = [json.loads(line) for line in f]
+    k, n = sum(r["status"] == "success" for r in recs), len(recs)
+    cell = committed["cells"]["busy_dlp"]["bezier"]
+    assert (cell["success"]["k"], cell["success"]["n"]) == (k, n) == (156, 200)
+    lo, hi = wilson(k, n)
+    assert cell["success"]["ci95"] == [round(100 * lo, 1), round(100 * hi, 1)]
+    stolen = sum(r["spot_stolen"] for r in recs)
+    assert cell["spot_stolen"]["k"] == stolen
+    assert cell["interrupted_steps"]["mean"] == round(sum(r["interrupted_steps"] for r in recs) / n, 1)
+
+
+def test_every_cell_of_the_suite_is_a_valid_experiment_command():
+    from avp_experiment.runner import _cell_args
+
+    suite = load_suite("headline")
+    for col in suite["columns"]:
+        for row in suite["rows"]:
+            for quick in (False, True):
+                args = _cell_args(cell_argv(col, row, quick))
+                assert args.methods == row["methods"]
+                full = int(col["args"][col["args"].index("--scenarios") + 1])
+                assert args.scenarios == (col["quick"] if quick else full)
+
+
+def test_the_readme_markers_are_required():
+    with pytest.raises(ValueError, match="headline:begin"):
+        replace_block("no markers here", "| a |\n")
+    assert replace_block(f"x\n{BEGIN}\nold\n{END}\ny", "new\n") == f"x\n{BEGIN}\nnew\n{END}\ny"
+
+
+def test_a_suite_runs_resumes_and_tabulates(tmp_path):
+    suite = tmp_path / "tiny.yaml"
+    suite.write_text("""
+name: tiny
+rows:
+  - {id: bezier, label: "Bézier", methods: bezier, planner: [collision.reactive_steps=0]}
+  - {id: blind, label: "blind", methods: blind}
+columns:
+  - {id: paper, title: "paper: parks", metric: success,
+     args: [--protocol, paper, --mode, non-reactive, --scenarios, "50", --t-final, "100"], quick: 1}
+""")
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "avp_experiment.runner", "--suite", str(suite), "--quick", "--out", str(out),
+           "--workers", "1", "--no-progress"]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    table = json.loads((out / "headline.json").read_text())
+    for row in ("bezier", "blind"):
+        recs = [json.loads(x) for x in (out / "paper" / row / "episodes.jsonl").read_text().splitlines()]
+        assert len(recs) == 1 and recs[0]["method"] == row and recs[0]["seed"] == 0
+        assert table["cells"]["paper"][row]["success"]["n"] == 1
+    run = json.loads((out / "paper" / "bezier" / "runs.jsonl").read_text().splitlines()[0])
+    assert run["options"]["planner_param"] == ["collision.reactive_steps=0"]
+    assert "| Bézier |" in (out / "headline.md").read_text()
+    # a second invocation finds every episode done and runs none
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0 and "0 to run" in r.stdout and "1 to run" not in r.stdout
