@@ -180,6 +180,7 @@ def test_motion_counts_by_hand():
     assert motion_counts(park) == {"reversals": 1, "u_turns": 0}
 
 
+@pytest.mark.slow
 def test_the_demo_seed_no_longer_backs_away_while_a_stopped_car_blocks_the_road_ahead():
     """Issue #21: `make demo`'s scenario (seed 1, bezier, reactive). A car stops in the aisle ahead of the ego; the
     detour round (stopped agents as static obstacles) used to back away at once and explore the long way round
@@ -268,6 +269,7 @@ def test_summary_lists_every_failed_episode():
     assert "Median episode: bezier 3.00 s" in "\n".join(compute_section(recs, ["bezier", "implicit", "nawaz"]))
 
 
+@pytest.mark.slow
 def test_failure_analysis_reruns_failed_episodes(tmp_path):
     """``python -m avp_experiment.failures OUT`` re-runs every failed episode of a run and says whether it
     came out the same, which maneuvers the agents did, and how close they came."""
@@ -351,6 +353,7 @@ def test_sim_param_overrides_are_checked_and_part_of_the_run_identity(tmp_path):
         check_run_file(tmp_path, run_identity(RunConfig(sim_overrides={"scenario.passiveness_step": 0.5}), prof))
 
 
+@pytest.mark.slow
 def test_same_command_twice_gives_identical_episodes(tmp_path):
     """Worker processes (spawn) in both runs, finishing in any order: per-episode results are identical."""
     a, b = tmp_path / "a", tmp_path / "b"
@@ -402,6 +405,7 @@ def test_intent_identity_names_the_weights_without_machine_paths(tmp_path):
         intent_identity(RunConfig(intent_weights=str(tmp_path / "missing.pt")))
 
 
+@pytest.mark.slow
 def test_a_second_invocation_on_a_folder_being_written_is_refused(tmp_path):
     """Two invocations on one folder would each run the episodes the other runs and record them twice (seen when a
     run was restarted while the interrupted one finished its episodes): the second one is refused."""

@@ -78,6 +78,7 @@ def test_two_egos_two_spots_both_park_and_nobody_loses_a_spot(paper_lot):
     assert recs[0]["fleet"] == "bezier,bezier" and [r["ego"] for r in recs] == [0, 1]
 
 
+@pytest.mark.slow
 def test_two_egos_one_spot_one_parks_the_other_lost_it_to_that_ego(paper_lot):
     """Both start at t = 0 equally far from the one free spot, at the two ends of the middle road."""
     recs = _fleet(paper_lot, [14], [{"start": [21.5, 3.5, UP], "enter_at": 0.0}], t_final=40.0)
@@ -169,6 +170,7 @@ def test_bad_egos_in_a_scenario_file_get_one_error_naming_the_field(paper_lot, e
     assert "test scene: " in str(e.value) and needle in str(e.value)
 
 
+@pytest.mark.slow
 def test_avp_experiment_runs_fleets_with_a_record_per_ego_and_resumes(tmp_path, capsys):
     """``avp experiment --egos 2`` (a fleet of each method) and ``--fleet`` (one mixed fleet): a record per ego,
     the fleet table, and the same command again runs nothing."""

@@ -64,6 +64,7 @@ def test_the_readme_markers_are_required():
     assert replace_block(f"x\n{BEGIN}\nold\n{END}\ny", "new\n") == f"x\n{BEGIN}\nnew\n{END}\ny"
 
 
+@pytest.mark.slow
 def test_a_suite_runs_resumes_and_tabulates(tmp_path):
     suite = tmp_path / "tiny.yaml"
     suite.write_text("""

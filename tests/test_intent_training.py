@@ -278,6 +278,7 @@ def test_grouped_loss_by_hand():
     assert float(grouped_loss(z, spans, w, tg)) == pytest.approx(by_hand, rel=1e-6)
 
 
+@pytest.mark.slow
 def test_a_few_training_steps_reduce_the_loss():
     s = episode(EPISODE_SEED)
     assert len(s) >= 20
@@ -310,6 +311,7 @@ def test_a_few_training_steps_reduce_the_loss():
 _NO_WEIGHTS = pytest.mark.skipif(not default_weights_path().is_file(), reason="no shipped intent weights yet (#4)")
 
 
+@pytest.mark.slow
 @_NO_WEIGHTS
 def test_shipped_weights_beat_the_nearest_spot_baseline_on_fresh_held_out_episodes():
     path = default_weights_path()

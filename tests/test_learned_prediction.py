@@ -258,6 +258,7 @@ def test_shipped_weights_card_and_forward_motion(paper_lot):
     assert np.all(np.diff(t.poses[:, 1]) < 0.05)  # never backwards
 
 
+@pytest.mark.slow
 @_NO_WEIGHTS
 def test_shipped_weights_beat_constant_velocity_on_fresh_episodes():
     """Fresh held-out episodes (seeds used by no split) generated here; minADE with the true goal at least MARGIN

@@ -90,6 +90,7 @@ def test_scenarios_on_the_side_lot_keep_the_protocols_properties():
             assert boundary.buffer(1e-6).contains(Polygon(rect_corners(v.initial_state, v.length, v.width)))
 
 
+@pytest.mark.slow
 def test_avp_experiment_runs_on_another_lot_and_records_name_it(tmp_path):
     lot_file = bundled_lot_path("side_lot")
     out = tmp_path / "out"
@@ -121,6 +122,7 @@ def test_a_bad_lot_is_one_error_before_any_episode(tmp_path):
     assert f"{bad}: scenario.contested_spot_ids[1]: 500 is not a spot id of lot 'side_lot'" in r.stderr, r.stderr
 
 
+@pytest.mark.slow
 def test_the_busy_family_on_the_dlp_lot():
     """Issue #18 item 3: the whole DLP lot (364 spots); a busy episode has 20+ moving cars, parking and leaving,
     10+ pedestrians on the lot's roads, spots that free and fill; same seed => same episode; the ego's start is

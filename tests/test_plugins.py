@@ -143,6 +143,7 @@ def test_the_entry_point_makes_the_predictor_and_unknown_names_list_the_plugins(
     assert r.stdout.strip() == "False"
 
 
+@pytest.mark.slow
 def test_avp_experiment_runs_an_episode_with_the_plugin(toy, tmp_path):
     out = tmp_path / "out"
     profile = toy["root"] / "profiles" / "toy.yaml"
@@ -159,6 +160,7 @@ def test_avp_experiment_runs_an_episode_with_the_plugin(toy, tmp_path):
     assert "Toy (a plugin)" in (out / "summary.md").read_text()
 
 
+@pytest.mark.slow
 def test_a_spot_selector_plugin_chooses_the_spot(toy, tmp_path):
     """The selector plugin orders the candidates of every planning step, and the ego parks where the first of
     them with a safe plan lies (the farthest); an unknown selector is one error naming the parameter."""

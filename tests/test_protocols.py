@@ -91,6 +91,7 @@ def test_cruise_speed_is_the_lane_speed_before_the_maneuver(paper_lot):
         assert np.allclose(speeds, v)
 
 
+@pytest.mark.slow
 def test_spawn_closer_than_ego_redraws_far_spawns(paper_lot):
     # an ego started lower down the middle road, so that lane spawns 8-16 m back can be farther than it
     params = replace(ScenarioParams(), approach_distance=(8.0, 16.0), ego_start=(21.5, 20.0, -math.pi / 2))

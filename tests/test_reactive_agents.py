@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from shapely.geometry import Polygon
 
 from avp_search.dynamic import DynamicObstacles
@@ -289,6 +290,7 @@ def test_told_reactions_change_the_decision_and_nothing_else(paper_lot):
     assert p.decide(make_obs(paper_lot, ego, vehicles=[moving]), predictions=[pred]).trace["mode"] == "evasive"
 
 
+@pytest.mark.slow
 def test_the_oracle_is_told_which_agents_react():
     """avp_experiment.oracle.ground_truth names every dynamic vehicle and pedestrian with n_pass > 0 in the
     reactive mode, and none in the non-reactive mode (the simulator's passiveness read independently here)."""
