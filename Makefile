@@ -13,12 +13,12 @@ demo: setup
 # test holds a ROS domain of its own). TEST_WORKERS=0 runs them one after another.
 test: setup
 	@source tools/env.sh && w=$${TEST_WORKERS:-4} && \
-		python -m pytest -q $$( [ "$$w" = 0 ] || echo "-n $$w --dist loadscope" ) tests
+		python -m pytest -q $$( [ "$$w" = 0 ] || echo "-n $$w --dist loadgroup" ) tests
 
 # the fast unit tests alone: no node processes, no Ray cluster, no test marked slow (tests/conftest.py, pyproject.toml)
 test-fast: setup
 	@source tools/env.sh && w=$${TEST_WORKERS:-2} && \
-		python -m pytest -q $$( [ "$$w" = 0 ] || echo "-n $$w --dist loadscope" ) -m "not dds and not ray and not slow" tests
+		python -m pytest -q $$( [ "$$w" = 0 ] || echo "-n $$w --dist loadgroup" ) -m "not dds and not ray and not slow" tests
 
 # the DDS tests RUNS times in a row beside HOGS busy loops, TEST_WORKERS at once as make test runs them, to catch
 # discovery races before CI does

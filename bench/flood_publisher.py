@@ -17,8 +17,10 @@ With ``--episode-replays`` (issue #27) two more kinds, as a replayed recording w
   bag of an earlier episode holds; this needs the user's key (``$AVP_CMD_KEY_FILE``), as a replay of the user's
   own recording has.
 
-It joins the graph's ROS_DOMAIN_ID (from the environment). When it stops (``--duration`` or SIGTERM/SIGINT) it
-prints one JSON line: messages sent per topic and kind, and the achieved rate.
+It joins the graph's ROS_DOMAIN_ID (from the environment). Once its publishers exist it prints the line
+``flooding``, so a caller can start the graph only when the flood is on (a loaded machine takes seconds to import
+rclpy). When it stops (``--duration`` or SIGTERM/SIGINT, also one that comes during its start-up) it prints one JSON
+line: messages sent per topic and kind, and the achieved rate.
 
 With ``--bad-resets HZ`` it also calls the simulator's ``reset_episode`` HZ times a second with the hostile
 requests of bench/hostile_requests.py (10 000 vehicles, 1 MB of YAML, deep nesting, paths outside the served
@@ -51,6 +53,8 @@ def main() -> int:
                     help="also replay the first message seen and re-tag the latest as of the episode before")
     ap.add_argument("--bad-resets", type=float, default=0.0, help="hostile reset_episode requests a second")
     args = ap.parse_args()
+    stop = {"flag": False}
+    signal.signal(signal.SIGTERM, lambda *_: stop.update(flag=True))  # first: a SIGTERM during start-up still reports
     kinds = KINDS + (EPISODE_KINDS if args.episode_replays else ())
 
     import rclpy
@@ -141,9 +145,8 @@ def main() -> int:
         resets = [ResetEpisode.Request(seed=3, reactive=True, **fields) for fields, _ in hostile_requests().values()]
     reset_sent = 0
     next_reset = time.monotonic()
-    stop = {"flag": False}
-    signal.signal(signal.SIGTERM, lambda *_: stop.update(flag=True))
     sent = {t: dict.fromkeys(kinds, 0) for t in topics}
+    print("flooding", flush=True)
     period = 1.0 / args.rate
     t0 = time.monotonic()
     i = 0

@@ -9,16 +9,31 @@ import pytest
 
 from avp_world.lot import load_bundled_lot
 
+#: test processes that may run DDS test modules at once under pytest-xdist (make test): the others take the unit tests.
+#: Four DDS modules at once on 2 cores (each test starts about five node processes) made real-time tests miss their
+#: deadlines; two leave room for what they measure.
+DDS_LANES = 2
 
+
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist's own hook reads the xdist_group marks
 def pytest_collection_modifyitems(config, items):
     """Markers by what a test needs (pyproject.toml): ``dds`` for every test that uses :func:`ros_env` (it starts node
     processes, or talks over DDS itself), ``ray`` for the Ray backend's. ``-m "not dds and not ray"`` selects the
-    unit tests; tools/stress_dds.py runs ``-m dds`` in a loop."""
+    unit tests; tools/stress_dds.py runs ``-m dds`` in a loop.
+
+    With pytest-xdist's ``--dist loadgroup`` (make test) every module is one group (its module fixtures made once),
+    and the modules with a DDS test are dealt to :data:`DDS_LANES` groups, each run by one process in turn."""
+    dds_modules: list[str] = []
     for item in items:
         if "ros_env" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.dds)
+            if item.path.name not in dds_modules:
+                dds_modules.append(item.path.name)
         if item.path.name == "test_ray_backend.py":
             item.add_marker(pytest.mark.ray)
+    lanes = {name: f"dds{i % DDS_LANES}" for i, name in enumerate(sorted(dds_modules))}
+    for item in items:
+        item.add_marker(pytest.mark.xdist_group(lanes.get(item.path.name, item.path.name)))
 
 
 @pytest.fixture(scope="session")

@@ -12,6 +12,7 @@ figures under flood come from bench/bench_flood.py (docs/benchmarks.md), never f
 from __future__ import annotations
 
 import json
+import select
 import signal
 import subprocess
 import sys
@@ -81,6 +82,10 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
     flood = subprocess.Popen([sys.executable, str(FLOODER), "--rate", str(FLOOD_RATE), "--duration", "600",
                               "--episode-replays", "--bad-resets", "2"], env=ros_env,
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # the graph starts once the flood is on: on a loaded machine the flooder takes seconds to start, and an episode
+    # that ended first would never have been flooded (it happened with four test processes beside two CPU hogs)
+    ready, _, _ = select.select([flood.stdout], [], [], 180)
+    assert ready and flood.stdout.readline().strip() == "flooding", "the flooder did not start"
     graph.start()
     rss: dict[str, list[float]] = {name: [] for name in graph.procs}
     try:
@@ -106,6 +111,7 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
         graph.stop()
         monitor.destroy_node()
         rclpy.try_shutdown()
+    assert out.strip(), f"the flooder printed no report (exit {flood.returncode}): {err[-3000:]}"
     report = json.loads(out.strip().splitlines()[-1])
     sent = {t: sum(k.values()) for t, k in report["sent"].items()}
     # it did flood: at least 100 messages on each topic, at no less than 30 % of the asked rate (the achieved rate

@@ -85,4 +85,6 @@ def test_a_websocket_client_subscribes_and_receives_the_graphs_transforms(ros_en
         ego = [t for t in m.transforms if t.child_frame_id == "base_link"]
         assert len(ego) == 1 and ego[0].header.frame_id == "odom"
         stamp = ego[0].header.stamp.sec * 1_000_000_000 + ego[0].header.stamp.nanosec
-        assert stamp % 100_000_000 == 0 and abs(log_time - stamp) <= 200_000_000  # simulated time, step k * dt
+        # simulated time (step k * dt), not the wall clock (about 1.8e18 ns since 1970): the log time is the bridge's
+        # simulated time when it forwarded the message, some steps later on a loaded machine (0.7 s seen at load 10)
+        assert stamp % 100_000_000 == 0 and abs(log_time - stamp) <= 5_000_000_000

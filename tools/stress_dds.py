@@ -3,7 +3,7 @@
     python tools/stress_dds.py [--runs 10] [--hogs 2] [--workers 4] [--out out/stress_dds] [-- PYTEST ARGS ...]
     make stress-dds RUNS=10 HOGS=2 [TEST_WORKERS=4]
 
-Each run is one ``python -m pytest -m dds tests`` (with ``--workers N`` > 0: ``-n N --dist loadscope``, N test
+Each run is one ``python -m pytest -m dds tests`` (with ``--workers N`` > 0: ``-n N --dist loadgroup``, N test
 processes at once, as ``make test`` runs them) (the tests that start node processes or talk over DDS: the
 ``dds`` marker, tests/conftest.py), in a fresh process. ``--hogs H`` starts H busy-loop processes for the whole loop,
 as a loaded CI machine would be. Every run's counts and failed test ids are appended to OUT/runs.jsonl and its
@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.runs < 1 or args.hogs < 0 or args.workers < 0:
         ap.error("--runs must be >= 1, --hogs and --workers >= 0")
     if args.workers:
-        extra = ["-n", str(args.workers), "--dist", "loadscope", *extra]
+        extra = ["-n", str(args.workers), "--dist", "loadgroup", *extra]
     args.out.mkdir(parents=True, exist_ok=True)
     hogs = [hog() for _ in range(args.hogs)]
     failed_runs = 0

@@ -242,14 +242,15 @@ def latency_line(lat: dict) -> str:
 
 def _start_episode(monitor, executor, graph, srv_type, args, n_obs_subs: int, log_dir: Path,
                    timeout: float = 60.0) -> None:
-    """Wait until every node is up (observation subscribers, the ego's cmd publisher, the reset service) and a
-    second for discovery to settle, then start the episode with reset_episode (RuntimeError when that fails)."""
+    """Wait until every node is up (observation subscribers, the ego's cmd publisher, the reset service), the
+    monitor's own readers have matched their writers, and a second for discovery to settle, then start the episode
+    with reset_episode (RuntimeError when that fails)."""
     from avp_common.services import call_once
 
     client = monitor.create_client(srv_type, "reset_episode")
     prefixes = [f"/avp/ego{i}" for i in range(args.egos)] if args.egos > 1 else ["/avp"]
     t0 = time.monotonic()
-    while not (client.service_is_ready()
+    while not (client.service_is_ready() and monitor.inputs_matched()
                and all(monitor.count_subscribers(f"{p}/observation") >= n_obs_subs
                        and monitor.count_publishers(f"{p}/cmd") >= 1 for p in prefixes)):
         executor.spin_once(timeout_sec=0.1)

@@ -57,18 +57,26 @@ class EpisodeMonitor(Node):
         self.cmd_received: dict[int, int] = {}  # stamp [ns] -> reception timestamp of the first command [ns]
         self._last_stamp: int | None = None
         # every step matters (metrics, step times, the DDS tests): deep reader queues ride out a busy CPU
-        self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, GROUND_TRUTH_QOS)
+        gt = self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, GROUND_TRUTH_QOS)
         self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
         self.key = load_key()
-        draining_subscription(self, Observation, "observation", self._tagged(Observation, self._on_obs),
-                              GROUND_TRUTH_QOS, with_info=True)
-        draining_subscription(self, TwistStamped, "cmd", self._tagged(TwistStamped, self._on_cmd), GROUND_TRUTH_QOS,
-                              with_info=True)
+        obs = draining_subscription(self, Observation, "observation", self._tagged(Observation, self._on_obs),
+                                    GROUND_TRUTH_QOS, with_info=True)
+        cmd = draining_subscription(self, TwistStamped, "cmd", self._tagged(TwistStamped, self._on_cmd),
+                                    GROUND_TRUTH_QOS, with_info=True)
+        #: the readers whose every message counts (the step times read the observation and cmd of one ego)
+        self._must_match = [gt] + ([obs, cmd] if egos == 1 else [])
         # per-node stage times: when each node's output of step k left it (DDS source timestamps)
         self.stage_sent: dict[str, dict[int, int]] = {"beliefs": {}, "predictions": {}}
         for name, msg_type in (("beliefs", SpotBeliefs), ("predictions", PredictedTrajectoryArray)):
             draining_subscription(self, msg_type, name, self._tagged(msg_type, self._stage_cb(name)), GROUND_TRUTH_QOS,
                                   with_info=True)
+
+    def inputs_matched(self) -> bool:
+        """Whether this monitor's readers of the ground truth (and, with one ego, of the observation and the command)
+        have matched a writer: a volatile reader that matches after the episode started misses its first steps, and
+        on a loaded machine matching can take seconds after discovery (a demo then measured 0 step times)."""
+        return all(s.get_publisher_count() >= 1 for s in self._must_match)
 
     def _stage_cb(self, name: str):
         def cb(msg, info) -> None:
