@@ -70,7 +70,11 @@ def main() -> int:
     if unknown:
         print(f"flood_publisher: --topics {unknown}: one of {sorted(types)}", file=sys.stderr)
         return 2
-    rclpy.init()
+    from rclpy.signals import SignalHandlerOptions
+
+    # rclpy's own handlers would shut the context down on SIGTERM, and a publish in the loop below would then raise
+    # before the report is printed: ours (set above) only ends the loop
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("avp_flooder")
     from avp_common.msg_auth import load_key, verify
 
