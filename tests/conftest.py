@@ -13,6 +13,12 @@ from avp_world.lot import load_bundled_lot
 #: Four DDS modules at once on 2 cores (each test starts about five node processes) made real-time tests miss their
 #: deadlines; two leave room for what they measure.
 DDS_LANES = 2
+#: rough wall seconds of each module's DDS tests under four test processes (pytest --durations at eb81055), to deal
+#: the modules to the lanes longest first; a module not listed counts 10 s a test
+DDS_SECONDS = {"test_operations.py": 245, "test_demo_and_bag.py": 100, "test_perception_nodes.py": 76,
+               "test_fleet_dds.py": 75, "test_experiment.py": 52, "test_security.py": 45, "test_teleop.py": 45,
+               "test_bad_input.py": 40, "test_nodes.py": 40, "test_bag_damage.py": 30, "test_flood.py": 25,
+               "test_dds_lockstep.py": 20, "test_foxglove.py": 10}
 
 
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist's own hook reads the xdist_group marks
@@ -21,19 +27,24 @@ def pytest_collection_modifyitems(config, items):
     processes, or talks over DDS itself), ``ray`` for the Ray backend's. ``-m "not dds and not ray"`` selects the
     unit tests; tools/stress_dds.py runs ``-m dds`` in a loop.
 
-    With pytest-xdist's ``--dist loadgroup`` (make test) every module is one group (its module fixtures made once),
-    and the modules with a DDS test are dealt to :data:`DDS_LANES` groups, each run by one process in turn."""
-    dds_modules: list[str] = []
+    With pytest-xdist's ``--dist loadgroup`` (make test) a module's other tests are one group (its module fixtures
+    made once), and its DDS tests go to one of :data:`DDS_LANES` groups, each run by one process in turn: the modules
+    are dealt longest first (:data:`DDS_SECONDS`) to the lane with the least so far."""
+    dds_count: dict[str, int] = {}
     for item in items:
         if "ros_env" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.dds)
-            if item.path.name not in dds_modules:
-                dds_modules.append(item.path.name)
+            dds_count[item.path.name] = dds_count.get(item.path.name, 0) + 1
         if item.path.name == "test_ray_backend.py":
             item.add_marker(pytest.mark.ray)
-    lanes = {name: f"dds{i % DDS_LANES}" for i, name in enumerate(sorted(dds_modules))}
+    load, lanes = [0.0] * DDS_LANES, {}
+    for name in sorted(dds_count, key=lambda n: (-DDS_SECONDS.get(n, 10 * dds_count[n]), n)):
+        lane = load.index(min(load))
+        lanes[name] = f"dds{lane}"
+        load[lane] += DDS_SECONDS.get(name, 10 * dds_count[name])
     for item in items:
-        item.add_marker(pytest.mark.xdist_group(lanes.get(item.path.name, item.path.name)))
+        dds = item.get_closest_marker("dds") is not None
+        item.add_marker(pytest.mark.xdist_group(lanes[item.path.name] if dds else item.path.name))
 
 
 @pytest.fixture(scope="session")
