@@ -85,7 +85,7 @@ def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], 
     """Every cell of ``args.suite`` into ``args.out/<column>/<row>``; the table of what came out last."""
     suite = load_suite(args.suite)
     out = Path(args.out)
-    report = {"cells": 0, "ran": 0, "errors": 0}
+    report: dict = {"cells": 0, "ran": 0, "errors": []}  # the runner's report: errors lists the failed episodes
     for col in suite["columns"]:
         for row in suite["rows"]:
             if not runs_in(row, col):
@@ -98,11 +98,10 @@ def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], 
             r = run_one(cell)
             report["cells"] += 1
             report["ran"] += r.get("ran", 0)
-            report["errors"] += len(r.get("errors", []) or [])
+            report["errors"] += r.get("errors") or []
     table = suite_table(suite, out)
     write_table(table, out / "headline.json", out / "headline.md")
     print(f"[avp experiment] suite {suite['name']}: {out / 'headline.md'}", file=sys.stderr)
-    report["errors"] = [None] * report["errors"]  # the runner's convention: a list of failed episodes
     return report
 
 
