@@ -27,12 +27,23 @@ def _with(spec: NodeSpec, **extra) -> NodeSpec:
     return NodeSpec(spec.name, spec.package, spec.executable, spec.param_file, {**spec.extra_params, **extra})
 
 
+def _ego_pose(gt) -> tuple[float, float, float]:
+    ego = next(a for a in gt.agents if a.kind == 0)
+    return ego.pose.x, ego.pose.y, ego.pose.theta
+
+
 def _poses(monitor) -> dict[int, tuple[float, float, float]]:
-    out = {}
-    for k, g in monitor.gt.items():
-        ego = next(a for a in g.agents if a.kind == 0)
-        out[k] = (ego.pose.x, ego.pose.y, ego.pose.theta)
-    return out
+    return {k: _ego_pose(g) for k, g in monitor.gt.items()}
+
+
+def _drain(monitor, quiet: float = 1.0, limit: float = 30.0) -> None:
+    """Spin the monitor until nothing has come for `quiet` seconds (a finished episode publishes nothing more)."""
+    t0 = t_last = time.monotonic()
+    seen = len(monitor.gt) + len(monitor.obs_sent)
+    while time.monotonic() - t_last < quiet and time.monotonic() - t0 < limit:
+        rclpy.spin_once(monitor, timeout_sec=0.05)
+        if len(monitor.gt) + len(monitor.obs_sent) != seen:
+            seen, t_last = len(monitor.gt) + len(monitor.obs_sent), time.monotonic()
 
 
 @pytest.fixture()
@@ -259,24 +270,23 @@ def test_swap_planner_profile_in_realtime(ros, tmp_path):
     monitor = EpisodeMonitor()
     graph = Graph(nodes, tmp_path / "logs", env=env)
     graph.start()
-    swap, k_swap, k_done, out = None, None, None, ""
+    swap, k_swap, t_done, out = None, None, None, ""
     try:
         t0 = time.monotonic()
         while not monitor.finished and time.monotonic() - t0 < 150:
             rclpy.spin_once(monitor, timeout_sec=0.05)
-            poses = _poses(monitor)
-            moved = np.hypot(*np.subtract(poses[max(poses)][:2], poses[min(poses)][:2])) if poses else 0.0
-            if swap is None and len(poses) > 40 and moved > 3:
-                k_swap = max(poses)
-                swap = subprocess.Popen([sys.executable, "-m", "avp_bringup.cli", "swap-planner", "cautious",
-                                         "--log-dir", str(tmp_path / "logs")], env=env, stdout=subprocess.PIPE,
-                                        stderr=subprocess.STDOUT, text=True)
-            if swap is not None and swap.poll() is not None and k_done is None:
-                k_done = max(monitor.gt)
+            if swap is None and len(monitor.gt) > 40:
+                first, last = (_ego_pose(monitor.gt[k]) for k in (min(monitor.gt), max(monitor.gt)))
+                if np.hypot(last[0] - first[0], last[1] - first[1]) > 3:
+                    k_swap = max(monitor.gt)
+                    swap = subprocess.Popen([sys.executable, "-m", "avp_bringup.cli", "swap-planner", "cautious",
+                                             "--log-dir", str(tmp_path / "logs")], env=env, stdout=subprocess.PIPE,
+                                            stderr=subprocess.STDOUT, text=True)
+            if swap is not None and t_done is None and swap.poll() is not None:
+                t_done = time.time_ns()  # the swap is done: the old planner was deactivated before this
         if swap is not None:
             out = swap.communicate(timeout=60)[0]
-        for _ in range(10):
-            rclpy.spin_once(monitor, timeout_sec=0.05)
+        _drain(monitor)  # the simulator stopped publishing when the episode ended: take what is still queued
         rc = graph.poll()
     finally:
         graph.stop()
@@ -298,6 +308,12 @@ def test_swap_planner_profile_in_realtime(ros, tmp_path):
     ks = sorted(poses)
     speed = {k: np.hypot(*np.subtract(poses[k][:2], poses[k - 1][:2])) / 0.1 for k in ks[1:] if k - 1 in poses}
     assert max(v for k, v in speed.items() if k <= k_swap) > 1.5  # the shipped planner: up to 2 m/s
+    # the first step the simulator published after the swap had ended, by the DDS source timestamp of its observation
+    # (wall clock, not the monitor's reading of it, which lags on a loaded machine): every command from then on came
+    # from the cautious planner, and the speed of step k comes from the command answering observation k - 1
+    assert t_done is not None, "the swap did not finish before the episode ended"
+    k_done = min(round(stamp / 1e8) for stamp, sent in monitor.obs_sent.items() if sent[0] > t_done)
+    assert any(k > k_done for k in speed)
     assert max(v for k, v in speed.items() if k > k_done) <= 1.0 + 1e-6  # the cautious profile: 1 m/s
     assert k_done - k_swap >= 10  # the simulator kept stepping while the new planner came up
 
