@@ -146,10 +146,12 @@ class SimNode(Node):
         assert w is not None
         stamp = step_to_time(w.step_index, self.dt)
         self.pub_clock.publish(Clock(clock=stamp))
-        obs = w.observe(0)
-        if w.step_index != self.debug_step:  # one ground-truth record per step, even when the step is re-sent
+        first = w.step_index != self.debug_step  # one ground-truth record per step, even when the step is re-sent
+        if first:  # before the observation's ray casting, so that it leaves as soon as the step is done
             self.debug_step = w.step_index
             self.pub_gt.publish(self._ground_truth_msg(w, stamp))
+        obs = w.observe(0)
+        if first:
             if self.p["publish_markers"]:  # built only for a subscriber: ~30 ms a step on the DLP lot
                 if self.pub_markers.get_subscription_count():
                     self.pub_markers.publish(world_markers(self.lot, w, obs, stamp))
