@@ -2,12 +2,14 @@
 """In-process step time of a lot with K egos (docs/world.md, "Several egos"): the simulator core and K pipelines
 (:class:`MethodEgo` each: the belief node's core with the intent CNN, the prediction, the planner, wall-clock caps as
 in the live graph) on one thread. Per step it times the **lot step**: every driving ego's observation (ray-cast from
-its own pose) and pipeline, and the simulator's step of all of them. Printed: median and p95 per K, with the
+its own pose) and pipeline, and the simulator's step of all of them. ``--ego-workers 2`` spreads the pipelines over two
+processes (:mod:`avp_experiment.ego_pool`); the simulator stays in this one. Printed: median and p95 per K, with the
 episodes' outcomes and the machine's load; K = 1 in the same run is the reference.
 
 Usage:
     python bench/bench_fleet.py --lot src/avp_world/avp_world/maps/dlp_lot.yaml --scenario busy --egos 1,8 \\
-        [--method bezier] [--seeds 0-2] [--t-final 60] [--entry-interval 5] [--json out/bench_fleet.json]
+        [--method bezier] [--seeds 0-2] [--t-final 60] [--entry-interval 5] [--ego-workers 2] \\
+        [--json out/bench_fleet.json]
 """
 
 from __future__ import annotations
@@ -24,20 +26,31 @@ import numpy as np
 from bench_closed_loop import _seeds  # noqa: E402  (bench/ is the script's directory: one seed-range parser)
 
 
-def run_episode(lot, sim: dict, profile, seed: int, k: int) -> tuple[dict, list[float]]:
-    """One episode of ``k`` egos of ``profile``: (outcome, per-step wall seconds of the lot step)."""
+def run_episode(lot, sim: dict, profile, seed: int, k: int, ego_workers: int = 1) -> tuple[dict, list[float]]:
+    """One episode of ``k`` egos of ``profile``: (outcome, per-step wall seconds of the lot step). ``ego_workers``
+    > 1: the pipelines in that many processes (:class:`avp_experiment.ego_pool.EgoPool`), started before the clock."""
     from avp_experiment.ego import MethodEgo
+    from avp_experiment.ego_pool import EgoPool
     from avp_sim.core.factory import make_world
 
     world = make_world(lot, dict(sim, **{"egos.count": k}), seed, True)
-    egos = [MethodEgo(lot, profile, deterministic=False) for _ in range(k)]
+    pool = EgoPool(lot, [profile] * k, workers=ego_workers, deterministic=False) if ego_workers > 1 else None
+    egos = [] if pool else [MethodEgo(lot, profile, deterministic=False) for _ in range(k)]
     times: list[float] = []
-    while not world.done:
-        t0 = time.perf_counter()
-        driving = world.egos.driving.copy()
-        cmds = [egos[i].step(world.observe(i)).command if driving[i] else (0.0, 0.0) for i in range(k)]
-        world.step_all(cmds)
-        times.append(time.perf_counter() - t0)
+    try:
+        while not world.done:
+            t0 = time.perf_counter()
+            driving = world.egos.driving.copy()
+            if pool is not None:
+                steps = pool.step([i for i in range(k) if driving[i]], lambda i: (world.observe(i), None))
+                cmds = [steps[i].command if i in steps else (0.0, 0.0) for i in range(k)]
+            else:
+                cmds = [egos[i].step(world.observe(i)).command if driving[i] else (0.0, 0.0) for i in range(k)]
+            world.step_all(cmds)
+            times.append(time.perf_counter() - t0)
+    finally:
+        if pool is not None:
+            pool.close()
     outcome = {"seed": seed, "egos": k, "status": world.status, "steps": world.step_index,
                "parked": int(sum(s == "success" for s in world.egos.status)),
                "collisions": int(sum(s == "collision" for s in world.egos.status)),
@@ -54,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", default="0-2", help="a-b or comma-separated")
     ap.add_argument("--t-final", type=float, default=60.0)
     ap.add_argument("--entry-interval", type=float, default=5.0, help="egos.entry_interval [s]")
+    ap.add_argument("--ego-workers", type=int, default=1, help="processes the K pipelines are spread over "
+                    "(avp_experiment.ego_pool; 1: one thread, one after the other) [1]")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
     from avp_experiment.run_config import RunConfig, run_profile, sim_values
@@ -68,14 +83,15 @@ def main(argv: list[str] | None = None) -> int:
     lot = load_lot_param(sim["lot_file"])
     profile = run_profile(args.method, cfg)
     report = {"lot": lot.name, "scenario": args.scenario, "method": args.method, "seeds": seeds,
-              "t_final": args.t_final, "entry_interval": args.entry_interval, "cpus": os.cpu_count(),
+              "t_final": args.t_final, "entry_interval": args.entry_interval, "ego_workers": args.ego_workers,
+              "cpus": os.cpu_count(),
               "machine": platform.processor() or platform.machine(), "python": sys.version.split()[0], "runs": {}}
     for k in [int(x) for x in args.egos.split(",")]:
         all_t: list[float] = []
         outcomes = []
         t0 = time.perf_counter()
         for seed in seeds:
-            outcome, times = run_episode(lot, sim, profile, seed, k)
+            outcome, times = run_episode(lot, sim, profile, seed, k, args.ego_workers)
             outcomes.append(outcome)
             all_t += times
             print(f"K={k} seed {seed}: {outcome}; step median {1e3 * np.median(times):.1f} ms, p95 "
