@@ -11,7 +11,10 @@ Per node (the monitor's stage times): observation k -> beliefs k (belief node), 
 node), predictions k -> command k (planner), each with one DDS hop.
 
 Usage: python bench/bench_live_latency.py [--methods bezier] [--seeds 1] [--t-final 100] [--out out/bench_latency]
-                                          [--lot FILE] [--scenario paper|busy]
+                                          [--lot FILE] [--scenario paper|busy] [--egos K]
+
+With ``--egos K`` (``avp demo --egos K``: one simulator, K pipelines) the step time is each ego's (its observation k to
+its command stamped t_k), over every ego's steps, with one line per ego.
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ import time
 from pathlib import Path
 
 
-def run(method: str, seed: int, t_final: float, out: Path, lot: str = "", scenario: str = "") -> dict:
+def run(method: str, seed: int, t_final: float, out: Path, lot: str = "", scenario: str = "", egos: int = 1) -> dict:
     env = dict(os.environ)
     env.setdefault("ROS_DOMAIN_ID", str(random.randint(110, 200)))
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -41,6 +44,7 @@ def run(method: str, seed: int, t_final: float, out: Path, lot: str = "", scenar
            "--t-final", str(t_final), "--out", str(d), "--bag", str(bag), "--no-gif", "--timeout", str(t_final + 120)]
     cmd += ["--lot", lot] if lot else []
     cmd += ["--scenario", scenario] if scenario else []
+    cmd += ["--egos", str(egos)] if egos > 1 else []
     r = subprocess.run(cmd, env=env, capture_output=True, text=True)
     if r.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{r.stdout}\n{r.stderr}")
@@ -60,6 +64,10 @@ def main() -> int:
     ap.add_argument("--lot", default="", help="lot map YAML (default: the paper lot), e.g. the DLP lot "
                     "src/avp_world/avp_world/maps/dlp_lot.yaml")
     ap.add_argument("--scenario", default="", choices=("", "paper", "busy"), help="scenario family (default paper)")
+    ap.add_argument("--egos", type=int, default=1, help="K egos of the method, each a pipeline of its own (`avp demo "
+                    "--egos K`); the figures cover every ego's steps, and a line per ego follows")
+    ap.add_argument("--target-ms", type=float, default=100.0, help="the p95 target the last line checks [100; "
+                    "docs/benchmarks.md gives 150 for the busy lot and for K = 2]")
     args = ap.parse_args()
     out = Path(args.out)
     load0 = os.getloadavg()
@@ -72,16 +80,20 @@ def main() -> int:
     for method in [m.strip() for m in args.methods.split(",") if m.strip()]:
         for seed in [int(s) for s in args.seeds.split(",") if s.strip()]:
             t0 = time.monotonic()
-            m = run(method, seed, args.t_final, out, args.lot, args.scenario)
+            m = run(method, seed, args.t_final, out, args.lot, args.scenario, args.egos)
             lat = m["closed_loop_step_time"]
             p95s.append(lat.get("p95_ms", float("nan")))
             outcome = m["state"] + (f" {m['parking_time']:.1f} s" if m.get("parking_time") is not None else "")
             print(f"| {method} | {seed} | {outcome} | {lat['steps']} | {lat.get('median_ms', float('nan')):.1f} | "
                   f"{lat.get('p95_ms', float('nan')):.1f} | {lat.get('max_ms', float('nan')):.1f} | "
                   f"{lat.get('late_steps', 0)} | {time.monotonic() - t0:.0f} | {_stages(lat)} |", flush=True)
+            for e, st in zip(lat.get("per_ego", []), m.get("egos", []), strict=False):
+                print(f"| {method} ego {e['ego']} | {seed} | {st['state']} | {e['steps']} | "
+                      f"{e.get('median_ms', float('nan')):.1f} | {e.get('p95_ms', float('nan')):.1f} | "
+                      f"{e.get('max_ms', float('nan')):.1f} | {e.get('late_steps', 0)} | | |", flush=True)
     load1 = os.getloadavg()
-    print(f"# load average {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f} after; target p95 <= 100 ms: "
-          f"{'met' if p95s and max(p95s) <= 100.0 else 'NOT met'} (worst episode p95 {max(p95s):.1f} ms)")
+    print(f"# load average {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f} after; target p95 <= {args.target_ms:g} ms: "
+          f"{'met' if p95s and max(p95s) <= args.target_ms else 'NOT met'} (worst episode p95 {max(p95s):.1f} ms)")
     return 0
 
 

@@ -7,7 +7,9 @@ observation k (taken by the simulator's writer; in lock-step, of its last re-sen
 *reception timestamp* of the first command stamped t_k at this node's reader (taken by the middleware's receive
 thread, so it does not depend on how busy this process is). Both clocks are the same machine's system clock. In
 real time (sim ``mode: realtime``) a command arriving after observation k+1 was sent comes too late to be used
-(``command_max_lag`` 0): counted as ``late_steps``.
+(``command_max_lag`` 0): counted as ``late_steps``. With several egos each has its own
+(:class:`~avp_bringup.step_timer.StepTimer` on ``ego<i>/observation`` and ``ego<i>/cmd``): the figures cover every
+ego's steps, and ``per_ego`` gives each ego's.
 
 Under a flood (issue #20 item 2) the figure stays honest: ``observation`` and ``cmd`` are taken only with a valid
 tag (``avp_common.msg_auth``, the graph's key), and a copy of an observation within
@@ -26,10 +28,11 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
+from avp_bringup.step_timer import StepTimer, summary_ms
 from avp_common.conversions import observation_from_msg, time_to_ns
 from avp_common.drain import draining_subscription
-from avp_common.msg_auth import load_key, verify
-from avp_common.qos import RESEND_ANSWER_INTERVAL, STATUS
+from avp_common.msg_auth import ego_scope, load_key, scoped_key, verify
+from avp_common.qos import STATUS
 from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation, PredictedTrajectoryArray, SpotBeliefs
 
 #: reader side of the metric streams: a whole episode (t_f = 100 s at dt = 0.1 s, 1000 steps) may queue while the
@@ -51,30 +54,49 @@ class EpisodeMonitor(Node):
                                      lambda m, i=i: self.ego_status.__setitem__(i, m), STATUS)
         self.gt: dict[int, GroundTruth] = {}
         self.status: EpisodeStatus | None = None
-        self.last_obs: Observation | None = None
-        self.obs_sent: dict[int, list[int]] = {}  # stamp [ns] -> DDS source timestamps of the observation [ns]
-        self.next_sent: dict[int, int] = {}  # stamp [ns] -> source timestamp of the observation after it [ns]
-        self.cmd_received: dict[int, int] = {}  # stamp [ns] -> reception timestamp of the first command [ns]
-        self._last_stamp: int | None = None
+        self.last_obs: Observation | None = None  # ego 0's
+        #: each ego's step times (one ego: ``observation``/``cmd``; several: ``ego<i>/observation``/``ego<i>/cmd``)
+        self.ego_timers = [StepTimer() for _ in range(max(1, egos))]
         # every step matters (metrics, step times, the DDS tests): deep reader queues ride out a busy CPU
         gt = self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, GROUND_TRUTH_QOS)
         self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
         self.key = load_key()
-        obs = draining_subscription(self, Observation, "observation", self._tagged(Observation, self._on_obs),
-                                    GROUND_TRUTH_QOS, with_info=True)
-        cmd = draining_subscription(self, TwistStamped, "cmd", self._tagged(TwistStamped, self._on_cmd),
-                                    GROUND_TRUTH_QOS, with_info=True)
-        #: the readers whose every message counts (the step times read the observation and cmd of one ego)
-        self._must_match = [gt] + ([obs, cmd] if egos == 1 else [])
-        # per-node stage times: when each node's output of step k left it (DDS source timestamps)
+        #: the readers whose every message counts (the step times read each ego's observation and cmd)
+        self._must_match = [gt]
+        for i, timer in enumerate(self.ego_timers):
+            prefix = f"ego{i}/" if egos > 1 else ""
+            key = scoped_key(self.key, ego_scope(prefix))  # what only ego i's own nodes can send
+            self._must_match += [
+                draining_subscription(self, Observation, f"{prefix}observation",
+                                      self._tagged(Observation, self._obs_cb(i, timer), key), GROUND_TRUTH_QOS,
+                                      with_info=True),
+                draining_subscription(self, TwistStamped, f"{prefix}cmd",
+                                      self._tagged(TwistStamped, self._cmd_cb(timer), key), GROUND_TRUTH_QOS,
+                                      with_info=True)]
+        # per-node stage times of ego 0: when each node's output of step k left it (DDS source timestamps)
         self.stage_sent: dict[str, dict[int, int]] = {"beliefs": {}, "predictions": {}}
+        prefix = "ego0/" if egos > 1 else ""
         for name, msg_type in (("beliefs", SpotBeliefs), ("predictions", PredictedTrajectoryArray)):
-            draining_subscription(self, msg_type, name, self._tagged(msg_type, self._stage_cb(name)), GROUND_TRUTH_QOS,
-                                  with_info=True)
+            draining_subscription(self, msg_type, f"{prefix}{name}",
+                                  self._tagged(msg_type, self._stage_cb(name), scoped_key(self.key, ego_scope(prefix))),
+                                  GROUND_TRUTH_QOS, with_info=True)
+
+    @property
+    def obs_sent(self) -> dict[int, list[int]]:
+        """Ego 0's observations: stamp [ns] -> DDS source timestamps [ns] (:class:`StepTimer`)."""
+        return self.ego_timers[0].obs_sent
+
+    @property
+    def next_sent(self) -> dict[int, int]:
+        return self.ego_timers[0].next_sent
+
+    @property
+    def cmd_received(self) -> dict[int, int]:
+        return self.ego_timers[0].cmd_received
 
     def inputs_matched(self) -> bool:
-        """Whether this monitor's readers of the ground truth (and, with one ego, of the observation and the command)
-        have matched a writer: a volatile reader that matches after the episode started misses its first steps, and
+        """Whether this monitor's readers of the ground truth and of every ego's observation and command have matched
+        a writer: a volatile reader that matches after the episode started misses its first steps, and
         on a loaded machine matching can take seconds after discovery (a demo then measured 0 step times)."""
         return all(s.get_publisher_count() >= 1 for s in self._must_match)
 
@@ -83,10 +105,24 @@ class EpisodeMonitor(Node):
             self.stage_sent[name].setdefault(time_to_ns(msg.header.stamp), int(info["source_timestamp"]))
         return cb
 
-    def _tagged(self, msg_type, callback):
+    def _tagged(self, msg_type, callback, key: bytes):
         def cb(raw: bytes, info) -> None:
-            if verify(self.key, raw):  # what the graph's own nodes sent (anything else is a foreign publisher's)
+            if verify(key, raw):  # what the graph's own nodes sent (anything else is a foreign publisher's)
                 callback(deserialize_message(raw, msg_type), info)
+        return cb
+
+    @staticmethod
+    def _cmd_cb(timer: StepTimer):
+        return lambda msg, info: timer.on_cmd(time_to_ns(msg.header.stamp), int(info["received_timestamp"]))
+
+    def _obs_cb(self, i: int, timer: StepTimer):
+        def cb(msg: Observation, info) -> None:
+            stamp = time_to_ns(msg.header.stamp)
+            if i == 0 and timer.restarts(stamp):
+                for d in self.stage_sent.values():
+                    d.clear()
+            if timer.on_obs(stamp, int(info["source_timestamp"])) and i == 0:
+                self.last_obs = msg
         return cb
 
     def _on_gt(self, msg: GroundTruth) -> None:
@@ -95,51 +131,26 @@ class EpisodeMonitor(Node):
     def _on_status(self, msg: EpisodeStatus) -> None:
         self.status = msg
 
-    def _on_obs(self, msg: Observation, info) -> None:
-        stamp = time_to_ns(msg.header.stamp)
-        if self._last_stamp is not None and 0 < stamp < self._last_stamp:
-            return  # an older step (a stale copy): not a new episode
-        if self._last_stamp is not None and stamp < self._last_stamp:  # a new episode: time restarts at 0
-            for d in (self.obs_sent, self.next_sent, self.cmd_received, *self.stage_sent.values()):
-                d.clear()
-            self._last_stamp = None
-        sent = int(info["source_timestamp"])
-        earlier = self.obs_sent.setdefault(stamp, [])
-        if earlier and sent - earlier[-1] < RESEND_ANSWER_INTERVAL * 1e9:
-            return  # a copy (duplicate delivery, or replayed by another process), not a re-send
-        earlier.append(sent)  # more than one: re-sent in lock-step
-        if self._last_stamp is not None and self._last_stamp < stamp:
-            self.next_sent.setdefault(self._last_stamp, sent)
-        self._last_stamp = stamp
-        self.last_obs = msg
-
-    def _on_cmd(self, msg: TwistStamped, info) -> None:
-        self.cmd_received.setdefault(time_to_ns(msg.header.stamp), int(info["received_timestamp"]))
-
     def step_times(self) -> tuple[np.ndarray, int]:
-        """(closed-loop step times [s] of the steps answered, in step order; how many answers came after the next
-        observation had been sent)."""
-        stamps = sorted(k for k in self.obs_sent if k in self.cmd_received)
-        # the send the command answers: the last one before it arrived
-        sent = {k: max([t for t in self.obs_sent[k] if t <= self.cmd_received[k]] or self.obs_sent[k][:1])
-                for k in stamps}
-        lat = np.array([(self.cmd_received[k] - sent[k]) * 1e-9 for k in stamps])
-        late = sum(1 for k in stamps if k in self.next_sent and self.cmd_received[k] > self.next_sent[k])
-        return lat, late
+        """Every ego's closed-loop step times [s] together, and their late answers (:meth:`StepTimer.step_times`)."""
+        parts = [t.step_times() for t in self.ego_timers]
+        return np.concatenate([p[0] for p in parts]), sum(p[1] for p in parts)
 
     def latency_dict(self, mode: str) -> dict:
-        """Closed-loop step-time figures for metrics.json (module docstring): milliseconds."""
+        """Closed-loop step-time figures for metrics.json (module docstring): milliseconds, over every ego's steps;
+        with several egos also per ego (``per_ego``)."""
         lat, late = self.step_times()
-        ms = lat * 1e3
         out = {"definition": "per step: DDS source timestamp of observation k (simulator) -> DDS reception timestamp "
                              "of the first command stamped t_k (wall clock)",
-               "sim_mode": mode, "steps": int(len(ms)), "target_p95_ms": 100.0}
-        if len(ms):
-            out.update(median_ms=round(float(np.median(ms)), 2), p95_ms=round(float(np.percentile(ms, 95)), 2),
-                       mean_ms=round(float(ms.mean()), 2), max_ms=round(float(ms.max()), 2),
-                       min_ms=round(float(ms.min()), 2))
+               "sim_mode": mode, "steps": int(len(lat)), "target_p95_ms": 100.0, **summary_ms(lat)}
         if mode == "realtime":
             out["late_steps"] = int(late)  # answered after observation k+1 was sent: not used, the ego held still
+        if len(self.ego_timers) > 1:
+            out["per_ego"] = []
+            for i, t in enumerate(self.ego_timers):
+                lat_i, late_i = t.step_times()
+                out["per_ego"].append({"ego": i, "steps": int(len(lat_i)), **summary_ms(lat_i),
+                                       **({"late_steps": int(late_i)} if mode == "realtime" else {})})
         stages = self.stage_times()
         if stages:
             out["stages_ms"] = stages
