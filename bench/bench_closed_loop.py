@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""In-process closed-loop step time on any lot and scenario family (issue #18: the busy DLP-scale lot at 10 Hz).
+"""In-process closed-loop step time on any lot and scenario family (the target: the busy DLP-scale lot at 10 Hz).
 
 Each episode runs the simulator core and the method's in-process ego chain (:class:`MethodEgo`: the belief node's
 core with the intent CNN, the prediction, the planner) on one thread, with the planner's wall-clock caps as in the

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Cost of one Table I episode per method, and the full sweep extrapolated (issue #6: <= 2 h on 2 cores).
+"""Cost of one Table I episode per method, and the full sweep extrapolated (the target: <= 2 h on 2 cores).
 
 Runs ``--scenarios`` seeds x both modes per method in this process (one torch thread), exactly as
 ``avp experiment --transport inproc`` runs them (:class:`~avp_experiment.ego.MethodEgo`, wall-clock caps

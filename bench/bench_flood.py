@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The live graph under a flood (issue #20 item 2): closed-loop step time, RSS growth and log volume.
+"""The live graph under a flood (docs/bad_input.md row 48): closed-loop step time, RSS growth and log volume.
 
 Runs ``avp demo`` (real time by default: the simulator steps on its 1/dt wall timer, a late command means a held
 step) once alone and once while bench/flood_publisher.py floods `cmd`, `observation` and `beliefs` at ``--rate``

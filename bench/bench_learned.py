@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Benchmark of the learned trajectory predictor (issue #5): 2 observed dynamic vehicles x 3 intentions >= mu.
+"""Benchmark of the learned trajectory predictor: 2 observed dynamic vehicles x 3 intentions >= mu.
 
 Snapshots as bench/bench_perception.py (the §VI-A generator with exactly 2 dynamic vehicles, the ego parked at the
 lot centre). Per snapshot every vehicle gets 3 intentions of probability >= mu = 0.3: its nearest vacant spot

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Closed-loop step time of the live graph in real time (issue #6: p95 <= 100 ms, i.e. 10 Hz).
+"""Closed-loop step time of the live graph in real time (target: p95 <= 100 ms, i.e. 10 Hz).
 
 Runs ``avp demo --realtime`` (simulator, belief node, prediction node, planner as separate processes over DDS;
 the simulator steps on its 1/dt wall timer) for each method x seed, and prints what the demo's monitor measured

@@ -11,7 +11,7 @@ dynamic vehicles is kept. Timed per snapshot:
   loads them; torch.inference_mode) + eq. (8); target: median <= 5 ms; reported per thread count of
   ``torch.set_num_threads`` (the belief node uses 1);
 * Bezier prediction (§V-C) of the 2-vehicle snapshots with 2 intentions >= mu per vehicle; target <= 1 ms;
-* Hybrid A* prediction (issue #4, ``make_predictor("hybrid_astar")``) of the same snapshots: with the Bezier
+* Hybrid A* prediction (``make_predictor("hybrid_astar")``) of the same snapshots: with the Bezier
   bench's intentions (the first two vacant spots of the observation, often across the lot) and with the two
   vacant spots nearest to each vehicle; per step, plus searches, paths found, iterations and static worlds
   built; also on consecutive steps (stride 1) of the same episodes, where the static-world cache works as in

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Scaling of ``avp experiment`` on Ray vs the local backend (issue #19 item 4).
+"""Scaling of ``avp experiment`` on Ray vs the local backend.
 
 The same sweep (``--methods``, ``--scenarios`` seeds, ``--mode``) is run four ways, each into a fresh folder:
 the local backend with 1 and 2 worker processes, and ``--backend ray`` on a Ray cluster of separate

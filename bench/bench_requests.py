@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""How fast the simulator answers hostile and large ``reset_episode`` requests (issue #27 item 1).
+"""How fast the simulator answers hostile and large ``reset_episode`` requests (docs/bad_input.md rows 30-32 and 50).
 
 Starts the simulator (lock-step, paper lot, as a real process over DDS) and calls its ``reset_episode`` service
 from this process with every request of bench/hostile_requests.py, ``--repeats`` times each, then with the largest

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Hung nodes in real time (issue #20 item 1): how soon the ego stops after a node hangs, and for how long it holds.
+"""Hung nodes in real time: how soon the ego stops after a node hangs, and for how long it holds.
 
 Runs the real-time SIGSTOP test (tests/test_operations.py::test_sigstopped_nodes_in_realtime_hold_the_ego_then_resume:
 the belief node, then the prediction node, then the planner SIGSTOPped for 5 s each while the ego drives, seed 3)

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A foreign publisher gone wild (issue #20 item 2): floods `cmd`, `observation` and `beliefs` of a running graph.
+"""A foreign publisher gone wild: floods `cmd`, `observation` and `beliefs` of a running graph.
 
 On each topic it publishes ``--rate`` messages a second, cycling through four kinds a real fault or attacker
 would send:
@@ -10,7 +10,7 @@ would send:
 * ``garbage``: NaN/inf content under a forged tag;
 * ``replay``: the graph's own latest message on that topic, tagged and byte for byte (a copy: it verifies).
 
-With ``--episode-replays`` (issue #27) two more kinds, as a replayed recording would send:
+With ``--episode-replays`` (docs/bad_input.md row 51) two more kinds, as a replayed recording would send:
 
 * ``replay_first``: the first message it saw on that topic (the running episode's step 0, say), byte for byte;
 * ``earlier_episode``: the latest message re-tagged as one of the episode before (its episode id - 1) — what a

@@ -1,4 +1,4 @@
-"""The hostile ``reset_episode`` requests of issue #27 (and docs/bad_input.md rows 30-32), built once, shared by
+"""The hostile ``reset_episode`` requests of docs/bad_input.md rows 30-32 and 50, built once, shared by
 bench/bench_requests.py (how fast each is refused), bench/flood_publisher.py (``--bad-resets``: a stream of them
 into a running episode) and the tests. Each entry: name -> (request fields, a text its refusal must contain).
 """

@@ -56,7 +56,7 @@ ALLOWED = {
     "avp_planner": {"avp_msgs", "avp_world", "avp_search", "avp_common"},
     "avp_training": {"avp_world", "avp_common", "avp_sim", "avp_perception"},
     # the experiment runs the cores in process; bags and viewers read what the graph publishes; avp_bringup (the `avp`
-    # command, the graph) sits on top of everything and alone reaches training (issue #29)
+    # command, the graph) sits on top of everything and alone reaches training
     "avp_experiment": {"avp_msgs", "avp_world", "avp_search", "avp_common", "avp_sim", "avp_perception",
                        "avp_planner"},
     "avp_bag": {"avp_msgs", "avp_world", "avp_common", "avp_sim"},
@@ -65,7 +65,7 @@ ALLOWED = {
                     "avp_planner", "avp_training", "avp_experiment", "avp_bag", "avp_viz"},
 }
 #: wrong-way edges that exist today, each with where it goes. A new one fails the test; so does removing one without
-#: taking it off this list. Empty since the search core moved into avp_search (issue #17 item 2).
+#: taking it off this list. Empty since the search core moved into avp_search.
 KNOWN_WRONG_WAY: dict[tuple[str, str], str] = {}
 
 
@@ -107,7 +107,7 @@ def test_a_wrong_way_import_fails_the_layering_check(tmp_path):
 
 
 MAX_MODULE_LINES = 450  # a longer module states why in its docstring, in a paragraph starting "Size:"
-MAX_FUNCTION_LINES = 90  # "no function over ~80 lines" (issue #17 item 3), with a little slack for signatures
+MAX_FUNCTION_LINES = 90  # "no function over ~80 lines", with a little slack for signatures
 
 
 def test_modules_and_functions_stay_small():

@@ -481,7 +481,7 @@ def test_bad_command_line_inputs(ros_env, tmp_path):
 
 
 def test_a_planner_behind_in_real_time_skips_to_the_newest_step(ros_env, tmp_path, monkeypatch, paper_lot):
-    """Issue #18 (found by the busy DLP benchmark): in real time, a step whose newer observation is already waiting
+    """Found by the busy DLP benchmark: in real time, a step whose newer observation is already waiting
     is skipped (its command would be ignored by the simulator) and logged; the newer step is answered. In lock-step
     the same arrival order is answered step by step."""
     from dataclasses import replace

@@ -1,4 +1,4 @@
-"""Damaged bags and full disks (issue #20 items 6 and 7), against the real CLI and real DDS.
+"""Damaged bags and full disks (docs/bad_input.md rows 42-47), against the real CLI and real DDS.
 
 The damage is made to a real recorded episode (bags/examples/demo_seed4_4s, rewritten by our writer in small
 chunks so a cut falls inside one); the expected counts come from the `mcap` library reading the intact file.

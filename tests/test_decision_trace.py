@@ -1,4 +1,4 @@
-"""Issue #28 item 1: why the ego is not moving — the planner's decision trace on hand-built scenes (the cause an
+"""Why the ego is not moving — the planner's decision trace on hand-built scenes (the cause an
 oracle can tell: the only car that can block, the only obstacle), its per-episode counts, and ``avp why``."""
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ def test_an_idle_step_names_the_agent_that_blocks_it(paper_lot):
 
 
 def test_evasive_horizon_evades_only_an_imminent_hit(paper_lot):
-    """``decision.evasive_horizon`` (issue #28): the standing ego is predicted to be hit at step k (read from the
+    """``decision.evasive_horizon``: the standing ego is predicted to be hit at step k (read from the
     planner's own check); a horizon shorter than k·dt leaves it standing (idle, the car named), one at least as long
     evades, as 0 (the shipped value: any predicted hit) does."""
     from avp_search.dynamic import DynamicObstacles
@@ -151,7 +151,7 @@ def test_avp_why_prints_the_spells_of_a_run_record(tmp_path):
     assert f"{records}: bezier seed 6 reactive" in r.stdout and "blocking agent(s) [1003]" in r.stdout
 
 
-# ------------------------------------------------------------------------------- issue #28 item 3: mechanisms
+# --------------------------------------------------------------------------- the mechanisms against freezing
 
 
 def _standing_car_and_its_moving_hypothesis(y0: float = 13.0, probability: float = 1.0):

@@ -44,7 +44,7 @@ def test_demo_writes_results_and_a_readable_bag(ros_env, tmp_path):
                      reader.messages(connections=[topics["/avp/decision"]])]
         traces = [reader.deserialize(raw, c.msgtype) for c, _, raw in
                   reader.messages(connections=[topics["/avp/avp_planner/debug/decision"]])]
-    # issue #28: the decision trace of every step, consistent with the decision, and `avp why` reads it back
+    # the decision trace of every step, consistent with the decision, and `avp why` reads it back
     assert [t.step for t in traces] == list(range(metrics["steps"]))
     kinds = {0: {"idle", "parked"}, 1: {"park", "wait_and_go", "detour", "evasive", "creep"},
              2: {"explore", "wait_and_go", "detour", "evasive", "creep"}}
@@ -85,7 +85,7 @@ def test_demo_writes_results_and_a_readable_bag(ros_env, tmp_path):
 
 
 def check_viewer_topics(bag: Path, steps: int) -> None:
-    """What Foxglove's 3-D panel needs (issue #21), read with the independent `mcap` + `mcap-ros2-support` reader
+    """What Foxglove's 3-D panel needs, read with the independent `mcap` + `mcap-ros2-support` reader
     from every split: the transform tree (REP-105), the scene markers and the scan, stamped with simulated time."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
@@ -125,7 +125,7 @@ def check_viewer_topics(bag: Path, steps: int) -> None:
 
 
 def test_demo_parks_on_a_lot_without_a_scenario_block(ros_env, tmp_path):
-    """Issue #18: ``avp demo --lot`` simulates and plans on the given lot (here the shipped side lot, whose scenario
+    """``avp demo --lot`` simulates and plans on the given lot (here the shipped side lot, whose scenario
     roles all come from its geometry) to a parked ego; metrics.json and the bag's lot map name that lot."""
     from avp_world.lot import bundled_lot_path, load_lot
 
@@ -146,7 +146,7 @@ def test_demo_parks_on_a_lot_without_a_scenario_block(ros_env, tmp_path):
 
 
 def test_busy_demo_on_the_dlp_lot_records_pedestrians_and_recomputes(ros_env, tmp_path):
-    """Issue #18: the whole graph over DDS on the DLP lot with the busy family: pedestrians and 20+ moving cars in
+    """The whole graph over DDS on the DLP lot with the busy family: pedestrians and 20+ moving cars in
     the ground truth, the planner answering every step, and `avp metrics` recomputing the live metrics (pedestrian
     collisions included) from the bag."""
     from avp_bag.reader import BagReader

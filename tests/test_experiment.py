@@ -1,4 +1,4 @@
-"""The Table I runner (issue #6): profiles, metrics on hand-built cases, resumability, determinism, the summary
+"""The Table I runner: profiles, metrics on hand-built cases, resumability, determinism, the summary
 table, and in-process vs live-DDS-graph equality."""
 
 from __future__ import annotations
@@ -159,7 +159,7 @@ def test_min_ade_and_min_fde_by_hand():
 
 
 def test_motion_counts_by_hand():
-    """Reversals and U-turns (issue #21) on hand-made ego paths."""
+    """Reversals and U-turns on hand-made ego paths."""
     from avp_experiment.metrics import motion_counts
 
     straight = np.array([[0.2 * k, 0.0, 0.0] for k in range(50)])
@@ -182,7 +182,7 @@ def test_motion_counts_by_hand():
 
 @pytest.mark.slow
 def test_the_demo_seed_no_longer_backs_away_while_a_stopped_car_blocks_the_road_ahead():
-    """Issue #21: `make demo`'s scenario (seed 1, bezier, reactive). A car stops in the aisle ahead of the ego; the
+    """`make demo`'s scenario (seed 1, bezier, reactive). A car stops in the aisle ahead of the ego; the
     detour round (stopped agents as static obstacles) used to back away at once and explore the long way round
     (6 reversals of direction, parked after 38.9 s). With ``decision.detour_waits_to_turn_back`` the road ahead must
     stay blocked for 3 s first (§V-D-2), the car moves on and the ego parks ahead of it, sooner. Measured with the

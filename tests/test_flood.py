@@ -1,8 +1,8 @@
-"""Issue #20 item 2: a foreign publisher floods `cmd`, `observation` and `beliefs` at 1 kHz each during a lock-step
+"""A foreign publisher floods `cmd`, `observation` and `beliefs` at 1 kHz each during a lock-step
 episode of the full graph (simulator, belief node, prediction node, planner as real processes over real DDS).
 
 The flood (bench/flood_publisher.py, a separate process) cycles untagged, forged-tag, NaN/inf and replayed (tagged
-copies of the graph's own latest message) messages, and (issue #27) copies of the first message it saw on each topic
+copies of the graph's own latest message) messages, and copies of the first message it saw on each topic
 (the running episode's step 0) and messages re-tagged as of the episode before (a replayed bag), and calls the
 simulator's reset_episode twice a second with hostile requests (bench/hostile_requests.py). Oracles: the in-process
 run of the same seed (the episode must be bit-identical), each node's /proc RSS, each node's log file. The step-time
@@ -119,7 +119,7 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
     assert all(n >= 100 for n in sent.values()), (report, err)
     assert all(r >= 0.3 * FLOOD_RATE for r in report["rate_hz"].values()), (report, err)
     assert all(k["replay"] > 0 for k in report["sent"].values()), report  # tagged copies of the graph's messages
-    # issue #27: the running episode's first messages (step 0) replayed, and messages of the episode before
+    # the running episode's first messages (step 0) replayed, and messages of the episode before
     assert all(k["replay_first"] > 0 and k["earlier_episode"] > 0 for k in report["sent"].values()), report
     # and a stream of hostile reset_episode requests: 2 a second while the service is up, so their number follows
     # the episode's wall time (a fixed count failed when the episode ended within 10 s); at least 1 a second
@@ -139,7 +139,7 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
 
 
 def test_planner_stops_cleanly_under_a_flood_and_drops_oversized_inputs_unread(ros_env, tmp_path, monkeypatch):
-    """Issue #27 items 1 and 3: a planner flooded at 1 kHz on `observation` and `beliefs` exits 0 on SIGINT with
+    """A planner flooded at 1 kHz on `observation` and `beliefs` exits 0 on SIGINT with
     no traceback, three times over (the take interrupted by the signal was once printed as a pybind11
     RuntimeError); and an input larger than MAX_INPUT_BYTES is dropped before its tag is checked, with one line."""
     import numpy as np

@@ -1,4 +1,4 @@
-"""`avp demo --foxglove` serves the running graph over the Foxglove WebSocket protocol (issue #21 item 2): a real
+"""`avp demo --foxglove` serves the running graph over the Foxglove WebSocket protocol (docs/foxglove.md): a real
 WebSocket client (the `websockets` library, the protocol's `foxglove.sdk.v1` subprotocol) connects to the demo's
 server, subscribes to /tf and receives the graph's transforms as CDR that the ROS 2 type decodes."""
 

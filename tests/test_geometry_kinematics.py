@@ -88,7 +88,7 @@ def test_eq2_pedestrian():
 
 def test_brake_speed_is_the_smallest_whole_step_trapezoid():
     """avp_world.kinematics.brake_speed (one function for the planner, the agents' maneuvers and the training
-    traffic, issue #17) against its definition walked from n = 0, and against a rollout: braking by dv each step
+    traffic) against its definition walked from n = 0, and against a rollout: braking by dv each step
     from the returned speed stops within rem."""
     import math
     import random

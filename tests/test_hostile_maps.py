@@ -1,4 +1,4 @@
-"""Issue #20 item 3: hostile lot map files get one clear error within 2 s and bounded memory, never a hang —
+"""Hostile lot map files get one clear error within 2 s and bounded memory, never a hang —
 in the loader and in the simulator node at start-up (a real process, exit 2 with one line).
 
 Oracles: wall-clock time and tracemalloc's peak for the loader; the process's exit code and output for the node.

@@ -1,4 +1,4 @@
-"""No import circle between modules anywhere in src/ (issue #29).
+"""No import circle between modules anywhere in src/.
 
 The graph is built from the source with :mod:`ast`, not by importing: every ``import`` and ``from ... import``
 statement counts, at module level, inside functions (lazy imports) and under ``if TYPE_CHECKING:`` alike, since each

@@ -1,4 +1,4 @@
-"""Training of the intent CNN (issue #4, ``avp_training``): lots, traffic, samples, loss, weights.
+"""Training of the intent CNN (``avp_training``): lots, traffic, samples, loss, weights.
 
 Oracles: the reference sheet's DLP map facts typed in by hand, the World's own eq. (1) replay and spot
 classification (§III-A) for where the traffic cars end, geometry computed here from the lot (distances and
@@ -306,9 +306,9 @@ def test_a_few_training_steps_reduce_the_loss():
 # ---------------------------------------------------------------------------------- shipped weights
 
 
-# Until `avp train-intent` has produced avp_perception/models/intent_cnn.pt (issue #4 open), the two tests of the
+# Until `avp train-intent` has produced avp_perception/models/intent_cnn.pt, the two tests of the
 # shipped weights cannot run; they run as soon as the file exists.
-_NO_WEIGHTS = pytest.mark.skipif(not default_weights_path().is_file(), reason="no shipped intent weights yet (#4)")
+_NO_WEIGHTS = pytest.mark.skipif(not default_weights_path().is_file(), reason="no shipped intent weights yet")
 
 
 @pytest.mark.slow

@@ -1,4 +1,4 @@
-"""The learned trajectory predictor (issue #5): frames, the network's contract, the predictor's output, the data,
+"""The learned trajectory predictor: frames, the network's contract, the predictor's output, the data,
 the evaluation, and (when the shipped weights exist) forward motion and the margin over constant velocity.
 
 Oracles are independent of the code under test: frame transforms against hand-rotated points, resampling against

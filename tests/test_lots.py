@@ -1,4 +1,4 @@
-"""Any lot (issue #18 item 1-2): the scenario roles from a lot's scenario: block or from its geometry, the second
+"""Any lot: the scenario roles from a lot's scenario: block or from its geometry, the second
 shipped lot end to end in-process, records that name their lot, and one clear error per bad block."""
 
 from __future__ import annotations
@@ -124,7 +124,7 @@ def test_a_bad_lot_is_one_error_before_any_episode(tmp_path):
 
 @pytest.mark.slow
 def test_the_busy_family_on_the_dlp_lot():
-    """Issue #18 item 3: the whole DLP lot (364 spots); a busy episode has 20+ moving cars, parking and leaving,
+    """The whole DLP lot (364 spots); a busy episode has 20+ moving cars, parking and leaving,
     10+ pedestrians on the lot's roads, spots that free and fill; same seed => same episode; the ego's start is
     clear at t = 0; non-reactive zeroes every passiveness."""
     from avp_sim.core.busy import BusyParams, generate_busy_scenario

@@ -37,7 +37,7 @@ class Probe:
         self.node.create_subscription(EpisodeStatus, "episode_status", lambda m: setattr(self, "status", m), STATUS)
         self.cmd = self.node.create_publisher(TwistStamped, "cmd", STEP)
         # lock-step holds step 0 until the observation has a subscriber and cmd a publisher: we are both
-        self.episode = 0  # the running episode's id, from its observations (commands must carry it, issue #27)
+        self.episode = 0  # the running episode's id, from its observations (commands must carry it)
         self.node.create_subscription(Observation, "observation",
                                       lambda m: setattr(self, "episode", episode_of(m.header.frame_id)), STEP)
 
@@ -234,7 +234,7 @@ def test_avp_launch_starts_graph_and_ctrl_c_stops_it(ros, tmp_path):
     assert proc.returncode == 0
     assert "logs in" in out and "graph stopped" in out
     pids = [int(line.split("pid ")[1].split()[0]) for line in out.splitlines() if " pid " in line]
-    assert len(pids) == 3  # simulator, scripted driver and the viewers' scene node (issue #21)
+    assert len(pids) == 3  # simulator, scripted driver and the viewers' scene node
     assert "avp_scene: pid" in out
     for pid in pids:  # every node process is gone
         assert subprocess.run(["kill", "-0", str(pid)], capture_output=True).returncode != 0
@@ -292,7 +292,7 @@ def test_ctrl_c_inside_a_finaliser_prints_nothing(monkeypatch, capsys):
 
 
 def test_half_built_rclpy_task_after_a_stop_prints_nothing(monkeypatch, capsys):
-    """CI, session 19: SIGINT under a 1 kHz flood landed inside ``rclpy.task.Task.__init__``, whose ``__del__`` then
+    """Seen in CI: SIGINT under a 1 kHz flood landed inside ``rclpy.task.Task.__init__``, whose ``__del__`` then
     raised AttributeError (``_exception`` never set) and printed a traceback. Once a stop signal came, that finaliser
     prints nothing; before one came, it still does, and so does an AttributeError in a finaliser that is not rclpy's."""
     import gc

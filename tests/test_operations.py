@@ -1,4 +1,4 @@
-"""Operations (issue #7) over real DDS between real processes: a SIGKILLed recorder leaves a readable bag
+"""Operations over real DDS between real processes: a SIGKILLed recorder leaves a readable bag
 (a prefix of what was published), live planner swaps (lock-step and real time), and SIGKILLed pipeline
 nodes in real time (the ego stops within one step, the episode finishes after a restart)."""
 
@@ -430,7 +430,7 @@ def test_sigkill_pipeline_nodes_in_realtime(ros, tmp_path):
 
 
 def test_sigstopped_nodes_in_realtime_hold_the_ego_then_resume(ros, tmp_path):
-    """Issue #20 item 1: in real time the belief node, then the prediction node, then the planner hang (SIGSTOP)
+    """Hung nodes: in real time the belief node, then the prediction node, then the planner hang (SIGSTOP)
     for 5 s while the ego drives. The ego stops within a few steps and holds still (the planner answers the
     overdue steps with v = ω = 0 and says so once — stale_input_timeout —, or, with the planner hung, the
     simulator's watchdog holds it and says so once); on SIGCONT the episode drives on and finishes without a

@@ -1,4 +1,4 @@
-"""The Hybrid A* predictor (``avp_perception.core.prediction_astar``, issue #4).
+"""The Hybrid A* predictor (``avp_perception.core.prediction_astar``).
 
 Oracles independent of the code under test: shapely polygons for collisions with the spots / static cars
 and for staying in the lot; the spot's own pose and rectangle for "ends in the intended spot"; arc length

@@ -1,4 +1,4 @@
-"""The belief and prediction nodes over real DDS, in real processes (issue #4).
+"""The belief and prediction nodes over real DDS, in real processes.
 
 A probe node in this process publishes the lot map and a sequence of observations of a simulated episode
 and receives beliefs, intentions, predictions, debug/bev (Image) and debug/occupancy (OccupancyGrid).
@@ -390,7 +390,7 @@ def test_belief_node_bad_observations(paper_lot, ros, tmp_path):
         assert 1 not in probe.got["beliefs"], "a bad observation was answered"
         assert probe.step(observation_to_msg(obs[1]), need)  # the node keeps going, its state untouched
         np.testing.assert_array_equal(np.asarray(probe.got["beliefs"][1][0].beliefs, dtype=float), f32(ref[1][0]))
-        # a replayed copy of the running episode's step 0 (issue #27): dropped, no reset
+        # a replayed copy of the running episode's step 0: dropped, no reset
         probe.pub_obs.publish(observation_to_msg(obs[0]))
         probe.spin_for(1.0)
         assert len(probe.got["beliefs"][0]) == 1, "a replayed step 0 was answered"
@@ -469,7 +469,7 @@ def test_prediction_node_bad_intentions(paper_lot, ros, tmp_path):
         probe.spin_for(1.5)
         assert set(probe.got["predictions"]) == {0}, "a bad message was answered"
         assert probe.step(send(5, [rounded(i) for i in ref[5][1]]), need)  # still running
-        # a replayed step 0 of the running episode is dropped (issue #27); a later episode's step 0 is answered
+        # a replayed step 0 of the running episode is dropped; a later episode's step 0 is answered
         probe.pub_obs.publish(send(0, good))
         probe.spin_for(1.0)
         assert len(probe.got["predictions"][0]) == 1, "a replayed step 0 was answered"

@@ -1,6 +1,6 @@
-"""Plugins the ROS way in Python (issue #17 item 4): a predictor and a spot selector from a package outside src/,
+"""Plugins the ROS way in Python: a predictor and a spot selector from a package outside src/,
 found through the ``avp.predictors`` and ``avp.spot_selectors`` entry-point groups, run episodes through
-``avp experiment --methods <their profiles>``; an experiment transport (``avp.experiment_transports``, issue #29: the
+``avp experiment --methods <their profiles>``; an experiment transport (``avp.experiment_transports``: the
 DDS one is avp_bringup's) runs them through ``avp experiment --transport <its name>``.
 
 The toy package is built and installed by pip (``--target``, so the workspace's environment is left as it was);

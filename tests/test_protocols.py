@@ -1,4 +1,4 @@
-"""Issue #16: the paper's departures as named switches, the protocols that set them, the oracle / blind bounds,
+"""The paper's departures as named switches, the protocols that set them, the oracle / blind bounds,
 the sweep and the ablation. Each switch is shown to change behaviour (a switch that changes nothing fails here).
 
 Oracles: closed-form straight-line motion for braking; the simulator's own future for the oracle's truth;

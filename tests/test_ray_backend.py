@@ -1,4 +1,4 @@
-"""``avp experiment --backend ray`` on a real local Ray cluster (issue #19): a head and a worker node started by the
+"""``avp experiment --backend ray`` on a real local Ray cluster: a head and a worker node started by the
 test with ``ray start`` as separate processes on loopback. The records equal the local backend's (timing fields
 aside); a worker process killed mid-episode costs a retry, never a lost or doubled record; a driver killed
 mid-sweep is finished by the same command."""

@@ -1,4 +1,4 @@
-"""Issue #28: collision checking against agents that stop for the ego (``collision.reactive_steps``,
+"""Collision checking against agents that stop for the ego (``collision.reactive_steps``,
 avp_search.reactive), with shapely as the independent oracle of the geometry."""
 
 from __future__ import annotations
@@ -91,7 +91,7 @@ def test_the_planner_no_longer_flees_a_car_that_will_stop_for_it(paper_lot):
 
 
 def test_every_shipped_planner_profile_validates():
-    """The planner profiles of avp_planner/config/profiles (among them issue #28's `interactive`) load as the node
+    """The planner profiles of avp_planner/config/profiles (among them `interactive`) load as the node
     will load them: known keys, right types and ranges."""
     from pathlib import Path
 
@@ -316,7 +316,7 @@ def test_the_oracle_is_told_which_agents_react():
 
 
 def test_the_overlap_trigger_does_not_trust_a_car_passing_alongside():
-    """``collision.reactive_trigger`` (issue #28, seed 184 of the busy lot in miniature): a car drives north in the
+    """``collision.reactive_trigger`` (seed 184 of the busy lot in miniature): a car drives north in the
     next lane, 0.2 m from the ego's side, while the ego's plan slides into that lane at 0.3 m/s. With the ``margin``
     trigger the car is assumed to brake as soon as its next poses come within the margin, so the plan is cleared;
     the simulator's car brakes only where it would overlap the ego (§III-B "meets"), and with the ``overlap``

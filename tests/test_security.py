@@ -1,5 +1,5 @@
-"""Issue #20, tried as another process on the same DDS domain would: the reset service reads no file it is not
-configured to serve and quotes no file's content; node parameters cannot be changed from outside.
+"""Hostile inputs (docs/bad_input.md), tried as another process on the same DDS domain would: the reset service reads no
+file it is not configured to serve and quotes no file's content; node parameters cannot be changed from outside.
 
 Real processes over real DDS (the simulator and the planner started by avp_bringup.graph), a real rclpy client in
 this process. Oracles: the process's own /proc RSS, wall-clock answer times, the simulator's ground truth.
@@ -96,8 +96,8 @@ def test_reset_service_reads_only_served_scenarios(node, tmp_path):
         broken = _call(n, client, ResetEpisode.Request(seed=3, reactive=True, scenario_file="broken.yaml"))
         assert not broken.success and "scenario_file: not valid YAML (line" in broken.message
         assert "hunter2" not in broken.message and "secret" not in broken.message
-        # issue #27: 10 000 vehicles (500 KB), 1 MB of YAML, a 60 000-key mapping, 5 000-deep nesting, 65 vehicles,
-        # NaN, aliases, ... (bench/hostile_requests.py): each refused with its reason; how fast is measured by
+        # docs/bad_input.md row 50: 10 000 vehicles (500 KB), 1 MB of YAML, a 60 000-key mapping, 5 000-deep nesting, 65
+        # vehicles, NaN, aliases, ... (bench/hostile_requests.py): each refused with its reason; how fast is measured by
         # bench/bench_requests.py (docs/benchmarks.md), the limit here only shows that none stalls the simulator
         for name, (fields, needle) in hostile_requests().items():
             t = time.monotonic()
@@ -146,7 +146,7 @@ def test_parameters_cannot_be_changed_from_another_process(node, tmp_path):
 
 
 def test_hijacked_commands_do_not_steer_the_ego(paper_lot, node, tmp_path):
-    """Issue #20 item 9, the attack as measured: a process answers every observation at once with its own
+    """The hijack of docs/bad_input.md row 34, as measured: a process answers every observation at once with its own
     cmd stamped like it (v = 3 m/s straight). The simulator drops the untagged commands, the episode equals the
     in-process run of the same driver bit for bit, and the simulator names the foreign publisher."""
     import numpy as np
@@ -196,9 +196,9 @@ def test_hijacked_commands_do_not_steer_the_ego(paper_lot, node, tmp_path):
 
 
 def test_extreme_commands_are_clamped(node, tmp_path):
-    """Issue #20 item 5: v = 1e9, ω = -1e9 (tagged, so they reach the checks) move the ego at most ego_max_speed·dt
-    per step with |ω| <= |v|/R_min; a stamp far in the future or negative never makes the simulator step; no
-    state is ever non-finite."""
+    """Commands (docs/bad_input.md row 35): v = 1e9, ω = -1e9 (tagged, so they reach the checks) move the ego at most
+    ego_max_speed·dt per step with |ω| <= |v|/R_min; a stamp far in the future or negative never makes the simulator
+    step; no state is ever non-finite."""
     import math
 
     n, env = node
@@ -246,8 +246,8 @@ def test_extreme_commands_are_clamped(node, tmp_path):
 
 
 def test_two_demos_at_once_do_not_cross_talk(ros_env, tmp_path):
-    """Issue #20 item 8: two `avp demo` started together without ROS_DOMAIN_ID each claim a domain of their own
-    (avp_bringup.domain) and record the same episode as a lone run, bit for bit."""
+    """Cross-talk (docs/bad_input.md row 38): two `avp demo` started together without ROS_DOMAIN_ID each claim a
+    domain of their own (avp_bringup.domain) and record the same episode as a lone run, bit for bit."""
     import os
 
     import numpy as np
@@ -281,9 +281,9 @@ def test_two_demos_at_once_do_not_cross_talk(ros_env, tmp_path):
 
 
 def test_foreign_inputs_are_dropped_by_the_planner(paper_lot, ros_env, tmp_path, monkeypatch):
-    """Issue #20 item 11: a planner takes observation / beliefs / predictions only from holders of the key. An
-    intruder's untagged inputs for a step get no command and the intruder is named; the tagged ones of the
-    configured publishers (the feeder playing the simulator and the perception nodes) are answered."""
+    """Foreign inputs (docs/bad_input.md row 41): a planner takes observation / beliefs / predictions only from holders
+    of the key. An intruder's untagged inputs for a step get no command and the intruder is named; the tagged ones of
+    the configured publishers (the feeder playing the simulator and the perception nodes) are answered."""
     from dataclasses import replace
 
     from test_bad_input import _Feeder, planner_alone

@@ -188,7 +188,7 @@ def _walker(ped_id, start, heading, speed, n_steps, hist=40):
 
 @pytest.mark.parametrize("ego_moves", [False, True])
 def test_pedestrian_collisions_are_counted_with_who_was_at_fault(paper_lot, ego_moves):
-    """Issue #18: a pedestrian walking into a standing ego is a collision the ego is not at fault for; the ego
+    """A pedestrian walking into a standing ego is a collision the ego is not at fault for; the ego
     driving into a standing pedestrian is. The recomputation from the logged ground truth agrees."""
     from avp_sim.core.metrics import metrics_from_log
 

@@ -1,4 +1,4 @@
-"""Do the simulator's agents drive through each other? (noticed in issue #28's gridlocks.)
+"""Do the simulator's agents drive through each other? (noticed in the busy lot's gridlocks.)
 
 §III-B's reactive agents brake for the ego only; nothing makes a car stop for another car or for a pedestrian. On
 the paper's lot, with one or two moving cars, they seldom meet. On the busy lot a car that stops for the ego is

@@ -1,4 +1,4 @@
-"""Arms of an ablation side by side, paired against a reference arm (issue #28).
+"""Arms of an ablation side by side, paired against a reference arm (docs/research/unfreezing.md).
 
     python tools/arm_table.py NAME=EPISODES.jsonl[:METHOD] [NAME=...] [--ref NAME] [--mode reactive]
 

@@ -1,10 +1,10 @@
-"""Compare two experiment folders' episode records, timing fields aside (the equal-records check of issue #17).
+"""Compare two experiment folders' episode records, timing fields aside (docs/experiment.md "Records check").
 
     python tools/compare_records.py OUT_BEFORE OUT_AFTER [--new-fields]
 
 Prints how many (method, seed, mode) episodes both hold, how many are equal, and the first differences; exits 1
 if any record differs or the after folder lacks an episode the before folder has. ``--new-fields``: a field that
-no record of OUT_BEFORE has (added to the records since, e.g. ``lot`` and ``collision_at_fault`` of issue #18)
+no record of OUT_BEFORE has (added to the records since, e.g. ``lot`` and ``collision_at_fault``)
 is left out of the comparison, and its values in OUT_AFTER are counted.
 """
 

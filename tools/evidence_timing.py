@@ -1,4 +1,4 @@
-"""When did the ego learn that the agents react (issue #28)? For chosen busy-lot seeds of one method: the first step
+"""When did the ego learn that the agents react? For chosen busy-lot seeds of one method: the first step
 an agent braked for the ego (the simulator's ground truth), the first step the planner had evidence of it
 (``collision.reactive_evidence``), and how many evasive steps the ego made before that evidence.
 

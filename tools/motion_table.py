@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Before/after table of the ego's motion over the same episodes (issue #21): success, parking time, direction
+"""Before/after table of the ego's motion over the same episodes: success, parking time, direction
 reversals and U-turns per episode, per mode, from two experiment folders with the same method and seeds.
 
     python tools/motion_table.py BEFORE AFTER [--method bezier]

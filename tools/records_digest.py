@@ -1,7 +1,7 @@
 """A committed digest of an experiment folder's episode records, and the check of a new run against it.
 
-"Records equal" (issue #17, #28's acceptance) has meant running the old commit again and comparing the two folders
-with tools/compare_records.py. A digest lets a fresh clone check it against the committed reference instead:
+"Records equal" (docs/experiment.md "Records check") has meant running the old commit again and comparing the two
+folders with tools/compare_records.py. A digest lets a fresh clone check it against the committed reference instead:
 
     python tools/records_digest.py write RUN_DIR DIGEST.json     # after a reference run
     python tools/records_digest.py check RUN_DIR DIGEST.json     # after a change; exit 1 if any record differs

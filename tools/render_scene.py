@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Draw one step of a bag's 3-D scene headless, as Foxglove's 3-D panel shows it (issue #21: docs/foxglove_scene.png).
+"""Draw one step of a bag's 3-D scene headless, as Foxglove's 3-D panel shows it (docs/foxglove_scene.png).
 
     python tools/render_scene.py BAG [--step K|auto] [--out docs/foxglove_scene.png]
 

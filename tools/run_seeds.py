@@ -1,4 +1,4 @@
-"""Run chosen seeds of one method in-process and append their records (the busy-lot ablation arms of issue #28).
+"""Run chosen seeds of one method in-process and append their records (docs/research/unfreezing.md's ablation arms).
 
     python tools/run_seeds.py OUT.jsonl METHOD SEEDS [KEY=VALUE ...] [--lot FILE] [--family busy] [--t-final 60]
         [--mode reactive] [--workers 2]

@@ -1,4 +1,4 @@
-"""Who the ego "stole" a spot from on the busy lot (issue #28): for each stolen episode of a records file, the car(s)
+"""Who the ego "stole" a spot from on the busy lot: for each stolen episode of a records file, the car(s)
 heading for the spot the ego parked in — had it started its plan when the ego parked, how far from the spot it
 started, and (``--ego``) whether the ego had ever observed it before choosing the spot.
 

@@ -1,4 +1,4 @@
-"""Issue #28 item 2: why the episodes of a run time out — steps per mode and idle steps per cause of the timeouts,
+"""Why the episodes of a run time out — steps per mode and idle steps per cause of the timeouts,
 per method, from the records' ``decision_trace`` (avp_planner.core.trace).
 
     python tools/trace_table.py RECORDS.jsonl [RECORDS.jsonl ...] [--status timeout]

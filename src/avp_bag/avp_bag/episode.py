@@ -1,4 +1,4 @@
-"""An episode read back from a bag (issue #6 item 4): its lot, ground truth and last status, and the §VI-B metrics
+"""An episode read back from a bag: its lot, ground truth and last status, and the §VI-B metrics
 recomputed from them (``avp metrics BAG``) beside the ones the simulator published live."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""``avp merge-bag BAG OUT.mcap``: one MCAP file of a split bag, for viewers that open a single file (issue #21).
+"""``avp merge-bag BAG OUT.mcap``: one MCAP file of a split bag, for viewers that open a single file (docs/foxglove.md).
 
 The recorder finishes a storage file every second (crash safety, :mod:`avp_bag.recorder`); Foxglove and Lichtblick
 open one file at a time. This copies every message of every split, in order, unchanged (the CDR bytes and log

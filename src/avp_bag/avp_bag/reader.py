@@ -1,4 +1,4 @@
-"""Read a recorded bag defensively (issue #20 item 6): every split checked, a cut split salvaged, one clear error.
+"""Read a recorded bag defensively: every split checked, a cut split salvaged, one clear error.
 
 ``avp replay``, ``avp metrics`` and the episode video read bags through :class:`BagReader`, which takes a
 rosbag2 directory (``metadata.yaml`` + splits) or a single ``.mcap`` file and streams its MCAP records with

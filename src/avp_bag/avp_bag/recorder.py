@@ -36,9 +36,9 @@ GRAPH_TOPICS: dict[str, tuple[str, bool]] = {
     "/avp/ego_intention": ("avp_msgs/msg/IntentionArray", False),  # the implicit method's (belief node's ego_intent)
     "/avp/predictions": ("avp_msgs/msg/PredictedTrajectoryArray", False),
     "/avp/decision": ("avp_msgs/msg/PlannerDecision", False),
-    "/avp/avp_planner/debug/decision": ("avp_msgs/msg/DecisionTrace", False),  # why the ego stands (issue #28)
+    "/avp/avp_planner/debug/decision": ("avp_msgs/msg/DecisionTrace", False),  # why the ego stands (the decision trace)
     "/avp/plan": ("nav_msgs/msg/Path", False),
-    # what a viewer needs (issue #21): transforms, the scene node's markers, the ray scan
+    # what a viewer needs (docs/foxglove.md): transforms, the scene node's markers, the ray scan
     "/tf": ("tf2_msgs/msg/TFMessage", False),
     "/tf_static": ("tf2_msgs/msg/TFMessage", True),
     "/avp/viz/lot": ("visualization_msgs/msg/MarkerArray", True),
@@ -87,7 +87,7 @@ class BagRecorder(Node):
     """Raw (CDR) subscriptions written straight into a rosbag2; log time = latest /clock (sim time).
 
     ``foreign``: also record messages on :data:`TAGGED_TOPICS` that do not carry the graph's tag. Off by default:
-    the bag is the episode the graph ran, and a flood from another process (issue #20 item 2) is counted in one
+    the bag is the episode the graph ran, and a flood from another process (docs/bad_input.md row 48) is counted in one
     log line a second instead of being written at its rate (which cost this process more CPU than the flooder).
     """
 

@@ -1,4 +1,4 @@
-"""An isolated DDS domain per graph on one machine (issue #20 item 8: two demos at once must not cross-talk).
+"""An isolated DDS domain per graph on one machine (two demos at once must not cross-talk; docs/bad_input.md row 38).
 
 ``avp launch`` / ``avp demo`` / ``avp experiment --transport ros`` claim a ROS_DOMAIN_ID of their own unless the
 environment sets one (the override): the first of 1..:data:`MAX_DOMAIN` whose lock file

@@ -76,7 +76,7 @@ def default_graph(ego: str = "planner") -> list[NodeSpec]:
     return [sim, *nodes]
 
 
-#: the viewers' node (issue #21): /tf, /tf_static and viz/scene from the pipeline's messages; a sink, never an input
+#: the viewers' node: /tf, /tf_static and viz/scene from the pipeline's messages; a sink, never an input
 SCENE_NODE = NodeSpec("avp_scene", "avp_viz", "scene_node", "config/scene.param.yaml")
 
 
@@ -129,7 +129,7 @@ def fleet_graph(methods: list, *, deterministic: bool = False, sim_extra: dict |
 
 def method_graph(method, *, deterministic: bool = False, intent_weights: str | None = None,
                  intent_seed: int | None = None, sim_extra: dict | None = None) -> list[NodeSpec]:
-    """The live graph of one Table I method (issue #6): :func:`default_graph` ("planner") — the same four nodes
+    """The live graph of one Table I method: :func:`default_graph` ("planner") — the same four nodes
     — with the parameters of the method profile ``method`` (a name of avp_experiment/config/methods/, a profile
     file or a :class:`~avp_experiment.profiles.MethodProfile`) on its pipeline nodes
     (:func:`~avp_experiment.profiles.method_node_params`, also for ``deterministic`` and the intent

@@ -1,7 +1,7 @@
 """A graph observer (debug side only): collects ground truth and status to write metrics and pictures, and
 measures the closed-loop step time of the live graph.
 
-**Closed-loop step time** (sense → command, issue #6): for every step k, the wall time from the simulator
+**Closed-loop step time** (sense → command; target p95 <= 100 ms): for every step k, the wall time from the simulator
 publishing observation k to the command answering it (stamped t_k) arriving — the DDS *source timestamp* of
 observation k (taken by the simulator's writer; in lock-step, of its last re-send before the answer) to the DDS
 *reception timestamp* of the first command stamped t_k at this node's reader (taken by the middleware's receive
@@ -11,8 +11,8 @@ real time (sim ``mode: realtime``) a command arriving after observation k+1 was 
 (:class:`~avp_bringup.step_timer.StepTimer` on ``ego<i>/observation`` and ``ego<i>/cmd``): the figures cover every
 ego's steps, and ``per_ego`` gives each ego's.
 
-Under a flood (issue #20 item 2) the figure stays honest: ``observation`` and ``cmd`` are taken only with a valid
-tag (``avp_common.msg_auth``, the graph's key), and a copy of an observation within
+Under a flood (docs/bad_input.md row 48) the figure stays honest: ``observation`` and ``cmd`` are taken only with a
+valid tag (``avp_common.msg_auth``, the graph's key), and a copy of an observation within
 ``RESEND_ANSWER_INTERVAL`` of the first is a duplicate, not a lock-step re-send.
 """
 

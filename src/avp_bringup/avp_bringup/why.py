@@ -1,4 +1,4 @@
-"""``avp why``: why the ego was not moving — the idle spells of one episode with their causes (issue #28).
+"""``avp why``: why the ego was not moving — the idle spells of one episode with their causes (docs/stuck_ego.md).
 
 From a **bag** (a directory or .mcap file): the planner's ``~/debug/decision`` trace (avp_msgs/DecisionTrace)
 of the last episode in it. From a **run** (the ``--out`` folder of ``avp experiment``, or a file of episode records
@@ -37,7 +37,7 @@ def trace_from_bag(bag: Path, ego: int | None = None) -> tuple[dict, float]:
             steps = {}  # a new episode: keep the last one
         steps[step[0]] = step
     if not steps:
-        raise ValueError(f"{bag}: no {topic} messages (recorded by avp demo/record since issue #28"
+        raise ValueError(f"{bag}: no {topic} messages (recorded by avp demo/record since v0.3.0"
                          + ("; a graph of several egos has /avp/ego<i>/...: give --ego i)" if ego is None else ")"))
     trace = DecisionTrace(0.1)
     for k in sorted(steps):
@@ -76,7 +76,7 @@ def trace_from_run(out: Path, seed: int, method: str, mode: str, ego: int | None
                          + (f", ego {ego}" if ego is not None else ""))
     if "decision_trace" not in found:
         raise ValueError(f"{path}: the {method} seed {seed} {mode} record has no decision_trace (recorded before "
-                         "issue #28: run it again with avp experiment)")
+                         "v0.3.0: run it again with avp experiment)")
     return found["decision_trace"], 0.1
 
 

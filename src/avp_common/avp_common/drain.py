@@ -1,4 +1,4 @@
-"""Raw subscriptions that take a burst of queued messages in one executor round (issue #20 item 2).
+"""Raw subscriptions that take a burst of queued messages in one executor round (a flood: docs/bad_input.md row 48).
 
 rclpy's executor rebuilds its wait set for every message it takes: about 0.1-0.2 ms of Python per message, which a
 publisher gone wild at 1 kHz turns into most of a core in every process that subscribes (measured: the demo's

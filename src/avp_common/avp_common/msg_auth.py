@@ -1,10 +1,10 @@
-"""Authenticated messages between the graph's nodes (issue #20 items 9 and 11): only a holder of the user's key
+"""Authenticated messages between the graph's nodes (docs/bad_input.md rows 34 and 41): only a holder of the user's key
 can feed the ego pipeline or steer the ego.
 
 The Fast DDS of the ROS 2 wheels has no DDS security (no SROS2), and Jazzy's rclpy does not tell a subscriber
 which writer sent a message, so a node cannot tell its configured publisher's message from another process's by
 origin. Instead every message of the pipeline carries a tag in ``header.frame_id = "<frame>#<episode><tag>"``: the
-episode id (16 hex digits, issue #27: the simulator's episode the message belongs to, 0 for none) and the first 32
+episode id (16 hex digits: the simulator's episode the message belongs to, 0 for none) and the first 32
 hex digits of HMAC-SHA256(key, the bytes sent, with the tag's place filled with '0's). The tag covers the episode
 id, so a copy of a message stays a message of its episode: a replayed step 0 of the running episode is a copy, not a
 new episode, and a message of an earlier episode is dropped (:mod:`avp_common.step_answers`). The sender publishes
@@ -48,8 +48,8 @@ KEY_ENV = "AVP_CMD_KEY_FILE"
 KEY_BYTES = 32
 TAG_HEX = 32
 EPISODE_HEX = 16
-#: the largest input a node reads (issue #27): a DLP-lot observation is ~0.2 MB; anything larger is dropped before
-#: its tag is even checked
+#: the largest input a node reads (docs/bad_input.md row 52): a DLP-lot observation is ~0.2 MB; anything larger
+#: is dropped before its tag is even checked
 MAX_INPUT_BYTES = 16 * 2**20
 
 

@@ -53,7 +53,7 @@ def run_node(factory: Callable[[], object], label: str, args=None) -> int:
     because the context is already shut down); any other error propagates."""
     # installed before rclpy.init, whose C handler (context shut down, executors woken) chains to this one: a take
     # or wait that fails in the window before the KeyboardInterrupt lands (a pybind11 RuntimeError from
-    # take_message under a flood, #27) is then known to be part of the stop, not a fault
+    # take_message under a flood, docs/bad_input.md row 53) is then known to be part of the stop, not a fault
     signal.signal(signal.SIGINT, _mark_stopping)
     signal.signal(signal.SIGTERM, _mark_stopping)
     rclpy.init(args=args)

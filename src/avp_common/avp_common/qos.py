@@ -13,9 +13,9 @@ def _reliable(depth: int, durability: DurabilityPolicy) -> QoSProfile:
 LATCHED = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
 #: Per-step data in lock-step (observations, beliefs, predictions, commands): every message matters.
 STEP = _reliable(10, DurabilityPolicy.VOLATILE)
-#: The reader side of per-step inputs. A publisher gone wild at 1 kHz on the topic (issue #20 item 2) would push the
-#: real message of a step out of a 10-deep reader queue within 10 ms of the node being busy; 1000 holds a second
-#: of such a flood (bounded: about 4 MB of observations). Writers keep STEP's depth.
+#: The reader side of per-step inputs. A publisher gone wild at 1 kHz on the topic (docs/bad_input.md row 48)
+#: would push the real message of a step out of a 10-deep reader queue within 10 ms of the node being busy; 1000
+#: holds a second of such a flood (bounded: about 4 MB of observations). Writers keep STEP's depth.
 STEP_INPUT = _reliable(1000, DurabilityPolicy.VOLATILE)
 #: A node answers a copy of a step it has answered (a re-sent observation) at most once per this many seconds,
 #: so a flood of copies of a tagged message does not become a flood of answers.

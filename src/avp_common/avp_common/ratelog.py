@@ -1,4 +1,4 @@
-"""Rate-limited log lines with counts (issue #20 item 2: a publisher gone wild must not flood the log).
+"""Rate-limited log lines with counts (a publisher gone wild must not flood the log; docs/bad_input.md row 49).
 
 A node reports a rejected message through :meth:`RateLimitedLog.report` under a *key* (topic and reason): the
 first one is logged at once, later ones at most once per ``period`` seconds, each line saying how many were

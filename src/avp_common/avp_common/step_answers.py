@@ -1,4 +1,4 @@
-"""The step rules a lock-step node applies to its observations (docs/perception.md "step rules", issues #20, #27).
+"""The step rules a lock-step node applies to its observations (docs/perception.md "step rules"; docs/bad_input.md).
 
 Every observation carries the simulator's episode id (:func:`avp_common.msg_auth.episode_of`, covered by the
 tag). A node keeps the episode and the last step it answered, and that answer:

@@ -1,4 +1,4 @@
-"""The Table I experiment (paper §VI, issue #6), ROS-free except :mod:`.ros_collector`.
+"""The Table I experiment (paper §VI, docs/experiment.md), ROS-free except :mod:`.ros_collector`.
 
 * :mod:`.profiles` — method profiles (``src/avp_experiment/config/methods/<name>.yaml``), planner settings;
 * :mod:`.ego` — :class:`~.ego.MethodEgo`: one method's ego pipeline (perception cores + §V-D planner);

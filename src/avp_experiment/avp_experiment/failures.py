@@ -1,5 +1,4 @@
-"""What the failed episodes of a Table I run have in common (issue #6: "say what the episodes that failed have
-in common").
+"""What the failed episodes of a Table I run have in common.
 
 For every failed record of ``OUT/episodes.jsonl`` the episode is run again in this process exactly as the runner
 ran it (same seed, mode, method profile, intent weights and deterministic settings — the record is checked to come

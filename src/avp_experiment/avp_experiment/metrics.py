@@ -85,7 +85,7 @@ def episode_record(*, method: str, seed: int, reactive: bool, status: str, metri
     """One JSON line: identity (with the lot, :func:`lot_record`), the §VI-B metrics, the ego's reversals and
     U-turns (:func:`motion_counts` of ``ego_poses``, its pose per step), and (under ``timings``) what depends on
     compute speed. ``decision_trace``: the planner's per-episode trace summary (steps per mode, idle steps per
-    cause, the longest idle spells; :class:`avp_planner.core.trace.DecisionTrace`, issue #28)."""
+    cause, the longest idle spells; :class:`avp_planner.core.trace.DecisionTrace`)."""
     pt = metrics.get("parking_time")
     pt = None if pt is None or (isinstance(pt, float) and math.isnan(pt)) else float(pt)
     sel = [float(t["spot_selection_time"]) for t in step_timings]
@@ -120,7 +120,7 @@ MOVING = 0.01  # m per step: slower is standing (no travel direction)
 
 
 def motion_counts(ego_poses: np.ndarray) -> dict:
-    """Direction reversals and U-turns of the ego over an episode (issue #21), from its poses (N, 3) per step.
+    """Direction reversals and U-turns of the ego over an episode, from its poses (N, 3) per step.
 
     ``reversals``: changes of gear between consecutive moving steps (forward <-> backward, the sign of the step's
     displacement along the heading; steps moving less than ``MOVING`` m are skipped). ``u_turns``: how often the

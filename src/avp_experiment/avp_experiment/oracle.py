@@ -14,8 +14,8 @@ What the oracle knows at step t, for every dynamic vehicle (observed or not):
   ``horizon`` seconds, unobstructed — the plan a reactive agent follows unless the ego makes it brake;
 * whether it reacts (§III-B: n_pass > 0), for every vehicle and pedestrian: the profile's planner takes it with
   ``collision.reactive_evidence: told`` (:meth:`avp_planner.core.decision.EgoPlanner.tell_reacting`), so the
-  bound checks its plans with the braking rule of every agent that reacts and of no other (issue #28). Its own
-  n_pass stays unknown: the check's look-ahead is ``collision.reactive_steps``.
+  bound checks its plans with the braking rule of every agent that reacts and of no other (docs/research/unfreezing.md).
+  Its own n_pass stays unknown: the check's look-ahead is ``collision.reactive_steps``.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Method profiles of Table I (issue #6): one YAML file per method, shared by the runner and the live graph.
+"""Method profiles of Table I: one YAML file per method, shared by the runner and the live graph.
 
 A profile (``src/avp_experiment/config/methods/<name>.yaml``) says how a method differs from the paper's
 pipeline — §VI-A: "all compared methods only differ in how they choose the ego's parking spot":

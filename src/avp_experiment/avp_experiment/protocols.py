@@ -1,4 +1,4 @@
-"""Experiment protocols: how the episodes of every method are set up (issue #16, docs/experiment.md "Protocols").
+"""Experiment protocols: how the episodes of every method are set up (docs/experiment.md "Protocols").
 
 A protocol (``src/avp_experiment/config/protocols/<name>.yaml``) fixes what is *not* the method: avp_sim
 parameters (the scenario generator, the agents' reactivity) and avp_planner parameters shared by every method
@@ -40,10 +40,10 @@ SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     # "avoids collisions with the predicted trajectories" (§V-D-1): the same margin to every agent, also to one
     # already nearer than it
     "keep_gap": {"collision.keep_current_gap": (True, False)},
-    # issue #28 (unfreezing; off in planner.param.yaml, the ablation did not pick them): "the ego would stay
-    # put" while any prediction blocks — a) a car that stands or brakes with the ego ahead of it is predicted to keep
-    # standing (§III-B's reactive agents); b) beyond a 1 s commit window a plan is blocked only by hypotheses whose
-    # probabilities sum to more than collision.risk_bound
+    # the unfreezing mechanisms (docs/research/unfreezing.md; off in planner.param.yaml, the ablation did not pick
+    # them): "the ego would stay put" while any prediction blocks — a) a car that stands or brakes with the ego ahead of
+    # it is predicted to keep standing (§III-B's reactive agents); b) beyond a 1 s commit window a plan is blocked only
+    # by hypotheses whose probabilities sum to more than collision.risk_bound
     "yielding": {"decision.assume_yielding": (True, False)},
     "commit_window": {"collision.commit_horizon": (1.0, 0.0)},
     # d) after standing decision.stuck_time, creep along the best blocked plan while its next 2 s are clear

@@ -1,4 +1,4 @@
-"""``avp experiment --backend ray``: the episodes of a sweep as Ray tasks on a cluster (issue #19).
+"""``avp experiment --backend ray``: the episodes of a sweep as Ray tasks on a cluster.
 
 One task per episode (``(method, seed, mode)``); each runs :func:`~.episodes.run_episode_inproc` in a Ray worker
 process exactly as a ``--backend local`` worker does (one torch thread, the planner's wall-clock caps lifted), so

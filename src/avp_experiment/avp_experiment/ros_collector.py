@@ -42,7 +42,7 @@ class EpisodeCollector(Node):
         self.create_subscription(PredictedTrajectoryArray, "predictions", self._on_preds, deep)
         self.create_subscription(PlannerDecision, "decision", self._on_decision, deep)
         self.create_subscription(Observation, "observation", self._on_obs, deep)
-        # the planner's decision trace (issue #28), when it publishes one (a user's planner may not)
+        # the planner's decision trace, when it publishes one (a user's planner may not)
         self.create_subscription(DecisionTrace, "avp_planner/debug/decision", self._on_trace, deep)
         self.kind_vehicle = AgentState.KIND_VEHICLE
         self.terminal = (EpisodeStatus.STATE_SUCCESS, EpisodeStatus.STATE_COLLISION,

@@ -1,4 +1,4 @@
-"""``avp experiment``: the Table I runner (paper §VI-B, issue #6).
+"""``avp experiment``: the Table I runner (paper §VI-B, docs/experiment.md).
 
 Episodes are (method, seed, mode) triples: the first ``scenarios`` seeds >= ``seed_base`` that the §VI-A
 scenario generator can build (:func:`valid_seeds`; a seed's reactive and non-reactive runs share the same

@@ -1,4 +1,4 @@
-"""``avp experiment --sweep KEY=V1,V2,...`` and ``--ablation`` (issue #16): one Table I per setting.
+"""``avp experiment --sweep KEY=V1,V2,...`` and ``--ablation``: one Table I per setting.
 
 A sweep runs the whole table (the same methods, seeds and modes) once per value of one avp_sim or avp_planner
 parameter, each into its own resumable run folder ``OUT/<KEY>=<V>/`` (an ordinary ``avp experiment`` folder:

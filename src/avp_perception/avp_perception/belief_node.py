@@ -19,7 +19,7 @@ lock-step partner).
 
 One output per observation step, in order. An observation of a step already answered (the simulator
 re-sends in lock-step when a reply went missing) gets the same messages again, not a second update. An
-observation of a later episode (the episode id in its tag, issue #27) starts a new episode: the belief map, the
+observation of a later episode (the episode id in its tag) starts a new episode: the belief map, the
 ego trail and the intent bookkeeping are reset; one of an earlier episode, or of a step lower than the last one
 answered (step 0 included), is dropped (avp_common.step_answers). Outputs carry the observation's episode id. A
 malformed observation (NaN/inf, unknown spot ids, a header stamp that is not
@@ -152,7 +152,7 @@ class BeliefNode(Node):
         if out.ego_intention is not None:
             ego = intentions_to_msg(step, obs.dt, [replace(out.ego_intention, vehicle_id=EGO_VEHICLE_ID)])
         for m in (beliefs, intentions, ego):
-            if m is not None:  # the answer belongs to the observation's episode (issue #27)
+            if m is not None:  # the answer belongs to the observation's episode
                 m.header.frame_id = with_episode(m.header.frame_id, episode)
         self._publish(beliefs, intentions, ego)
         self.answers.store(step, (beliefs, intentions, ego, msg, out))

@@ -6,13 +6,13 @@ Topics (relative; the launcher puts every node in namespace /avp):
 
 ``method``: ``bezier`` (the paper's intention-conditioned cubic Bezier curves, eqs. 9-12), ``constant_velocity``,
 ``hybrid_astar`` (paths to the intended goals planned with the ego planner's Hybrid A*) or ``learned``
-(ParkPredict+'s trajectory transformer conditioned on the same goals, issue #5, ``learned.*``; the node logs which
+(ParkPredict+'s trajectory transformer conditioned on the same goals, ``learned.*``; the node logs which
 weights it runs); pedestrians are always predicted at constant velocity. Each trajectory carries its intention's
 probability, spot id and goal.
 
 Lock-step: the observation and the intentions of step k are matched by step (either may come first) and
 answered once; an observation of a step already answered (re-sent by the simulator) gets the same message
-again. An observation of a later episode (the episode id in its tag, issue #27) starts a new episode: buffered
+again. An observation of a later episode (the episode id in its tag) starts a new episode: buffered
 messages of another episode are dropped; one of an earlier episode, or of a step lower than the last one answered
 (step 0 included), is dropped with a warning (avp_common.step_answers). A malformed message — NaN/inf, unknown spot
 ids, probabilities outside [0, 1], a header

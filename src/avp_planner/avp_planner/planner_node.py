@@ -12,7 +12,7 @@ docs/custom_planner.md): *configure* builds the planner core for the lot, *activ
 observations (the newest one buffered while inactive first), *deactivate* stops it (no command is
 published while inactive: the simulator holds the ego still), *shutdown* ends the process. With
 ``autostart`` (default) it configures and activates itself at start-up. An observation of a later episode
-(the episode id in its tag, issue #27) starts a new episode (the core is reset); one of an earlier episode, or of a
+(the episode id in its tag) starts a new episode (the core is reset); one of an earlier episode, or of a
 step older than the newest seen (step 0 included), is dropped with a warning; commands carry the episode id.
 """
 
@@ -120,7 +120,7 @@ class PlannerNode(LifecycleNode):
         self.lot = None
         self.configured = False
         self.active = False
-        self.episode = -1  # the running episode's id (avp_common.msg_auth.episode_of; issue #27)
+        self.episode = -1  # the running episode's id (avp_common.msg_auth.episode_of)
         self.last_step: int | None = None  # newest observation step seen
         self.obs: dict[int, Observation] = {}
         self.beliefs: dict[int, SpotBeliefs] = {}
@@ -135,7 +135,7 @@ class PlannerNode(LifecycleNode):
         self.pub_cmd = self.auth.publisher(TwistStamped, "cmd", STEP)
         self.pub_plan = self.create_publisher(Path, "plan", STEP)
         self.pub_decision = self.create_publisher(PlannerDecision, "decision", STEP)
-        # why the ego does what it does, every step (issue #28): mode, idle cause, blocking agent
+        # why the ego does what it does, every step (the decision trace): mode, idle cause, blocking agent
         self.pub_trace = self.create_publisher(DecisionTrace, "~/debug/decision", STEP)
         self.trace = DecisionTrace_(0.1)
         self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", STEP)
@@ -205,7 +205,7 @@ class PlannerNode(LifecycleNode):
 
     def _on_obs(self, msg: Observation, info=None) -> None:
         k, episode = int(msg.step), episode_of(msg.header.frame_id)
-        if episode < self.episode:  # a replayed recording of an earlier episode (issue #27)
+        if episode < self.episode:  # a replayed recording of an earlier episode
             self.reject_warn(f"{self.sub_obs.topic_name}: step {k} of an episode that ended (a replay of an earlier "
                              "episode); dropped")
             return

@@ -1,7 +1,7 @@
 """A placeholder ego driver (ROS-free): follows the nearest road's centre line and stops for obstacles.
 
 It exists only so that the live graph can run end to end before the Hybrid A* planner of §V-D
-(issue #3) replaces it. It never parks on purpose. Inputs: the lot map and the ego's
+replaces it. It never parks on purpose. Inputs: the lot map and the ego's
 :class:`~avp_world.types.Observation` only (no ground truth).
 """
 

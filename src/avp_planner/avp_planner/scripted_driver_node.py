@@ -1,4 +1,4 @@
-"""scripted_driver node: a stand-in ego controller until the Hybrid A* planner (issue #3) lands.
+"""scripted_driver node: a stand-in ego controller until the Hybrid A* planner lands.
 
 Subscribes lot_map (latched) and observation; publishes cmd (TwistStamped stamped like the
 observation it answers, so the simulator's lock-step matches it). Never reads ground truth.

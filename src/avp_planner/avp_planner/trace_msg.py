@@ -1,4 +1,4 @@
-"""The planner's decision trace as an avp_msgs/DecisionTrace message (issue #28), and back.
+"""The planner's decision trace as an avp_msgs/DecisionTrace message, and back.
 
 The node publishes one per decision on ``~/debug/decision``; ``avp why`` reads them back from a bag
 (:func:`trace_from_msg` feeds :class:`avp_planner.core.trace.DecisionTrace`).

@@ -25,7 +25,7 @@ class DynamicObstacles:
         predictions: §V-C predicted trajectories (vehicles: rectangles; pedestrians: discs).
         length, width: the ego footprint.
         vehicle_margin, pedestrian_margin: clearances required.
-        commit_steps, risk_bound: the horizon split of issue #28 (mechanism b, :meth:`_violation`); 0 = off.
+        commit_steps, risk_bound: the horizon split of mechanism b (:meth:`_violation`); 0 = off.
         hold_after_commit: with ``commit_steps`` > 0, instead of the risk bound each hypothesis is held, after
             the window, at its pose at the window's end (and every meeting blocks): the agents are assumed to stop
             for the ego, as the reactive agents of §III-B do, once the window is past.
@@ -71,7 +71,7 @@ class DynamicObstacles:
         self.veh_poses = np.array([pad(p.poses, 3) for p in veh]).reshape(len(veh), t, 3)
         self.veh_half = np.array([[0.5 * p.length, 0.5 * p.width] for p in veh]).reshape(len(veh), 2)
         self.veh_ids = [p.agent_id for p in veh]
-        self.veh_prob = np.array([float(p.probability) for p in veh])  # the hypotheses' probabilities (#28)
+        self.veh_prob = np.array([float(p.probability) for p in veh])  # the hypotheses' probabilities
         self.ped_pos = np.array([pad(p.poses, 2) for p in ped]).reshape(len(ped), t, 2)
         self.ped_radius = np.array([p.radius for p in ped], dtype=float)
         self.ped_ids = [p.agent_id for p in ped]
@@ -198,7 +198,7 @@ class DynamicObstacles:
 
     def _violation(self, hits: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]) -> tuple[int, int]:
         """(first blocking k, index into ``hits`` (:meth:`_hits`) of the meeting that blocks) or (-1, -1). Without
-        a commit window every meeting blocks. With one (``commit_steps`` > 0, issue #28 mechanism b), a meeting
+        a commit window every meeting blocks. With one (``commit_steps`` > 0, mechanism b), a meeting
         within it blocks; beyond it, the plan is blocked at the first k by which the hypotheses met (each counted
         once) sum to more than ``risk_bound`` in probability."""
         k, ped, a, pr = hits
@@ -221,7 +221,7 @@ class DynamicObstacles:
         return -1, -1
 
     def blocker(self, ego_poses: np.ndarray, k0: int = 1) -> tuple[int, bool, int, float] | None:
-        """Who blocks the ego's poses (issue #28's decision trace): (time index k, is a pedestrian, agent id,
+        """Who blocks the ego's poses (for the decision trace): (time index k, is a pedestrian, agent id,
         probability of that hypothesis) of the meeting that makes :meth:`first_collision` fail, or None."""
         hits = self._hits(ego_poses, k0, first_only=True)
         k, i = self._violation(hits)

@@ -99,7 +99,7 @@ class Path:
 
     start: tuple[float, float, float]
     segments: tuple[tuple[float, float], ...]
-    stops: tuple[float, ...] = ()  # arc lengths where the ego stops (a piece ends) besides the cusps (issue #28 c)
+    stops: tuple[float, ...] = ()  # arc lengths where the ego stops (a piece ends) besides the cusps (wait_anywhere)
 
     @property
     def length(self) -> float:

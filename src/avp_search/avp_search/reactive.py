@@ -1,4 +1,4 @@
-"""Collision checking against predicted agents that stop for the ego (issue #28, ``collision.reactive_steps``).
+"""Collision checking against predicted agents that stop for the ego (``collision.reactive_steps``).
 
 §V-C/§V-D check the ego's plan against each agent's predicted trajectory as if the agent went on whatever the ego
 does. The agents of §III-B do not: agent A brakes at step t iff its next n_pass steps meet the ego's footprint
@@ -22,7 +22,7 @@ that never come within reach of the plan are checked as before (j_k = k - 1), an
 
 * ``margin`` (as shipped): the check's margin plus ``reactive_margin``. The agent is assumed to brake earlier than
   the simulator's does, which brakes only where its poses would overlap the ego: a car passing alongside the ego
-  within the margin is assumed to stop, and does not (issue #28, busy seed 184).
+  within the margin is assumed to stop, and does not (seed 184 of the busy lot).
 * ``overlap``: ``reactive_margin`` alone (0: overlap, §III-B "meets"). The agent then comes up to the ego closer
   than the margin before it stops, so within the margin only the ego's own approach is a meeting: the ego's pose
   k meets the agent's pose j_k if they overlap, or if the gap is within the margin and smaller than from the ego's

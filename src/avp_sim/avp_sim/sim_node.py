@@ -110,8 +110,8 @@ class SimNode(Node):
             raise ValueError(f"scenario: egos: {world.egos.n_auto} egos, but this simulator drives "
                              f"{len(self.egos)} (parameter egos.count)")
         self.world = world
-        # the episode id every message of this episode carries (avp_common.msg_auth, issue #27): the wall clock
-        # in ns, strictly increasing, so that a replay of an earlier episode (or of an earlier run) is older
+        # the episode id every message of this episode carries (avp_common.msg_auth; docs/bad_input.md row 51): the
+        # wall clock in ns, strictly increasing, so that a replay of an earlier episode (or of an earlier run) is older
         self.episode = max(time.time_ns(), self.episode + 1)
         seed, reactive = self.world.scenario.seed, self.world.scenario.reactive
         self.seed, self.reactive = seed, reactive

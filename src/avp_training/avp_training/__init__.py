@@ -1,4 +1,4 @@
-"""Training of the intent CNN of §V-A on simulated traffic (issue #4; ROS-free; model card: docs/intent_model.md).
+"""Training of the intent CNN of §V-A on simulated traffic (ROS-free; model card: docs/intent_model.md).
 
 * :mod:`.lots` — training lots: the DLP-derived lot (``maps/dlp_west.yaml``) and seeded random grid lots;
   the paper's experiment lot is kept for testing;

@@ -1,4 +1,4 @@
-"""Intent-model samples exactly as the live pipeline sees them (issue #4).
+"""Intent-model samples exactly as the live pipeline sees them (docs/intent_model.md).
 
 An episode (:class:`~.traffic.Traffic`, or the paper's §VI-A protocol for the paper-lot test set) runs in the
 :class:`~avp_sim.core.world.World`. Every step the observer's observation (§III-A ray casting) goes through
@@ -229,7 +229,7 @@ def run_episode(lot: LotMap, world: World, labels: dict[int, int], kinds: dict[i
                 rng: np.random.Generator, stop_when_parked: bool = False, builder: _Builder | None = None,
                 collect=None) -> _Builder:
     """Run one episode and collect its samples (module docstring). ``collect(k, obs, core, ego_history, dynamic)``,
-    when given, is called every step instead of the intent sampling (the trajectory data of issue #5)."""
+    when given, is called every step instead of the intent sampling (the data of :mod:`.trajectory_data`)."""
     b = builder if builder is not None else _Builder()
     intent = IntentPredictor(lot, spec.bev, seed=0)  # weights unused: only inputs() is called
     core = PerceptionCore(lot, spec.bev, intent=intent, t_hist=world.scenario.t_hist)

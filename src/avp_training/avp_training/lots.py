@@ -1,4 +1,4 @@
-"""Parking lots for the intent model's training data (issue #4): the DLP-derived lot and seeded random lots.
+"""Parking lots for the intent model's training data: the DLP-derived lot and seeded random lots.
 
 None of them is the paper's experiment lot (§VI-A), which is kept for testing only.
 

@@ -1,4 +1,4 @@
-"""``avp train-intent`` and ``avp gen-intent-data``: the intent CNN from scratch on this machine (issue #4).
+"""``avp train-intent`` and ``avp gen-intent-data``: the intent CNN from scratch on this machine (docs/intent_model.md).
 
 ``avp train-intent`` generates the data (training, validation and test episodes on the DLP-derived and random
 lots, and the paper-lot test set), trains (:mod:`.train`), evaluates on both test sets beside the

@@ -1,4 +1,4 @@
-"""``avp train-trajectory``: the learned trajectory predictor from scratch on this machine (issue #5).
+"""``avp train-trajectory``: the learned trajectory predictor from scratch on this machine (docs/trajectory_model.md).
 
 Generates the data (:mod:`.trajectory`: training / validation / held-out test episodes on the DLP-derived and
 random lots, and the paper-lot test set), trains, evaluates learned vs Bezier vs constant velocity on both test

@@ -1,4 +1,4 @@
-"""Training and evaluation of the intent CNN of §V-A (issue #4; the recipe and its reasons: docs/intent_model.md).
+"""Training and evaluation of the intent CNN of §V-A (the recipe and its reasons: docs/intent_model.md).
 
 **Model.** :class:`~avp_perception.core.intent_model.SmallRegularizedCNN` (ParkPredict+, reference sheet §1.4)
 on the 100 x 100 px BEVs; one logit per option of an instance (a vehicle at one step): [none, candidates].

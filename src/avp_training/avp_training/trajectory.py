@@ -1,4 +1,4 @@
-"""Training and evaluation of the learned trajectory predictor (issue #5; model card docs/trajectory_model.md).
+"""Training and evaluation of the learned trajectory predictor (model card docs/trajectory_model.md).
 
 The data (:func:`~.trajectory_data.generate`) is :mod:`.trajectory_data`.
 

@@ -1,12 +1,12 @@
-"""Data of the learned trajectory predictor (issue #5; model card docs/trajectory_model.md).
+"""Data of the learned trajectory predictor (model card docs/trajectory_model.md).
 
-**Data** (:func:`generate`): episodes of #4's traffic generator (:mod:`.traffic`) on the DLP-derived and random lots
-(training, validation, held-out test by seed) and the paper's §VI-A protocol on the paper lot (test only), run by
-#4's episode runner (:func:`.dataset.run_episode`: the observer's occlusion-aware observation, eq. (7), the ego
-trail). Every ``stride`` steps each observed dynamic traffic car is a sample: its *observed* history, its BEV
-I_k,0 drawn by the inference renderer from the observation-only belief (exactly what
-:class:`~avp_perception.core.learned_prediction.LearnedPredictor` renders), and — from ground truth, for labels
-only — its future over the next 4 s from the simulator's log and its goal:
+**Data** (:func:`generate`): episodes of the intent data's traffic generator (:mod:`.traffic`) on the DLP-derived and
+random lots (training, validation, held-out test by seed) and the paper's §VI-A protocol on the paper lot (test only),
+run by the intent data's episode runner (:func:`.dataset.run_episode`: the observer's occlusion-aware observation, eq.
+(7), the ego trail). Every ``stride`` steps each observed dynamic traffic car is a sample: its *observed* history, its
+BEV I_k,0 drawn by the inference renderer from the observation-only belief (exactly what
+:class:`~avp_perception.core.learned_prediction.LearnedPredictor` renders), and — from ground truth, for labels only —
+its future over the next 4 s from the simulator's log and its goal:
 
 * the spot the car parks in, if its centre lies in the 40 m crop and the car reaches it (centre within 1.5 m)
   within ``spot_horizon`` (20 s);

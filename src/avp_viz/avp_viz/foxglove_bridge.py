@@ -1,4 +1,4 @@
-"""Serve the running graph to Foxglove (or Lichtblick) live over the Foxglove WebSocket protocol (issue #21 item 2).
+"""Serve the running graph to Foxglove (or Lichtblick) live over the Foxglove WebSocket protocol (docs/foxglove.md).
 
 ``avp demo --foxglove`` / ``avp launch --foxglove`` add a :class:`FoxgloveBridge` node to the ``avp`` process: it
 subscribes to the viewer's topics raw (the CDR bytes as they travel on DDS) and logs each message unchanged to a

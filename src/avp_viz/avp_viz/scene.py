@@ -1,4 +1,4 @@
-"""The 3-D scene a viewer (Foxglove, Lichtblick, RViz) shows of one step, built from what the ego knows (issue #21).
+"""The 3-D scene a viewer (Foxglove, Lichtblick, RViz) shows of one step, built from what the ego knows.
 
 Frames (REP-105): ``map`` (the lot), ``odom`` (= ``map``: the simulated ego localises perfectly, so ``map -> odom``
 is a static identity on ``/tf_static``), ``base_link`` (the ego, ``odom -> base_link`` on ``/tf``) and
@@ -128,7 +128,7 @@ def scene_markers(lot, obs, predictions, decision, stamp, trace=None, ego_rgba=N
     predictions, the ego, its plan and chosen spot. ``obs``: the core Observation; ``predictions``:
     PredictedTrajectoryArray message or None; ``decision``: PlannerDecision or None; ``trace``: the planner's
     DecisionTrace or None — while the ego waits for an agent, that agent is ringed in red and the cause is written
-    above the ego (issue #28). ``ego_rgba``: among several egos, this ego's colour for it, its plan and chosen spot."""
+    above the ego. ``ego_rgba``: among several egos, this ego's colour for it, its plan and chosen spot."""
     arr = MarkerArray()
     clear = Marker()
     clear.action = Marker.DELETEALL

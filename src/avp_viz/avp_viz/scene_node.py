@@ -1,4 +1,4 @@
-"""avp_scene: the 3-D scene of the running graph for viewers (Foxglove, Lichtblick, RViz; issue #21).
+"""avp_scene: the 3-D scene of the running graph for viewers (Foxglove, Lichtblick, RViz; docs/foxglove.md).
 
 Topics (relative names in namespace /avp, except the two TF topics, which are global as REP-105 wants them):
   subscribes lot_map (latched), observation, beliefs, predictions, decision
@@ -77,7 +77,7 @@ class SceneNode(Node):
         self.auth.subscription(SpotBeliefs, "beliefs", self._on_beliefs, STEP_INPUT)
         self.auth.subscription(PredictedTrajectoryArray, "predictions", self._on_preds, STEP_INPUT)
         self.create_subscription(PlannerDecision, "decision", self._on_decision, STEP_INPUT)
-        self.traces: dict[int, DecisionTrace] = {}  # the planner's trace (issue #28): drawn when it is there
+        self.traces: dict[int, DecisionTrace] = {}  # the planner's decision trace: drawn when it is there
         self.create_subscription(DecisionTrace, "avp_planner/debug/decision",
                                  lambda m: self.traces.__setitem__(int(m.step), m), STEP_INPUT)
 

@@ -155,7 +155,7 @@ def _require(d: Any, key: str, where: str) -> Any:
     return d[key]
 
 
-#: bounds of a lot map (issue #20): the DLP lot has 364 spots in a file of a few kB
+#: bounds of a lot map (docs/bad_input.md row 36): the DLP lot has 364 spots in a file of a few kB
 MAX_LOT_BYTES = 5_000_000
 MAX_SPOTS = 5000
 MAX_ROADS = 1000

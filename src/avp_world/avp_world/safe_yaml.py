@@ -1,4 +1,4 @@
-"""YAML from files and requests that may be hostile (issues #20 item 3, #27 item 1): bounded size, nodes and
+"""YAML from files and requests that may be hostile (docs/bad_input.md rows 36 and 50): bounded size, nodes and
 nesting, UTF-8, no aliases — each checked before any Python object is built.
 
 ``yaml.safe_load`` constructs no objects, but an alias bomb ("billion laughs": nested anchors referenced many

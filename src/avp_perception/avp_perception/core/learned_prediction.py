@@ -1,4 +1,4 @@
-"""Learned, intention-conditioned trajectory predictor (paper §VI-B-1 "Learned Model (ParkPredict+)", issue #5).
+"""Learned, intention-conditioned trajectory predictor (paper §VI-B-1 "Learned Model (ParkPredict+)").
 
 ParkPredict+'s trajectory transformer (reference sheet §2.2), sized for a CPU; model card docs/trajectory_model.md.
 

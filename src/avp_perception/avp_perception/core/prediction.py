@@ -25,10 +25,10 @@ Every predictor has ``predict(obs, intentions=(), horizon=None) -> list[Predicte
   so is the "none" mass >= mu when there is no exploration point to condition on.
 * ``"constant_velocity"`` (:class:`ConstantVelocityPredictor`): every dynamic vehicle keeps its last
   displacement per step (p_t - p_t-dt) and its heading.
-* ``"hybrid_astar"`` (:class:`~avp_perception.core.prediction_astar.HybridAStarPredictor`, issue #4): for
+* ``"hybrid_astar"`` (:class:`~avp_perception.core.prediction_astar.HybridAStarPredictor`): for
   every intention >= mu a path from the vehicle to the goal planned with the ego planner's Hybrid A*
   (§V-D), followed at v_hat; constant velocity when no path is found (see that module).
-* ``"learned"`` (:class:`~avp_perception.core.learned_prediction.LearnedPredictor`, issue #5): ParkPredict+'s
+* ``"learned"`` (:class:`~avp_perception.core.learned_prediction.LearnedPredictor`): ParkPredict+'s
   trajectory transformer conditioned on the same goals as the Bezier curves (§VI-B-1 "Learned Model").
 
 Pedestrians are always predicted at constant velocity from their two positions, v_hat = |p_t - p_t-dt| / dt
@@ -79,7 +79,7 @@ class HybridAStarPredictionSettings:
 
 @dataclass(frozen=True)
 class LearnedPredictionSettings:
-    """The ``"learned"`` predictor (:mod:`.learned_prediction`, issue #5): weights and inference settings."""
+    """The ``"learned"`` predictor (:mod:`.learned_prediction`): weights and inference settings."""
 
     weights: str = ""  # trajectory transformer file; empty: the shipped models/trajectory_transformer.pt, else random
     seed: int = 0  # seed of the random weights (used only without a weights file)

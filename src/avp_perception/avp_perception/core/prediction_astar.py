@@ -1,4 +1,4 @@
-"""Hybrid A* trajectory prediction (issue #4; an alternative to the Bezier curves of §V-C), ROS-free.
+"""Hybrid A* trajectory prediction (an alternative to the Bezier curves of §V-C), ROS-free.
 
 ``make_predictor("hybrid_astar", lot)``; the interface of :mod:`.prediction`: ``predict(obs, intentions,
 horizon) -> list[PredictedTrajectory]`` with ``poses[j]`` at t + (j + 1) dt.

@@ -314,7 +314,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
         if not world.free_xyc(r1[:, 0], r1[:, 1], np.cos(r1[:, 2]), np.sin(r1[:, 2]), plan.margins[k + 1:]).all():
             return False, "static obstacle on the plan"
         hit = dyn.first_collision(rest)
-        window = d.keep_plan_window  # issue #28: a plan being driven is dropped only for a meeting within it
+        window = d.keep_plan_window  # a plan being driven is dropped only for a meeting within it
         if hit >= 0 and (window <= 0 or hit * self.settings.control.dt <= window + 1e-9):
             return False, "predicted agent on the plan"
         if plan.mode == EXPLORE and plan.kind != "make_way":

@@ -1,4 +1,4 @@
-"""``make_way`` (issue #28, mechanism e): step out of the way of an agent that stands because the ego is in its path.
+"""``make_way`` (mechanism e): step out of the way of an agent that stands because the ego is in its path.
 
 The gridlock of the busy lot (docs/research/unfreezing.md): a reactive car (§III-B) stands
 because its next poses meet the ego, and the ego stands because that car blocks every plan. The simulator's agents

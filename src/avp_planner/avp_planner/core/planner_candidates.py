@@ -1,7 +1,7 @@
 """Candidates and their price (§V-D-1, §V-D-2): candidate spots I_can,0, goals, exploration points, the
 lower bound of c_park that orders the searches, and c_park of a planned path.
 
-A part of :class:`avp_planner.core.decision.EgoPlanner` (split by job, issue #17).
+A part of :class:`avp_planner.core.decision.EgoPlanner` (split by job).
 """
 
 from __future__ import annotations
@@ -90,7 +90,7 @@ class CandidatesMixin:
     def _price(self, path: Path, world: StaticWorld, dyn: DynamicObstacles, v0: float):
         """(cost, wait_steps, first_hit, stop_path) of the path started after the first feasible wait; (inf, -1, k,
         None) when every wait meets a predicted agent, k being the first such time index without waiting. With
-        ``wait_anywhere`` (issue #28 c) the wait may be at a stop on the way: ``stop_path`` is then the path with
+        ``wait_anywhere`` (mechanism c) the wait may be at a stop on the way: ``stop_path`` is then the path with
         that stop (:mod:`avp_planner.core.waiting`), else None."""
         cs, ctl, d = self.settings.cost, self.settings.control, self.settings.decision
         dt = ctl.dt
@@ -112,7 +112,7 @@ class CandidatesMixin:
             t_total = (len(speeds) + w) * dt
             cost = base + cs.w_time * t_total + cs.w_dynamic * dyn.proximity_cost(ego, dt)
             return cost, w, -1, None
-        if d.wait_anywhere and first_hit > 0:  # issue #28 c: stop on the way and wait there
+        if d.wait_anywhere and first_hit > 0:  # mechanism c: stop on the way and wait there
             found = stop_and_wait(path, speeds, first_hit, dyn, ctl, d, v0)
             if found is not None:
                 stop_path, w, ego = found

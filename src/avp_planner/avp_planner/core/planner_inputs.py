@@ -1,7 +1,7 @@
 """The planner's inputs (§V-D): checks, beliefs from observation, the static world (spots with b >= β,
 static vehicles) and the dynamic obstacles (predictions, constant-velocity fallbacks).
 
-A part of :class:`avp_planner.core.decision.EgoPlanner` (split by job, issue #17).
+A part of :class:`avp_planner.core.decision.EgoPlanner` (split by job).
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ drive the candidate that is hit latest or never; ``dynamic_as_static_fallback`` 
 predicted agents only, search once more with the agents that stand still as static obstacles (a detour round a
 stopped car).
 
-A part of :class:`avp_planner.core.decision.EgoPlanner` (split by job, issue #17).
+A part of :class:`avp_planner.core.decision.EgoPlanner` (split by job).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ class SafetyMixin:
         if dyn.empty:
             return None
         standing = dyn.first_collision(np.repeat(ego[None], dyn.horizon + 2, axis=0))
-        limit = self.settings.decision.evasive_horizon  # issue #28: only an imminent hit (0: any)
+        limit = self.settings.decision.evasive_horizon  # only an imminent hit (0: any)
         if standing < 0 or (limit > 0 and standing * self.settings.control.dt > limit + 1e-9):
             return None
         t0 = time.perf_counter()
@@ -64,7 +64,7 @@ class SafetyMixin:
         return plan
 
     def _creep(self, st) -> _Plan | None:
-        """``deadlock_breaker`` (issue #28 mechanism d): once the ego has stood ``stuck_time``, the blocked plan
+        """``deadlock_breaker`` (mechanism d): once the ego has stood ``stuck_time``, the blocked plan
         that meets the predictions latest, tracked at ``creep_speed``, if its next ``creep_check_time`` seconds meet
         no predicted agent (any hypothesis, margins as usual) and no static obstacle; None otherwise. Re-decided
         every step: the ego stops as soon as the check fails (braking from 0.5 m/s takes 0.25 s)."""

@@ -1,7 +1,7 @@
 """The searches of one decision (§V-D): Hybrid A* over a candidate set with branch and bound, adopting the
 best feasible plan, exploring.
 
-A part of :class:`avp_planner.core.decision.EgoPlanner` (split by job, issue #17).
+A part of :class:`avp_planner.core.decision.EgoPlanner` (split by job).
 """
 
 from __future__ import annotations
@@ -98,7 +98,7 @@ class SearchMixin:
             traj = track(cand.path, self.settings.control, self.settings.vehicle.max_curvature, obs.ego_speed)
             timing["path_planning_time"] += time.perf_counter() - t0
             unwaited, wait_from = traj.states, 0
-            if cand.wait_steps and cand.wait_on_path:  # issue #28 c: stand at the path's stop
+            if cand.wait_steps and cand.wait_on_path:  # mechanism c: stand at the path's stop
                 at = stop_index(traj.controls[:, 0], traj.dt, cand.path.stops[0])
                 st, ctl = insert_wait(traj.states, traj.controls, at, cand.wait_steps)
                 traj, wait_from = Trajectory(ctl, st, traj.dt), at + 1

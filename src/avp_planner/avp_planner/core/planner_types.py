@@ -63,8 +63,8 @@ class _Plan:
     index: int = 0  # next control to send
     path_length: float = 0.0
     note: str = ""
-    wait_steps: int = 0  # a wait-and-go plan: the steps it stands (decision trace, issue #28) ...
-    wait_from: int = 0  # ... from this control on (0: at its start; > 0: at a stop on the way, issue #28 c)
+    wait_steps: int = 0  # a wait-and-go plan: the steps it stands (decision trace) ...
+    wait_from: int = 0  # ... from this control on (0: at its start; > 0: at a stop on the way, mechanism c)
     kind: str = ""  # "detour" / "evasive": how it was found (the trace's mode); "" = its mode
     wait_cause: dict = field(default_factory=dict)  # who it waits for (avp_planner.core.trace.blocker_trace)
 
@@ -81,7 +81,7 @@ class _Candidate:
     wait_steps: int
     front: bool = True
     first_hit: int = -1  # blocked plans: first time index at which a predicted agent meets it (no wait)
-    wait_on_path: bool = False  # the wait is at path.stops[0], not at the start (issue #28 c)
+    wait_on_path: bool = False  # the wait is at path.stops[0], not at the start (mechanism c)
 
 
 @dataclass

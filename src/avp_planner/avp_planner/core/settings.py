@@ -60,7 +60,7 @@ class DecisionSettings:
     fallback_horizon: float = 3.0  # seconds of the fallback constant-velocity prediction
     dynamic_as_static_fallback: bool = True  # replan around current agent footprints if all plans are blocked
     # in that round a road ahead blocked by standing agents counts as blocked by agents (§V-D-2 "only ... if the road
-    # ahead of it stays blocked"): exploring behind waits as in the first round; false: at once (before issue #21)
+    # ahead of it stays blocked"): exploring behind waits as in the first round; false: at once (as before v0.2.0)
     detour_waits_to_turn_back: bool = True  # that round turns back only after the front stayed blocked 3 s (§V-D-2)
     fallback_time_cap: float = 0.05  # seconds for that second round of searches
     fallback_max_iterations: int = 300  # node pops per search in that round
@@ -70,20 +70,20 @@ class DecisionSettings:
     park_retry_steps: int = 5  # while exploring, parking is re-tried at least this often (and on any change)
     idle_replan_steps: int = 1  # after an idle decision (no safe plan) search again only this many steps later
     spot_selector: str = "auto"  # §V-D-1 spot choice: auto, c_park, ego_intention or a plugin (avp.spot_selectors)
-    # issue #28 mechanism a (beyond §V-D, which predicts every car along its intentions): a car standing or braking
+    # mechanism a (beyond §V-D, which predicts every car along its intentions): a car standing or braking
     # with the ego ahead of it within yield_lookahead is predicted to keep standing — the reactive agents of §III-B
     # stop for the ego — its footprint grown forward by yield_margin (it may roll on while braking); false = the paper
     assume_yielding: bool = False  # mechanism a: a car standing/braking with the ego ahead keeps standing (§V-C: no)
     yield_lookahead: float = 10.0  # m ahead of the car (its front) in which the ego counts as what it stops for
     yield_margin: float = 1.0  # m: braking margin added in front of a car assumed to yield
-    # issue #28 mechanism d (beyond §V-D-3 "the ego would stay put"): after stuck_time s without moving, creep along
+    # mechanism d (beyond §V-D-3 "the ego would stay put"): after stuck_time s without moving, creep along
     # the blocked plan that meets the predictions latest at creep_speed, each step only while its next
     # creep_check_time s meet no predicted agent (every hypothesis) and no static obstacle; false = the paper
     deadlock_breaker: bool = False  # mechanism d: creep along the best blocked plan after stuck_time (§V-D-3: no)
     stuck_time: float = 3.0  # s stopped (idle or waiting) before creeping
     creep_speed: float = 0.5  # m/s
     creep_check_time: float = 2.0  # s of the creep checked hard against every hypothesis, each step
-    # issue #28 mechanism e (beyond §V-D-3 "the ego would stay put"): after make_way_after s without moving, if a
+    # mechanism e (beyond §V-D-3 "the ego would stay put"): after make_way_after s without moving, if a
     # standing car's corridor (its footprint swept make_way_reach m along its travel) holds the ego, drive the shortest
     # short manoeuvre that ends clear of that corridor swept make_way_clear m and meets no prediction, then stand
     # there until that car has moved 1 m or make_way_hold s have passed (avp_planner.core.making_way)
@@ -92,11 +92,11 @@ class DecisionSettings:
     make_way_reach: float = 3.0  # m of a standing car's path in which the ego counts as in its way
     make_way_clear: float = 8.0  # m of that path the ego's end pose must be clear of
     make_way_hold: float = 5.0  # s at most to stand aside after the manoeuvre
-    # issue #28 (debouncing, beyond §V-D's re-check of the whole plan against every prediction at every step): a plan
+    # debouncing (beyond §V-D's re-check of the whole plan against every prediction at every step): a plan
     # already being driven is dropped only when a predicted meeting comes within keep_plan_window s; a later one is
     # tolerated and re-checked next step (a new plan must still meet nothing); 0 = the paper
     keep_plan_window: float = 0.0  # s of the driven plan that must stay clear to keep it (0: all of it)
-    # issue #28 mechanism c (beyond §V-D-1's wait before starting, after Nawaz et al.): when every start wait fails,
+    # mechanism c (beyond §V-D-1's wait before starting, after Nawaz et al.): when every start wait fails,
     # stop on the path wait_stop_offsets m short of the first meeting and wait there 0 .. max_wait
     wait_anywhere: bool = False  # mechanism c: wait at a stop on the path, not only before starting (§V-D-1: no)
     wait_stop_offsets: tuple[float, ...] = (1.0, 2.5, 4.0)  # m of arc length short of the first meeting

@@ -1,4 +1,4 @@
-"""Why the ego is not moving (issue #28): the decision trace of every step, and its per-episode summary.
+"""Why the ego is not moving (docs/stuck_ego.md): the decision trace of every step, and its per-episode summary.
 
 Every :class:`~avp_planner.core.planner_types.Decision` carries ``trace``: the step's **mode** —
 
@@ -7,8 +7,8 @@ Every :class:`~avp_planner.core.planner_types.Decision` carries ``trace``: the s
   wait-and-go, our ``max_wait``);
 * ``detour``: driving a plan found with the standing agents as static obstacles (``dynamic_as_static_fallback``);
 * ``evasive``: driving away because standing still is predicted to be hit (``evasive``);
-* ``creep``: inching along the best blocked plan after standing ``stuck_time`` (``deadlock_breaker``, issue #28 d);
-* ``make_way``: stepping out of the way of a standing car that waits for the ego (``make_way``, issue #28 e);
+* ``creep``: inching along the best blocked plan after standing ``stuck_time`` (``deadlock_breaker``, mechanism d);
+* ``make_way``: stepping out of the way of a standing car that waits for the ego (``make_way``, mechanism e);
 * ``idle``: u = 0 (§V-D-3); ``parked``: at the end of the parking plan —
 
 and, for every idle or waiting step, the **cause**:

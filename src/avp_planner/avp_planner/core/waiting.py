@@ -1,4 +1,4 @@
-"""Issue #28 mechanism c — waiting anywhere on the path (``decision.wait_anywhere``; off = the paper).
+"""Mechanism c (docs/experiment.md) — waiting anywhere on the path (``decision.wait_anywhere``; off = the paper).
 
 §V-D-1 prices a Hybrid A* path with its speed profile and, if it meets a predicted agent, tries starting it after
 a wait (Nawaz et al.'s wait-and-go, 0 .. ``max_wait``): the ego can only wait where it stands. Here, when every

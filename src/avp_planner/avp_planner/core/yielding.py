@@ -1,4 +1,4 @@
-"""Issue #28 mechanism a — agents that yield to the ego (``decision.assume_yielding``; off = the paper).
+"""Mechanism a (docs/experiment.md) — agents that yield to the ego (``decision.assume_yielding``; off = the paper).
 
 §V-C predicts every car along its intentions and §V-D keeps the ego out of every predicted trajectory. The
 reactive agents of §III-B (and of our simulator) do something else: a car stops while the ego is in its way. When
@@ -48,7 +48,7 @@ def yielding_predictions(obs: Observation, predictions: list[PredictedTrajectory
 
 
 class ReactionEvidence:
-    """Agents seen to stop for the ego (``collision.reactive_evidence``, issue #28).
+    """Agents seen to stop for the ego (``collision.reactive_evidence``).
 
     ``collision.reactive_steps`` assumes §III-B's braking rule of every agent. That is a bet: where the agents do
     not react (the non-reactive protocol, a driver who has not seen the ego) the ego drives into their way. Here the

@@ -1,4 +1,4 @@
-"""The ``busy`` scenario family (issue #18): a lot as busy as the DLP dataset's, beyond the paper's experiment.
+"""The ``busy`` scenario family: a lot as busy as the DLP dataset's, beyond the paper's experiment.
 
 The paper names as limitations of its experiment the small lot, no pedestrians and no exiting vehicles (§VII).
 A busy episode has all three, on any lot (the whole DLP lot, ``dlp_lot.yaml``, is the one it is meant for):

@@ -226,7 +226,7 @@ def _valid_dynamic(lot: LotMap, agent: VehicleAgent, ego_start: np.ndarray, ego:
                    params: ScenarioParams, others: list[VehicleAgent],
                    plans: dict[int, np.ndarray] | None = None) -> bool:
     """Whether ``agent``'s plan stays in the lot, starts clear of the ego and never meets the plans of ``others``.
-    ``plans``: the accepted agents' rolled-out states by vehicle id, filled as they are met (issue #27: a request
+    ``plans``: the accepted agents' rolled-out states by vehicle id, filled as they are met (a request
     of n vehicles then rolls out n plans, not n^2/2); pairs whose whole sweeps are apart are not tested further."""
     hist = int(round(params.t_hist / params.dt))
     states = plan_states(agent, dt=params.dt)

@@ -1,7 +1,7 @@
 """Hand-written scenarios (a YAML file, or the text of a ``reset_episode`` request): validation and building.
 
-:func:`scenario_from_dict` checks the counts first (vehicles, vacant spot ids: bounded work per request, issues
-#20 and #27), then every field, naming the source and the field at fault, and builds the scenario with the
+:func:`scenario_from_dict` checks the counts first (vehicles, vacant spot ids: bounded work per request, even
+a hostile one), then every field, naming the source and the field at fault, and builds the scenario with the
 building blocks of :mod:`avp_sim.core.scenario` (the same vehicles, plans and validity rule as §VI-A's protocol).
 """
 
@@ -25,7 +25,7 @@ from avp_world.geometry import polygon_contains_points, rect_corners
 from avp_world.lot import LotMap
 from avp_world.vehicle import VehicleSpec
 
-MAX_DYNAMIC_VEHICLES = 64  # a scenario file's dynamic vehicles (bounded work per request, issue #20)
+MAX_DYNAMIC_VEHICLES = 64  # a scenario file's dynamic vehicles (bounded work per request)
 MAX_EGOS = 8  # egos of one lot (avp_sim.core.egos): ego_start's and those of ``egos``
 
 #: keys of a scenario file and of each dynamic_vehicles entry
@@ -68,7 +68,7 @@ def scenario_from_dict(lot: LotMap, data: dict, source: str, seed: int, reactive
     unknown = sorted(set(data) - _FILE_KEYS)
     if unknown:
         raise ScenarioError(f"{source}: '{unknown[0]}': unknown key (known: {sorted(_FILE_KEYS)})")
-    # counts first (issue #27): bounded work before any element is looked at
+    # counts first: bounded work before any element is looked at (docs/bad_input.md row 50)
     n_dyn = len(data["dynamic_vehicles"]) if isinstance(data.get("dynamic_vehicles"), list) else 0
     if n_dyn > MAX_DYNAMIC_VEHICLES:
         raise ScenarioError(f"{source}: dynamic_vehicles: {n_dyn} vehicles, at most {MAX_DYNAMIC_VEHICLES}")

@@ -1,4 +1,4 @@
-"""Where a requested scenario may come from (issue #20 item 4): served directories or the request's own text.
+"""Where a requested scenario may come from: served directories or the request's own text.
 
 The simulator's ``reset_episode`` service is open to any process on the DDS domain, so a scenario named in a
 request is never opened as given. A name is looked up only inside the directories the simulator is configured to
@@ -21,8 +21,8 @@ from avp_sim.core.scenario import ScenarioError
 from avp_world.safe_yaml import YamlInputError, load_bounded, read_bounded
 
 DEFAULT_MAX_BYTES = 1_000_000
-#: YAML nodes and nesting a scenario may have (issue #27): 5 000 vacant spot ids + 64 vehicles x 11 nodes fit
-#: three times over; a larger or deeper request is refused after at most this many parser events (< 20 ms)
+#: YAML nodes and nesting a scenario may have (docs/bad_input.md row 50): 5 000 vacant spot ids + 64 vehicles x 11 nodes
+#: fit three times over; a larger or deeper request is refused after at most this many parser events (< 20 ms)
 MAX_SCENARIO_NODES = 16_384
 MAX_SCENARIO_DEPTH = 8
 

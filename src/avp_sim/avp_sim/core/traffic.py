@@ -1,4 +1,4 @@
-"""Seeded parking-lot traffic for the intent model's training data (issue #4), as plans of eq. (1).
+"""Seeded parking-lot traffic for the intent model's training data (docs/intent_model.md), as plans of eq. (1).
 
 Every car is a :class:`~avp_sim.core.scenario.VehicleAgent` (initial state + control plan), so the existing
 :class:`~avp_sim.core.world.World` simulates it (reactive braking for the ego included, §III-B). Kinds:
