@@ -92,3 +92,16 @@ columns:
     # a second invocation finds every episode done and runs none
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0 and "0 to run" in r.stdout and "1 to run" not in r.stdout
+    # the suite's one pool ran blind's episode on the worker bezier's settings had set up: the record is the one
+    # blind's cell gives with a pool of its own (timings aside)
+    alone = tmp_path / "alone"
+    r = subprocess.run([sys.executable, "-m", "avp_experiment.runner", "--protocol", "paper", "--mode", "non-reactive",
+                        "--scenarios", "1", "--t-final", "100", "--methods", "blind", "--out", str(alone),
+                        "--workers", "1", "--no-progress"], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+
+    def bare(folder):
+        rec = json.loads((folder / "episodes.jsonl").read_text().splitlines()[0])
+        return {k: v for k, v in rec.items() if k not in ("timings", "wall_time", "wall_s")}
+
+    assert bare(out / "paper" / "blind") == bare(alone)

@@ -91,8 +91,9 @@ def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], 
             if not runs_in(row, col):
                 continue
             cell = parse(cell_argv(col, row, args.quick))
-            for keep in ("workers", "backend", "address", "no_progress", "transport", "intent_weights"):
-                setattr(cell, keep, getattr(args, keep))
+            for keep in ("workers", "backend", "address", "no_progress", "transport", "intent_weights",
+                         "shared_pool"):  # the last: one pool for every cell (avp_experiment.pool)
+                setattr(cell, keep, getattr(args, keep, None))
             cell.out = str(out / col["id"] / row["id"])
             print(f"[avp experiment] suite {suite['name']}: {col['id']} / {row['id']}", file=sys.stderr, flush=True)
             r = run_one(cell)

@@ -26,9 +26,7 @@ import json
 import sys
 import time
 from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
-from multiprocessing import get_context
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -79,12 +77,15 @@ SEEDS_FILE = "seeds.json"
 
 
 def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callable[[dict], None],
-               sources: dict[str, str] | None = None) -> list[str]:
-    """Run ``keys`` in ``workers`` processes (0: in this process), calling ``on_record`` as each finishes.
+               sources: dict[str, str] | None = None, pool: ProcessPoolExecutor | None = None) -> list[str]:
+    """Run ``keys`` in ``workers`` processes (0: in this process), calling ``on_record`` as each finishes; ``pool``:
+    a pool shared with other runs (:func:`.pool.shared_pool`) instead of one of this run's own.
 
     An episode that raises is reported on stderr (method, seed, mode and the error, one line) and left out of
     the results, so the same command retries it; the others go on. Returns those error lines.
     """
+    from avp_experiment.pool import collect, make_pool
+
     errors: list[str] = []
 
     def failed(key: Key, exc: BaseException) -> None:
@@ -92,6 +93,9 @@ def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callabl
         errors.append(line)
         print(f"[avp experiment] {line}", file=sys.stderr, flush=True)
 
+    if pool is not None:
+        collect({pool.submit(episode_in_worker, k, cfg, sources or {}): k for k in keys}, on_record, failed)
+        return errors
     if workers <= 0:
         _init_worker(cfg, sources=sources)
         for k in keys:
@@ -102,34 +106,11 @@ def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callabl
                 continue
             on_record(r)
         return errors
-    ctx = get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
-                             initargs=(cfg, True, sources)) as pool:
-        pending = {pool.submit(_worker_episode, k): k for k in keys}
+    with make_pool(workers, _init_worker, (cfg, True, sources)) as own:
         try:
-            while pending:
-                done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for f in done:
-                    key = pending.pop(f)
-                    try:
-                        r = f.result()
-                    except BrokenProcessPool:
-                        raise
-                    except Exception as exc:  # noqa: BLE001 - see the docstring
-                        failed(key, exc)
-                        continue
-                    on_record(r)
-        except KeyboardInterrupt:
-            running = {f for f in pending if not f.cancel()}
-            print(f"\n[avp experiment] interrupted: finishing the {len(running)} running episode(s)", file=sys.stderr)
-            for f in running:
-                try:
-                    on_record(f.result())
-                except Exception:  # noqa: BLE001 - keep what finished, report the interruption
-                    pass
-            raise
+            collect({own.submit(_worker_episode, k): k for k in keys}, on_record, failed)
         except BaseException:
-            pool.shutdown(wait=False, cancel_futures=True)  # never wait for the whole queue to run unrecorded
+            own.shutdown(wait=False, cancel_futures=True)  # never wait for the whole queue to run unrecorded
             raise
     return errors
 
@@ -205,7 +186,12 @@ def run_experiment(args: argparse.Namespace) -> dict:
 
         if getattr(args, "sweep", None) or getattr(args, "ablation", False):
             raise ValueError("--suite runs its own grid: no --sweep or --ablation with it")
-        return run_suite(args, run_experiment, _cell_args)
+        from avp_experiment.pool import shared_pool
+
+        local = getattr(args, "backend", "local") == "local" and args.transport == "inproc"
+        with shared_pool(args.workers if local else 0) as pool:  # one pool for every cell (.pool)
+            args.shared_pool = pool
+            return run_suite(args, run_experiment, _cell_args)
     if getattr(args, "quick", False):
         raise ValueError("--quick is for --suite")
     if getattr(args, "sweep", None) or getattr(args, "ablation", False):
@@ -300,7 +286,8 @@ def _run_locked(args: argparse.Namespace, out: Path, cfg: RunConfig, profiles: l
 
                 errors = run_ray(todo, cfg, on_record, getattr(args, "address", None), args.workers, sources)
             elif args.transport == "inproc":
-                errors = run_inproc(todo, cfg, args.workers, on_record, sources)
+                errors = run_inproc(todo, cfg, args.workers, on_record, sources,
+                                    getattr(args, "shared_pool", None))
             else:  # a plugin transport (.transports): the live DDS graph's is avp_bringup's
                 from avp_experiment.transports import load_transport
 

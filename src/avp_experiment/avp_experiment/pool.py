@@ -1,0 +1,76 @@
+"""The local backend's worker processes (``avp experiment --workers N``): one pool per run, or one for a whole suite.
+
+:func:`~.runner.run_inproc` makes a pool for its run. A suite (``--suite``, :mod:`.headline`) runs dozens of cells,
+many of a few episodes (``--quick``), and starting two workers (torch, the intent CNN, the lot) took about as long as
+a small cell's episodes: :func:`shared_pool` keeps one pool for every cell, and each cell's episodes go to it with
+their cell's settings (:func:`~.episodes.episode_in_worker`: a worker sets itself up again only when the settings
+change, as a Ray worker does). Which worker runs an episode never changes its record.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+from collections.abc import Callable, Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from multiprocessing import get_context
+
+from avp_experiment.run_config import Key
+
+
+def _ignore_sigint() -> None:
+    """A pool worker leaves Ctrl-C to the parent, which lets the running episodes finish and records them."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def make_pool(workers: int, initializer: Callable | None = None, initargs: tuple = ()) -> ProcessPoolExecutor:
+    """``workers`` spawned processes (torch and a forked parent do not mix)."""
+    return ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"),
+                               initializer=initializer or _ignore_sigint, initargs=initargs)
+
+
+@contextlib.contextmanager
+def shared_pool(workers: int) -> Iterator[ProcessPoolExecutor | None]:
+    """One pool for several runs (None when ``workers`` <= 0: the runs go in this process)."""
+    if workers <= 0:
+        yield None
+        return
+    pool = make_pool(workers)
+    try:
+        yield pool
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def collect(pending: dict[Future, Key], on_record: Callable, failed: Callable[[Key, BaseException], None]) -> None:
+    """Hand each finished episode's record to ``on_record`` as it comes, and each error to ``failed``. On Ctrl-C the
+    queued episodes are cancelled and the running ones recorded; on any other exception the queued ones are
+    cancelled, so that nothing runs unrecorded."""
+    try:
+        while pending:
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for f in done:
+                key = pending.pop(f)
+                try:
+                    r = f.result()
+                except BrokenProcessPool:
+                    raise
+                except Exception as exc:  # noqa: BLE001 - one episode's bug must not stop the sweep
+                    failed(key, exc)
+                    continue
+                on_record(r)
+    except KeyboardInterrupt:
+        running = {f for f in pending if not f.cancel()}
+        print(f"\n[avp experiment] interrupted: finishing the {len(running)} running episode(s)", file=sys.stderr,
+              flush=True)
+        for f in running:
+            with contextlib.suppress(Exception):  # keep what finished, report the interruption
+                on_record(f.result())
+        raise
+    except BaseException:
+        for f in pending:
+            f.cancel()
+        raise
