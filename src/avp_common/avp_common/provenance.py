@@ -22,3 +22,12 @@ def git_commit(root: Path) -> str:
     except OSError:
         pass
     return "unknown"
+
+
+def source_commit(source_file: str | Path) -> str:
+    """The checked-out commit of the repository that holds ``source_file`` (the first folder above it with a .git;
+    the file's real path, so a colcon symlink install finds the source tree); "unknown" outside one."""
+    for folder in Path(source_file).resolve().parents:
+        if (folder / ".git").is_dir():
+            return git_commit(folder)
+    return "unknown"

@@ -219,9 +219,9 @@ class ResultsWriter:
 
 def code_commit() -> str:
     """The checked-out commit of the code this process runs (read when the run starts)."""
-    from avp_common.provenance import git_commit
+    from avp_common.provenance import source_commit
 
-    return git_commit(Path(__file__).resolve().parents[4])
+    return source_commit(__file__)
 
 
 def log_invocation(out: Path, args: argparse.Namespace, started: str, wall_s: float, ran: int, todo: int,

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from avp_common.provenance import git_commit
+from avp_common.provenance import source_commit
 
 SCALES = {
     # episodes per split: train, val, test, paper; max epochs
@@ -130,7 +130,7 @@ def card_provenance(prog: str, model, weights: Path, scale: str) -> dict:
         "parameters": int(sum(p.numel() for p in model.parameters())),
         "weights_bytes": weights.stat().st_size,
         "command": f"avp {prog} " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if len(sys.argv) > 1 else "",
-        "commit": git_commit(Path(__file__).resolve().parents[3]),
+        "commit": source_commit(__file__),
         "scale": scale,
     }
 
