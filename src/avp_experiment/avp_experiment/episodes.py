@@ -58,12 +58,12 @@ _WORKER: dict[str, Any] = {}
 
 
 def _init_worker(cfg: RunConfig, pool_worker: bool = False, sources: dict[str, str] | None = None) -> None:
-    import signal
-
     import torch
 
-    if pool_worker:  # Ctrl-C is the parent's: it lets the running episodes finish and records them
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if pool_worker:
+        from avp_experiment.pool import ignore_sigint
+
+        ignore_sigint()
 
     torch.set_num_threads(1)
     from avp_sim.core.factory import load_lot_param

@@ -118,11 +118,9 @@ def main(argv: list[str] | None = None) -> int:
     failed = sorted((r for r in records if not r["success"]), key=lambda r: (r["seed"], r["mode"], r["method"]))
     seeds = sorted({int(r["seed"]) for r in records})
     if args.workers > 0 and failed:
-        from concurrent.futures import ProcessPoolExecutor
-        from multiprocessing import get_context
+        from avp_experiment.pool import make_pool
 
-        with ProcessPoolExecutor(args.workers, mp_context=get_context("spawn"), initializer=_init_worker,
-                                 initargs=(cfg, True)) as pool:
+        with make_pool(args.workers, _init_worker, (cfg, True)) as pool:
             rows = list(pool.map(_replay, failed))
             counts_parts = list(pool.map(_counts, [seeds[i::args.workers] for i in range(args.workers)]))
         counts: Counter = sum(counts_parts, Counter())

@@ -19,7 +19,7 @@ from multiprocessing import get_context
 from avp_experiment.run_config import Key
 
 
-def _ignore_sigint() -> None:
+def ignore_sigint() -> None:
     """A pool worker leaves Ctrl-C to the parent, which lets the running episodes finish and records them."""
     import signal
 
@@ -29,7 +29,7 @@ def _ignore_sigint() -> None:
 def make_pool(workers: int, initializer: Callable | None = None, initargs: tuple = ()) -> ProcessPoolExecutor:
     """``workers`` spawned processes (torch and a forked parent do not mix)."""
     return ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"),
-                               initializer=initializer or _ignore_sigint, initargs=initargs)
+                               initializer=initializer or ignore_sigint, initargs=initargs)
 
 
 @contextlib.contextmanager
