@@ -204,7 +204,9 @@ def test_swap_to_a_user_node_in_lockstep(ros, tmp_path):
     user = NodeSpec("minimal_planner", "avp_planner", "minimal_planner", "config/minimal_planner.param.yaml",
                     {"speed": 0.5})
     # step 0 waits for the pipeline, the user node and this monitor
-    nodes[0] = _with(nodes[0], seed=3, t_final=12.0, publish_markers=False, min_subscribers=n_obs_subs + 2,
+    # t_final: the default planner drives until the deactivation takes effect, which on a loaded machine can be 100
+    # steps after the monitor saw step 5; the episode must outlast that (seed 3's ego has not parked by then)
+    nodes[0] = _with(nodes[0], seed=3, t_final=20.0, publish_markers=False, min_subscribers=n_obs_subs + 2,
                      min_debug_subscribers=1)
     planner = next(s.name for s in nodes if s.executable == "planner")
     monitor = EpisodeMonitor()
@@ -213,9 +215,9 @@ def test_swap_to_a_user_node_in_lockstep(ros, tmp_path):
     graph.start()
     try:
         t0 = time.monotonic()
-        while (not monitor.gt or max(monitor.gt) < 20) and time.monotonic() - t0 < 120:
+        while (not monitor.gt or max(monitor.gt) < 5) and time.monotonic() - t0 < 120:
             rclpy.spin_once(monitor, timeout_sec=0.05)
-        assert monitor.gt and max(monitor.gt) >= 20, "the episode did not start"
+        assert monitor.gt and max(monitor.gt) >= 5, "the episode did not start"
         assert client.state(f"/avp/{planner}") == "active"
         assert client.state("/avp/minimal_planner") == "unconfigured"
         client.change(f"/avp/{planner}", "deactivate")
@@ -254,10 +256,11 @@ def test_swap_to_a_user_node_in_lockstep(ros, tmp_path):
     assert steps == list(range(steps[-1] + 1)) and monitor.status.state != 3  # every step, no collision
     assert steps[-1] >= monitor.status.step, (steps[-1], monitor.status.step)  # up to the episode's last
     # after the swap: the example planner's commands, v in {0, 0.5}, omega = 0 (straight line)
+    assert k_off < monitor.status.step, "the episode ended before the swap: nothing shows the user node driving"
     after = np.array([poses[k] for k in steps if k >= k_off])
     d = np.linalg.norm(np.diff(after[:, :2], axis=0), axis=1)
     assert np.all(np.isclose(d, 0.0, atol=1e-9) | np.isclose(d, 0.05, atol=1e-9)), d
-    assert np.allclose(after[:, 2], after[0, 2], atol=1e-12) and d.sum() > 0.5
+    assert np.allclose(after[:, 2], after[0, 2], atol=1e-12) and np.isclose(d, 0.05, atol=1e-9).sum() >= 10, (k_off, d)
 
 
 def test_swap_planner_profile_in_realtime(ros, tmp_path):
