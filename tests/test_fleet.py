@@ -197,7 +197,6 @@ def test_avp_experiment_runs_fleets_with_a_record_per_ego_and_resumes(tmp_path, 
     (["--egos", "9", "--methods", "blind"], "--egos: expected 1..8"),
     (["--fleet", "blind,,bezier"], "--fleet: expected comma-separated"),
     (["--fleet", "blind,bezier", "--egos", "3"], "--fleet names 2 methods but --egos is 3"),
-    (["--egos", "2", "--methods", "blind", "--transport", "ros"], "the experiment runs fleets in process"),
 ])
 def test_bad_fleet_arguments_get_one_line(tmp_path, capsys, args, needle):
     from avp_experiment.runner import main
@@ -261,6 +260,30 @@ def test_reserve_needs_several_egos_and_stays_out_of_the_live_graph():
     assert [p.name for p in run] == ["bezier", "reserve"] and not skipped
     with pytest.raises(ProfileError, match="in process only"):
         method_node_params(load_profile("reserve"))
+    run, skipped = resolve_methods("bezier,reserve", transport="ros", egos=2)  # the book is kept in process
+    assert [p.name for p in run] == ["bezier"] and "--transport inproc only" in skipped["reserve"]
+
+
+def test_the_simulator_names_which_ego_each_braking_agent_brakes_for(paper_lot):
+    """debug/braking_for (several egos) carries World.braking_for as (agent id, ego) pairs in its row-major order,
+    which the DDS transport's collector feeds to the gridlock metric as the in-process fleet does."""
+    pytest.importorskip("rclpy")
+    from builtin_interfaces.msg import Time
+
+    from avp_experiment.fleet_metrics import wait_edges
+    from avp_sim.sim_node import braking_for_msg
+
+    w = World(paper_lot, _scene(paper_lot, [17], [{"start": [21.5, 20.0, UP], "enter_at": 0.0}]),
+              WorldConfig(n_egos=2))
+    assert braking_for_msg(w, Time()).agent_ids.tolist() == []
+    rows = np.array([0, len(w.states) - 1])  # any two of its cars (the message does not ask why they brake)
+    w.braking_for[rows[0], 1] = w.braking_for[rows[1], 0] = w.braking_for[rows[1], 1] = True
+    msg = braking_for_msg(w, Time())
+    ids = [int(w.vehicle_ids[r]) for r in rows]
+    assert list(zip(msg.agent_ids, msg.ego_indices, strict=True)) == [(ids[0], 1), (ids[1], 0), (ids[1], 1)]
+    assert msg.step == w.step_index
+    assert waits_for(w, {}) == wait_edges([], zip(msg.agent_ids, msg.ego_indices, strict=True), EGO_ID_BASE) == {
+        ("agent", ids[0]): {("ego", 1)}, ("agent", ids[1]): {("ego", 0), ("ego", 1)}}
 
 
 def test_the_live_graph_of_k_egos_its_topics_and_its_frames():

@@ -5,7 +5,8 @@
   (:func:`avp_experiment.fleet.run_fleet_inproc`) bit for bit, ego by ego;
 * lock-step waits for every driving ego's command, and after ``lockstep_timeout`` names the egos that did not
   answer; a command for ego 0 tagged with ego 1's key (ego 1's planner, or a copy of its command) is dropped;
-* keys: a node in /avp/ego<i> tags with ego i's key, which verifies on ego i's topics only.
+* keys: a node in /avp/ego<i> tags with ego i's key, which verifies on ego i's topics only;
+* ``avp experiment --transport ros --egos 2`` gives the in-process fleet's records, spots lost and gridlock included.
 """
 
 from __future__ import annotations
@@ -102,6 +103,33 @@ def test_two_egos_over_dds_match_inprocess(paper_lot, ros_env, tmp_path, monkeyp
         assert got[i].shape == expected[i].shape, (i, got[i].shape, expected[i].shape)
         assert np.array_equal(got[i], expected[i]), i  # bit-identical, ego by ego
     assert monitor.status.step == world.step_index
+
+
+def test_fleet_experiment_over_dds_gives_the_inprocess_records(paper_lot, ros_env, tmp_path, monkeypatch):
+    """The experiment's DDS transport with two egos (the fleet graph, a reset per episode, the fleet collector)
+    writes the records of the in-process fleet, field by field apart from the timings: seed 85, where ego 0 loses
+    a spot to ego 1 and one to an agent, and seed 29, where ego 1 loses one to ego 0 and times out."""
+    from avp_bringup.ros_transport import run_ros
+    from avp_experiment.fleet import fleet_label, run_fleet_inproc
+    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+
+    cfg = RunConfig(t_final=60.0)
+    label = fleet_label(["bezier", "bezier"])
+    seeds = (85, 29)
+    expected = [r for s in seeds for r in run_fleet_inproc(paper_lot, sim_values(cfg), [run_profile("bezier", cfg)] * 2,
+                                                             s, True, cfg)]
+    assert [(r["spots_lost_to_ego"], r["spots_lost_to_agent"], r["status"]) for r in expected] == [
+        (1, 1, "success"), (0, 0, "success"), (0, 0, "success"), (1, 0, "timeout")]  # what the seeds exercise
+    for k, v in ros_env.items():
+        monkeypatch.setenv(k, v)
+    got: list[dict] = []
+    run_ros([(label, s, "reactive") for s in seeds], cfg, lambda recs: got.extend(recs), tmp_path / "logs",
+            timeout=900.0, env=ros_env)
+    assert len(got) == 4
+    for g, e in zip(got, expected, strict=True):
+        assert g["transport"] == "ros" and g["timings"]["decisions"] == e["timings"]["decisions"] > 0
+        same = {k: v for k, v in g.items() if k not in ("timings", "transport")}
+        assert same == {k: v for k, v in e.items() if k not in ("timings", "transport")}, (g["seed"], g["ego"])
 
 
 def test_lockstep_waits_for_every_ego_and_names_the_late_one(ros_env, tmp_path, monkeypatch):

@@ -103,20 +103,23 @@ EGO_REMAPS = (("lot_map", f"{NAMESPACE}/lot_map"),)
 
 
 def fleet_graph(methods: list, *, deterministic: bool = False, sim_extra: dict | None = None,
-                scene: bool = False) -> list[NodeSpec]:
+                scene: bool = False, intent_weights: str | None = None, intent_seed: int | None = None
+                ) -> list[NodeSpec]:
     """The live graph of K = len(methods) egos (docs/world.md, "Several egos"): one simulator (``egos.count`` K)
     and, per ego i, the belief node, prediction node and planner of its method (:func:`method_graph`) in
     :func:`ego_namespace` (i), reading the lot's ``lot_map``. The simulator's step 0 waits for each ego's three
     observation subscribers and its cmd publisher. ``scene``: a scene node per ego too (its frames ``ego<i>/`` on the
-    one /tf, its colour; avp_viz.scene). One method gives the one-ego graph of :func:`method_graph`."""
+    one /tf, its colour; avp_viz.scene). One method gives the one-ego graph of :func:`method_graph`. ``intent_weights``,
+    ``intent_seed``: as :func:`method_graph`'s, for every ego."""
+    intent = {"intent_weights": intent_weights, "intent_seed": intent_seed}
     if len(methods) == 1:
-        return method_graph(methods[0], deterministic=deterministic, sim_extra=sim_extra)
+        return method_graph(methods[0], deterministic=deterministic, sim_extra=sim_extra, **intent)
     if not 1 <= len(methods) <= 8:
         raise ValueError(f"--egos: expected 1..8 automated cars, got {len(methods)}")
     nodes: list[NodeSpec] = []
     sim = None
     for i, m in enumerate(methods):
-        sim_i, *pipeline = method_graph(m, deterministic=deterministic)
+        sim_i, *pipeline = method_graph(m, deterministic=deterministic, **intent)
         sim = sim or sim_i
         nodes += [replace(n, namespace=ego_namespace(i), remaps=EGO_REMAPS) for n in pipeline]
         if scene:

@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 
+from avp_experiment.fleet_metrics import SpotLosses, spot_holders, trace_wait, wait_edges
 from avp_experiment.gridlock import GridlockMeter, Node
 from avp_experiment.profiles import MethodProfile
 from avp_experiment.run_config import ORACLE_HORIZON, RunConfig
@@ -66,18 +67,8 @@ def parse_fleet(spec: str, egos: int | None = None, option: str = "--fleet") -> 
 
 def _holders(world) -> dict[int, str]:
     """Spot id -> "agent" or "ego:<j>" for every spot a vehicle or ego lies inside now (§III-A's rule)."""
-    from avp_sim.core.observation import classify_world
-
-    eg = world.egos
-    rows = np.nonzero(eg.present)[0]
-    corners = np.concatenate([world.vehicle_corners(), eg.corners(rows)]) if len(rows) else world.vehicle_corners()
-    _, vehicle_spot = classify_world(world.lot, corners)
-    n = len(world.states)
-    out: dict[int, str] = {}
-    for r, row in enumerate(vehicle_spot):
-        if row >= 0:
-            out[int(world.lot.spot_ids[row])] = "agent" if r < n else f"ego:{int(rows[r - n])}"
-    return out
+    rows = np.nonzero(world.egos.present)[0]
+    return spot_holders(world.lot, world.vehicle_corners(), world.egos.corners(rows), rows)
 
 
 def waits_for(world, decisions: dict[int, object]) -> dict[Node, set[Node]]:
@@ -86,16 +77,15 @@ def waits_for(world, decisions: dict[int, object]) -> dict[Node, set[Node]]:
     from avp_planner.core.trace import step_of
     from avp_sim.core.egos import EGO_ID_BASE
 
-    edges: dict[Node, set[Node]] = {}
+    waits = []
     for i, d in decisions.items():
         _, tr, still = step_of(d)
-        agent = tr.get("agent_id")
-        if still and agent is not None and int(agent) >= 0 and not tr.get("pedestrian"):
-            a = int(agent)
-            edges.setdefault(("ego", i), set()).add(("ego", a - EGO_ID_BASE) if a >= EGO_ID_BASE else ("agent", a))
-    for r, j in zip(*np.nonzero(world.braking_for), strict=True):
-        edges.setdefault(("agent", int(world.vehicle_ids[r])), set()).add(("ego", int(j)))
-    return edges
+        a = trace_wait(still, tr.get("agent_id"), bool(tr.get("pedestrian")))
+        if a is not None:
+            waits.append((i, a))
+    rows, egos = np.nonzero(world.braking_for)
+    return wait_edges(waits, ((int(world.vehicle_ids[r]), int(j)) for r, j in zip(rows, egos, strict=True)),
+                      EGO_ID_BASE)
 
 
 def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int, reactive: bool,
@@ -122,8 +112,7 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
     reserve = [p.coordination == "reserve" for p in profiles]
     book = SpotReservations(RESERVATION_TIMEOUT) if any(reserve) else None
     timings: list[list[dict]] = [[] for _ in range(k)]
-    target = [-1] * k  # the spot each ego is driving to park in
-    lost = [{"agent": 0, "ego": 0} for _ in range(k)]
+    losses = SpotLosses(k)  # the spot each ego is driving to park in, and the spots it lost
     meter = GridlockMeter(world.dt)
     holders: dict[int, str] = _holders(world)
     while not world.done:
@@ -146,21 +135,14 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
             if out.decision is not None:
                 traces[i].add(out.step, out.decision)
                 decisions[i] = out.decision
-                spot = int(out.decision.spot_id)
-                # a spot another vehicle already lies in is no spot to lose: only a free one becomes the target
-                if out.decision.mode == "park" and holders.get(spot) in (None, f"ego:{i}"):
-                    target[i] = spot
+                losses.decided(i, out.decision.mode == "park", int(out.decision.spot_id), holders)
         meter.add(world.step_index, waits_for(world, decisions))
         world.step_all(commands)
         if book is not None:
             for i in np.nonzero(driving & ~world.egos.driving)[0]:  # parked, crashed or timed out: its hold ends
                 book.release(int(i))
         holders = _holders(world)
-        for i in range(k):
-            who = holders.get(target[i])
-            if target[i] >= 0 and who is not None and who != f"ego:{i}":
-                lost[i]["agent" if who == "agent" else "ego"] += 1
-                target[i] = -1
+        losses.stepped(holders)
     grid = meter.summary(world.step_index)
     wall = time.perf_counter() - t0
     if keep is not None:
@@ -173,13 +155,14 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
         rec = episode_record(method=profiles[i].name, seed=seed, reactive=reactive, status=world.egos.status[i],
                              metrics=world.egos.metrics[i].as_dict(), min_ade=np.zeros(0), min_fde=np.zeros(0),
                              step_timings=timings[i], horizon=cfg.ade_horizon, transport="inproc", wall_s=wall,
-                             lot=lot_record(lot), ego_poses=np.asarray(world.log_egos)[max(entered, 0):, i],
+                             lot=lot_record(lot),
+                             ego_poses=np.asarray(world.log_egos)[entered:, i] if entered >= 0 else np.zeros((0, 3)),
                              decision_trace=traces[i].summary())
         rec.update(method=label, ego_method=profiles[i].name, ego=i, egos=k, fleet=fleet,
                    episode_s=round(world.step_index * world.dt, 3),
                    entered_s=None if entered < 0 else round(entered * world.dt, 3),
-                   final_pose=[round(float(x), 6) for x in world.egos.poses[i]],
-                   spots_lost_to_agent=lost[i]["agent"], spots_lost_to_ego=lost[i]["ego"], **grid)
+                   final_pose=None if entered < 0 else [round(float(x), 6) for x in world.egos.poses[i]],
+                   spots_lost_to_agent=losses.lost[i]["agent"], spots_lost_to_ego=losses.lost[i]["ego"], **grid)
         records.append(rec)
     return records
 

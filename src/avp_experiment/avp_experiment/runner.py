@@ -162,6 +162,9 @@ def resolve_methods(spec: str, cfg: RunConfig = RunConfig(), transport: str = "i
             why = "an oracle bound: ground truth reaches the ego in-process only (--transport inproc)"
         if not why and prof.coordination != "none" and egos == 1:
             why = f"coordinates several egos (coordination: {prof.coordination}): run it with --egos K (K >= 2)"
+        if not why and prof.coordination != "none" and transport != "inproc":
+            why = (f"coordinates several egos (coordination: {prof.coordination}) through a book kept in process: "
+                   "--transport inproc only")
         if why:
             skipped[prof.name] = why
         else:
@@ -208,9 +211,8 @@ def run_experiment(args: argparse.Namespace) -> dict:
     from avp_experiment.fleet import fleet_names, parse_fleet, run_units
 
     egos, fleet = getattr(args, "egos", 1), getattr(args, "fleet", "")
-    if (egos != 1 or fleet) and (args.transport != "inproc"):
-        raise ValueError("--egos/--fleet: the experiment runs fleets in process (--transport inproc); over DDS "
-                         "`avp launch --egos K` drives them (tests/test_fleet_dds.py checks the two agree)")
+    if (egos != 1 or fleet) and args.transport not in ("inproc", "ros"):
+        raise ValueError(f"--egos/--fleet: fleets run over --transport inproc or ros, not {args.transport!r}")
     spec = ",".join(dict.fromkeys(parse_fleet(fleet))) if fleet else args.methods
     n_egos = len(parse_fleet(fleet, egos if egos > 1 else None)) if fleet else egos
     profiles, skipped = resolve_methods(spec, cfg, args.transport, n_egos)

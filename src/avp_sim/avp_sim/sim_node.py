@@ -2,7 +2,7 @@
 
 Topics (relative; the launcher puts every node in namespace /avp):
   publishes  lot_map (LATCHED), observation, episode_status (latched), debug/ground_truth,
-             debug/markers, debug/scan, /clock
+             debug/braking_for (several egos only), debug/markers, debug/scan, /clock
   subscribes cmd (geometry_msgs/TwistStamped, header.stamp = stamp of the observation it answers)
   service    reset_episode (avp_msgs/srv/ResetEpisode)
 
@@ -30,6 +30,7 @@ from geometry_msgs.msg import Pose2D, TwistStamped
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
+from std_msgs.msg import Header
 from visualization_msgs.msg import MarkerArray
 
 from avp_common.conversions import lot_to_msg, observation_to_msg, step_to_ns, step_to_time, time_to_ns
@@ -38,7 +39,7 @@ from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
 from avp_common.qos import DEBUG, GROUND_TRUTH, LATCHED, STATUS
 from avp_common.ratelog import RateLimitedLog
-from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth
+from avp_msgs.msg import AgentState, BrakingFor, EpisodeStatus, GroundTruth
 from avp_msgs.srv import ResetEpisode
 from avp_sim.core.factory import load_lot_param, make_world, world_config
 from avp_sim.core.scenario_source import requested_scenario, served_dirs
@@ -56,6 +57,13 @@ _STATE = {RUNNING: EpisodeStatus.STATE_RUNNING, SUCCESS: EpisodeStatus.STATE_SUC
 #: matched (a test saw one of two ground-truth subscribers miss step 0). Only the first episode waits (the
 #: readers stay matched).
 SUBSCRIBER_SETTLE_S = 0.5
+
+
+def braking_for_msg(w: World, stamp) -> BrakingFor:
+    """Step k's (agent, ego) pairs of :attr:`World.braking_for`, in its row-major order (the in-process fleet's)."""
+    rows, egos = np.nonzero(w.braking_for)
+    return BrakingFor(header=Header(stamp=stamp, frame_id="map"), step=int(w.step_index),
+                      agent_ids=[int(w.vehicle_ids[r]) for r in rows], ego_indices=[int(j) for j in egos])
 
 
 class SimNode(Node):
@@ -81,6 +89,9 @@ class SimNode(Node):
                                     self._on_driver)
         self.pub_status = self.create_publisher(EpisodeStatus, "episode_status", STATUS)
         self.pub_gt = self.create_publisher(GroundTruth, "debug/ground_truth", GROUND_TRUTH)
+        # several egos: which ego each braking agent brakes for (the gridlock metric; ground truth names ego 0 only)
+        self.pub_braking_for = (self.create_publisher(BrakingFor, "debug/braking_for", GROUND_TRUTH)
+                                if self.p["egos.count"] > 1 else None)
         self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", DEBUG)
         self.pub_scan = self.create_publisher(LaserScan, "debug/scan", DEBUG)
         self.pub_clock = self.create_publisher(Clock, "/clock", 10)
@@ -150,6 +161,8 @@ class SimNode(Node):
         if first:  # before the observation's ray casting, so that it leaves as soon as the step is done
             self.debug_step = w.step_index
             self.pub_gt.publish(self._ground_truth_msg(w, stamp))
+            if self.pub_braking_for is not None:
+                self.pub_braking_for.publish(braking_for_msg(w, stamp))
         obs = w.observe(0)
         if first:
             if self.p["publish_markers"]:  # built only for a subscriber: ~30 ms a step on the DLP lot
