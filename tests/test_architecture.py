@@ -10,7 +10,8 @@ CORE_FILES = [*SRC.glob("avp_world/avp_world/**/*.py"), *SRC.glob("avp_search/av
               *SRC.glob("avp_sim/avp_sim/core/*.py"),
               *SRC.glob("avp_planner/avp_planner/core/*.py"), *SRC.glob("avp_perception/avp_perception/core/*.py"),
               SRC / "avp_planner/avp_planner/scripted_driver.py",
-              *[f for f in SRC.glob("avp_experiment/avp_experiment/*.py") if f.name != "ros_collector.py"]]
+              *[f for f in SRC.glob("avp_experiment/avp_experiment/*.py")
+                if f.name not in ("ros_collector.py", "ros_fleet_collector.py")]]  # the DDS transport's observers
 ROS_IMPORT = re.compile(r"^\s*(import|from)\s+(rclpy|avp_msgs|geometry_msgs|std_msgs|nav_msgs|sensor_msgs|"
                         r"visualization_msgs|rosgraph_msgs|builtin_interfaces)\b", re.M)
 
