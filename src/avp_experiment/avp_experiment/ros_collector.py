@@ -26,6 +26,22 @@ NAMESPACE = "/avp"
 STATE_NAMES = {2: "success", 3: "collision", 4: "timeout"}  # EpisodeStatus.STATE_*
 
 
+def deep_qos(depth: int = 2000) -> QoSProfile:
+    """Reliable, volatile, ``depth`` deep: the simulator only waits for the egos, so a deep reader history keeps every
+    step even when this process falls behind for a while (with the graph's depth 10 a busy CPU loses messages here)."""
+    return QoSProfile(depth=depth, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def status_metrics(m) -> dict:
+    """The §VI-B metrics of an avp_msgs/EpisodeMetrics as the records' dict (as EpisodeMetrics.as_dict in process)."""
+    return {"success": bool(m.success), "collision": bool(m.collision), "collision_with": m.collision_with,
+            "collision_at_fault": bool(m.collision_at_fault), "spot_stolen": bool(m.spot_stolen),
+            "parked_spot_id": int(m.parked_spot_id), "interrupted_steps": int(m.interrupted_steps),
+            "interrupted_agent_steps": int(m.interrupted_agent_steps), "parking_time": float(m.parking_time),
+            "steps": int(m.steps)}
+
+
 class EpisodeCollector(Node):
     """Debug-side observer of one episode at a time (never part of the ego)."""
 
@@ -33,10 +49,7 @@ class EpisodeCollector(Node):
         super().__init__("avp_experiment", namespace=NAMESPACE)
         self.lot = lot  # the lot record of every episode (metrics.lot_record)
         self.begin(-1, False)
-        # the simulator only waits for the ego: a deep reader history keeps every step even when this process
-        # falls behind for a while (with the graph's depth 10 a busy CPU loses messages here)
-        deep = QoSProfile(depth=2000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.VOLATILE)
+        deep = deep_qos()
         self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, deep)
         self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
         self.create_subscription(PredictedTrajectoryArray, "predictions", self._on_preds, deep)
@@ -126,12 +139,7 @@ class EpisodeCollector(Node):
                 raise RuntimeError(f"ground truth of step {k} lists other vehicles than step 0")
         gt = np.stack([self.gt[k][1] for k in range(n + 1)])
         ade, fde = prediction_errors({k: self.preds[k] for k in range(n)}, gt, ids, float(s.dt), horizon)
-        metrics = {"success": bool(m.success), "collision": bool(m.collision),
-                   "collision_with": m.collision_with, "collision_at_fault": bool(m.collision_at_fault),
-                   "spot_stolen": bool(m.spot_stolen),
-                   "parked_spot_id": int(m.parked_spot_id), "interrupted_steps": int(m.interrupted_steps),
-                   "interrupted_agent_steps": int(m.interrupted_agent_steps),
-                   "parking_time": float(m.parking_time), "steps": n}
+        metrics = status_metrics(m)
         return episode_record(method=method, seed=self.seed, reactive=self.reactive,
                               status=STATE_NAMES.get(int(s.state), str(s.state)), metrics=metrics, min_ade=ade,
                               min_fde=fde, step_timings=[self.step_timings(k) for k in range(n)], horizon=horizon,

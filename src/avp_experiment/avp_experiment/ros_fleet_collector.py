@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from avp_common.qos import STATUS
+from avp_experiment.ros_collector import NAMESPACE, STATE_NAMES, deep_qos, status_metrics
 from avp_msgs.msg import (
     AgentState,
     BrakingFor,
@@ -28,8 +28,6 @@ from avp_msgs.msg import (
     PredictedTrajectoryArray,
 )
 
-NAMESPACE = "/avp"
-STATE_NAMES = {2: "success", 3: "collision", 4: "timeout"}  # EpisodeStatus.STATE_*
 TERMINAL = (EpisodeStatus.STATE_SUCCESS, EpisodeStatus.STATE_COLLISION, EpisodeStatus.STATE_TIMEOUT)
 
 
@@ -40,9 +38,7 @@ class FleetCollector(Node):
         super().__init__("avp_experiment_fleet", namespace=NAMESPACE)
         self.k, self.lot, self.lot_rec = int(k), lot, lot_rec
         self.begin(-1, False)
-        # deep reader histories: the simulator waits for the egos only, so this process may fall behind for a while
-        deep = QoSProfile(depth=4000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.VOLATILE)
+        deep = deep_qos(4000)
         self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, deep)
         self.create_subscription(BrakingFor, "debug/braking_for", self._on_braking, deep)
         self.create_subscription(EpisodeStatus, "episode_status", self._on_lot_status, STATUS)
@@ -200,18 +196,12 @@ class FleetCollector(Node):
         out = []
         for i in range(self.k):
             st = self.status[i]
-            m = st.metrics
             e = entered[i]
             steps = self.driving_steps(i, e)
-            metrics = {"success": bool(m.success), "collision": bool(m.collision),
-                       "collision_with": m.collision_with, "collision_at_fault": bool(m.collision_at_fault),
-                       "spot_stolen": bool(m.spot_stolen), "parked_spot_id": int(m.parked_spot_id),
-                       "interrupted_steps": int(m.interrupted_steps),
-                       "interrupted_agent_steps": int(m.interrupted_agent_steps),
-                       "parking_time": float(m.parking_time), "steps": int(m.steps)}
             ego_poses = np.array([poses[i][s] for s in sorted(poses[i])]).reshape(-1, 3)
             rec = episode_record(method=profiles[i].name, seed=self.seed, reactive=self.reactive,
-                                 status=STATE_NAMES.get(int(st.state), str(st.state)), metrics=metrics,
+                                 status=STATE_NAMES.get(int(st.state), str(st.state)),
+                                 metrics=status_metrics(st.metrics),
                                  min_ade=np.zeros(0), min_fde=np.zeros(0),
                                  step_timings=[self._timings(i, s) for s in steps], horizon=horizon,
                                  transport="ros", wall_s=wall_s, lot=self.lot_rec, ego_poses=ego_poses,
