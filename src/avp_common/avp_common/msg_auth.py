@@ -14,7 +14,8 @@ one, then a count at most once a second). A copy of a message is the sender's ow
 cannot be forged without the key.
 
 Tagged: ``lot_map`` and ``observation`` (simulator), ``beliefs``, ``intentions``, ``ego_intention`` (belief
-node), ``predictions`` (prediction node), ``cmd`` (every ego node; a custom planner wraps its publisher with
+node), ``predictions`` (prediction node), ``decision`` (planner), ``reserved/observation`` (the reservation node
+of several egos), ``cmd`` (every ego node; a custom planner wraps its publisher with
 :meth:`Authenticator.publisher`). The key: 32 random bytes in ``$AVP_CMD_KEY_FILE``, default
 ``~/.local/state/avp/cmd.key``, created on first use with mode 0600 in a 0700 directory; every node of the
 user's graphs, `avp swap-planner`'s planners and custom planners read the same file — a swapped-in planner's
@@ -135,6 +136,9 @@ def sign(key: bytes, msg: Any, episode: int | None = None) -> bytes:
     base = with_episode(msg.header.frame_id, ep)
     msg.header.frame_id = f"{base}{_PLACEHOLDER.decode()}"
     data = bytearray(serialize_message(msg))
+    # DDS sends a payload padded to a multiple of 4 bytes: pad it here, so that the receiver checks the bytes tagged
+    # (a message ending in a string, avp_msgs/PlannerDecision's reason, would otherwise arrive with 1-3 bytes more)
+    data += b"\0" * (-len(data) % 4)
     span = _frame_span(data)
     assert span is not None
     tag = hmac.new(key, bytes(data), hashlib.sha256).hexdigest()[:TAG_HEX].encode()
