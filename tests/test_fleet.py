@@ -250,7 +250,7 @@ def test_reserve_hides_the_spots_other_egos_hold_and_one_ego_parks_without_a_fig
     assert recs[0]["fleet"] == "reserve,reserve"
 
 
-def test_reserve_needs_several_egos_and_stays_out_of_the_live_graph():
+def test_reserve_needs_several_egos_and_the_fleet_graph_gives_it_the_reservation_node():
     from avp_experiment.profiles import ProfileError, load_profile, method_node_params
     from avp_experiment.runner import resolve_methods
 
@@ -258,10 +258,20 @@ def test_reserve_needs_several_egos_and_stays_out_of_the_live_graph():
     assert [p.name for p in run] == ["bezier"] and "--egos" in skipped["reserve"]
     run, skipped = resolve_methods("bezier,reserve", egos=2)
     assert [p.name for p in run] == ["bezier", "reserve"] and not skipped
-    with pytest.raises(ProfileError, match="in process only"):
-        method_node_params(load_profile("reserve"))
-    run, skipped = resolve_methods("bezier,reserve", transport="ros", egos=2)  # the book is kept in process
-    assert [p.name for p in run] == ["bezier"] and "--transport inproc only" in skipped["reserve"]
+    with pytest.raises(ProfileError, match="among several egos"):
+        method_node_params(load_profile("reserve"))  # one ego alone: nobody to reserve against
+    run, skipped = resolve_methods("bezier,reserve", transport="ros", egos=2)
+    assert [p.name for p in run] == ["bezier", "reserve"] and not skipped
+    from avp_bringup.graph import fleet_graph
+
+    nodes = {n.key: n for n in fleet_graph(["bezier", "reserve", "reserve"])}
+    book = nodes["avp_reservation"]
+    assert book.extra_params["egos"] == "1,2" and book.extra_params["lockstep"] is True
+    assert nodes["avp_sim"].extra_params["min_subscribers"] == 1  # the book waits for the reserve pipelines itself
+    for key in ("avp_belief", "avp_prediction", "avp_planner"):  # ego 0 reads the simulator; 1 and 2 the book
+        assert ("observation", "reserved/observation") not in nodes[f"ego0.{key}"].remaps
+        assert ("observation", "reserved/observation") in nodes[f"ego1.{key}"].remaps
+        assert ("observation", "reserved/observation") in nodes[f"ego2.{key}"].remaps
 
 
 def test_the_simulator_names_which_ego_each_braking_agent_brakes_for(paper_lot):

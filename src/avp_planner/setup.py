@@ -26,5 +26,6 @@ setup(
         "planner = avp_planner.planner_node:main",
         "scripted_driver = avp_planner.scripted_driver_node:main",
         "minimal_planner = avp_planner.examples.minimal_planner:main",
+        "reservation = avp_planner.reservation_node:main",
     ]},
 )

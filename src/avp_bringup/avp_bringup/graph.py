@@ -78,6 +78,8 @@ def default_graph(ego: str = "planner") -> list[NodeSpec]:
 
 #: the viewers' node: /tf, /tf_static and viz/scene from the pipeline's messages; a sink, never an input
 SCENE_NODE = NodeSpec("avp_scene", "avp_viz", "scene_node", "config/scene.param.yaml")
+#: the spot-reservation book of a fleet with `reserve` egos (docs/world.md, "The spot-reservation reference")
+RESERVATION_NODE = NodeSpec("avp_reservation", "avp_planner", "reservation", "config/reservation.param.yaml")
 
 
 def with_scene(nodes: list[NodeSpec]) -> list[NodeSpec]:
@@ -118,20 +120,34 @@ def fleet_graph(methods: list, *, deterministic: bool = False, sim_extra: dict |
         raise ValueError(f"--egos: expected 1..8 automated cars, got {len(methods)}")
     nodes: list[NodeSpec] = []
     sim = None
+    reserve = [i for i, m in enumerate(methods) if _coordination(m) == "reserve"]
     for i, m in enumerate(methods):
-        sim_i, *pipeline = method_graph(m, deterministic=deterministic, **intent)
+        sim_i, *pipeline = method_graph(m, deterministic=deterministic, coordinated=i in reserve, **intent)
         sim = sim or sim_i
-        nodes += [replace(n, namespace=ego_namespace(i), remaps=EGO_REMAPS) for n in pipeline]
+        # a reserve ego's pipeline reads the observation the reservation node passes on (the held spots occupied)
+        remaps = EGO_REMAPS + ((("observation", "reserved/observation"),) if i in reserve else ())
+        nodes += [replace(n, namespace=ego_namespace(i), remaps=remaps) for n in pipeline]
         if scene:
-            nodes.append(replace(with_params(SCENE_NODE, ego_index=i), namespace=ego_namespace(i), remaps=EGO_REMAPS))
+            nodes.append(replace(with_params(SCENE_NODE, ego_index=i), namespace=ego_namespace(i), remaps=remaps))
     assert sim is not None
     n_subs = sim.extra_params.get("min_subscribers", 3) + (1 if scene else 0)
-    sim = with_params(sim, **{"egos.count": len(methods), "min_subscribers": n_subs, **(sim_extra or {})})
+    extra = {"egos.count": len(methods), "min_subscribers": 1 if reserve else n_subs, **(sim_extra or {})}
+    sim = with_params(sim, **extra)
+    if reserve:  # the spot-reservation book (avp_planner.reservation_node); it waits for their pipelines itself
+        nodes.append(with_params(RESERVATION_NODE, egos=",".join(map(str, reserve)), min_subscribers=n_subs,
+                                 lockstep=extra.get("mode", "lockstep") == "lockstep"))
     return [sim, *nodes]
 
 
+def _coordination(method) -> str:
+    from avp_experiment.profiles import MethodProfile, load_profile
+
+    return (method if isinstance(method, MethodProfile) else load_profile(method)).coordination
+
+
 def method_graph(method, *, deterministic: bool = False, intent_weights: str | None = None,
-                 intent_seed: int | None = None, sim_extra: dict | None = None) -> list[NodeSpec]:
+                 intent_seed: int | None = None, sim_extra: dict | None = None, coordinated: bool = False
+                 ) -> list[NodeSpec]:
     """The live graph of one Table I method: :func:`default_graph` ("planner") — the same four nodes
     — with the parameters of the method profile ``method`` (a name of avp_experiment/config/methods/, a profile
     file or a :class:`~avp_experiment.profiles.MethodProfile`) on its pipeline nodes
@@ -142,7 +158,7 @@ def method_graph(method, *, deterministic: bool = False, intent_weights: str | N
 
     profile = method if isinstance(method, MethodProfile) else load_profile(method)
     params = method_node_params(profile, deterministic=deterministic, intent_weights=intent_weights,
-                                intent_seed=intent_seed)
+                                intent_seed=intent_seed, coordinated=coordinated)
     nodes = [with_params(n, **params.get(n.name, {})) for n in default_graph("planner")]
     missing = set(params) - {n.name for n in nodes}
     assert not missing, f"method_node_params names nodes the graph does not have: {missing}"

@@ -117,7 +117,7 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
     holders: dict[int, str] = _holders(world)
     while not world.done:
         driving = world.egos.driving.copy()
-        commands, decisions = [], {}
+        commands, decisions, claims = [], {}, {}
         for i in range(k):
             if not driving[i]:
                 commands.append((0.0, 0.0))
@@ -129,13 +129,15 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
                 obs = book.apply(obs, i)
             out = egos[i].step(obs)
             if book is not None and reserve[i]:
-                book.update(i, out.decision, world.step_index * world.dt)
+                claims[i] = out.decision
             commands.append(out.command)
             timings[i].append(out.timings)
             if out.decision is not None:
                 traces[i].add(out.step, out.decision)
                 decisions[i] = out.decision
                 losses.decided(i, out.decision.mode == "park", int(out.decision.spot_id), holders)
+        if book is not None:  # after every ego decided: the next step's holds (SpotReservations.settle)
+            book.settle(claims, world.step_index * world.dt)
         meter.add(world.step_index, waits_for(world, decisions))
         world.step_all(commands)
         if book is not None:

@@ -269,19 +269,20 @@ NODE_NAMES = ("avp_belief", "avp_prediction", "avp_planner")  # the pipeline nod
 
 
 def method_node_params(profile: MethodProfile, *, deterministic: bool = False, intent_weights: str | None = None,
-                       intent_seed: int | None = None) -> dict[str, dict[str, Any]]:
+                       intent_seed: int | None = None, coordinated: bool = False) -> dict[str, dict[str, Any]]:
     """The parameters that make the live graph's pipeline nodes run ``profile`` (the table in the module
     docstring), keyed by node name: ``avp_belief``, ``avp_prediction``, ``avp_planner``; applied on top of each
     node's parameter file (and a user file). ``deterministic``: lift the wall-clock caps of the planner and the
     Hybrid A* predictor (:data:`DETERMINISTIC_PLANNER`, :data:`DETERMINISTIC_PREDICTION`). ``intent_weights`` /
     ``intent_seed``: the belief node's ``intent.weights`` / ``intent.seed`` (None: the parameter file's).
-    ProfileError for a profile that cannot run (not available)."""
+    ProfileError for a profile that cannot run (not available), or that coordinates egos (``coordination``)
+    outside a fleet graph that provides the coordination (``coordinated``: avp_bringup.graph.fleet_graph)."""
     if not profile.available:
         raise ProfileError(f"method {profile.name!r} is not available: {profile.unavailable_reason}")
-    if profile.coordination != "none":
+    if profile.coordination != "none" and not coordinated:
         raise ProfileError(f"method {profile.name!r} coordinates egos through the reservation book "
-                           f"(coordination: {profile.coordination}), in process only: run it with avp experiment "
-                           "--egos K --transport inproc")
+                           f"(coordination: {profile.coordination}): run it among several egos (avp launch --egos K "
+                           "--methods ..., avp experiment --egos K)")
     if profile.ground_truth:
         raise ProfileError(f"method {profile.name!r} is an oracle bound (perception.ground_truth): the live graph "
                            "never feeds ground truth to the ego; run it with avp experiment --transport inproc")

@@ -162,9 +162,6 @@ def resolve_methods(spec: str, cfg: RunConfig = RunConfig(), transport: str = "i
             why = "an oracle bound: ground truth reaches the ego in-process only (--transport inproc)"
         if not why and prof.coordination != "none" and egos == 1:
             why = f"coordinates several egos (coordination: {prof.coordination}): run it with --egos K (K >= 2)"
-        if not why and prof.coordination != "none" and transport != "inproc":
-            why = (f"coordinates several egos (coordination: {prof.coordination}) through a book kept in process: "
-                   "--transport inproc only")
         if why:
             skipped[prof.name] = why
         else:

@@ -26,7 +26,7 @@ import rclpy
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from nav_msgs.msg import Path
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
-from std_msgs.msg import ColorRGBA
+from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from avp_common.conversions import (
@@ -134,7 +134,8 @@ class PlannerNode(LifecycleNode):
         self.auth = Authenticator(self, p["auth_inputs"])  # inputs from holders of the key only, cmd tagged
         self.pub_cmd = self.auth.publisher(TwistStamped, "cmd", STEP)
         self.pub_plan = self.create_publisher(Path, "plan", STEP)
-        self.pub_decision = self.create_publisher(PlannerDecision, "decision", STEP)
+        # tagged: the spot-reservation book of several egos reads it (avp_planner.reservation_node)
+        self.pub_decision = self.auth.publisher(PlannerDecision, "decision", STEP)
         # why the ego does what it does, every step (the decision trace): mode, idle cause, blocking agent
         self.pub_trace = self.create_publisher(DecisionTrace, "~/debug/decision", STEP)
         self.trace = DecisionTrace_(0.1)
@@ -372,7 +373,7 @@ class PlannerNode(LifecycleNode):
             path.poses.append(ps)
         self.pub_plan.publish(path)
         msg = PlannerDecision()
-        msg.header = path.header
+        msg.header = Header(stamp=path.header.stamp, frame_id=with_episode("map", self.episode))  # tagged (own copy)
         msg.step = obs_msg.step
         msg.mode = MODES.get(d.mode, PlannerDecision.MODE_IDLE)
         msg.spot_id = int(d.spot_id)

@@ -6,7 +6,9 @@ that spot, and refused otherwise. An ego holds at most one spot: a new claim rel
 the ego parks, gives up the spot (its decision targets another spot, or it explores), leaves the episode, or has not
 been heard from for ``timeout`` (a dead pipeline's spot goes back to the pool). The method profile ``reserve``
 (avp_experiment/config/methods/reserve.yaml) plans only to spots it holds or that nobody holds: the spots other egos
-hold are shown to its pipeline as occupied (:meth:`SpotReservations.apply`).
+hold are shown to its pipeline as occupied (:meth:`SpotReservations.apply`). Every ego plans a step with the holds
+as they stood after the step before (:meth:`SpotReservations.settle`), in process and in the live graph
+(avp_planner.reservation_node).
 """
 
 from __future__ import annotations
@@ -87,12 +89,24 @@ class SpotReservations:
 
     def apply(self, obs: Observation, ego: int) -> Observation:
         """``obs`` with the spots other egos hold moved from vacant to occupied (what ``reserve`` plans with)."""
+        moved = self.hide(obs.vacant_spot_ids, obs.occupied_spot_ids, ego)
+        return obs if moved is None else dataclasses.replace(obs, vacant_spot_ids=moved[0], occupied_spot_ids=moved[1])
+
+    def hide(self, vacant, occupied, ego: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """(vacant, occupied) spot ids with the spots other egos hold moved from the first to the end of the second,
+        or None when no vacant spot is held (an Observation's or an avp_msgs/Observation's id lists)."""
         held = self.held_by_others(ego)
         if not held:
-            return obs
-        vac = np.asarray(obs.vacant_spot_ids, dtype=np.int64)
+            return None
+        vac = np.asarray(vacant, dtype=np.int64)
         taken = np.isin(vac, np.fromiter(held, dtype=np.int64))
         if not taken.any():
-            return obs
-        occ = np.concatenate([np.asarray(obs.occupied_spot_ids, dtype=np.int64), vac[taken]])
-        return dataclasses.replace(obs, vacant_spot_ids=vac[~taken], occupied_spot_ids=occ)
+            return None
+        return vac[~taken], np.concatenate([np.asarray(occupied, dtype=np.int64), vac[taken]])
+
+    def settle(self, decisions: dict[int, object], now: float) -> None:
+        """One step's decisions of the egos that use the book, applied in ego order after all of them decided (each
+        ego plans a step with the holds as they stood after the step before; a live graph can wait for exactly
+        that, whatever order the egos' messages arrive in)."""
+        for ego in sorted(decisions):
+            self.update(ego, decisions[ego], now)
