@@ -144,6 +144,12 @@ def _demo_nodes(args: argparse.Namespace) -> list:
     return nodes
 
 
+def _scenes_behind(recorder, monitor) -> bool:
+    """One ego with a scene node (its scenes are being recorded): fewer scenes in the bag than the episode's steps."""
+    n = recorder.counts.get("/avp/viz/scene", 0)
+    return 0 < n < int(monitor.status.metrics.steps)
+
+
 def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[int, tuple]:
     """Start the graph, run the episode to its end while the monitor and the recorder listen, write
     metrics.json and episode.png; returns (exit code, (metrics, latency, wall seconds))."""
@@ -188,7 +194,10 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
                 return 1, ()
         wall = time.monotonic() - t0
         t_end = time.monotonic()
-        while time.monotonic() - t_end < 1.0:  # drain: the last step's messages to the monitor and the bag
+        # drain: the last step's messages to the monitor and the bag, at least 1 s, and until the bag holds the scene
+        # of every step (the scene node draws step k once the planner's decision k is in: on a loaded machine that can
+        # come more than a second after the episode's end), 15 s at most
+        while time.monotonic() - t_end < 1.0 or (_scenes_behind(recorder, monitor) and time.monotonic() - t_end < 15.0):
             executor.spin_once(timeout_sec=0.05)
         latency = monitor.latency_dict(_mode(args))
         extra = {"wall_time_s": round(wall, 2), "method": _method(args), "lot": lot_record(lot),
