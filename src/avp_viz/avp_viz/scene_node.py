@@ -7,7 +7,8 @@ Topics (relative names in namespace /avp, except the two TF topics, which are gl
              viz/spots (latched, when a spot's colour changes), viz/scene (every step)
 
 A sink: nothing in the ego's pipeline reads what it publishes, so it never changes an episode. It publishes the
-transforms of step k when observation k arrives, and the scene of step k (with the spot fill, if a colour
+transforms of step k when observation k first arrives (a re-sent one sends none), and the scene of step k
+(with the spot fill, if a colour
 changed) once observation, beliefs, predictions and decision k have all arrived (in any order), or else when
 observation k + 1 does, with what came (a graph without perception or planner); each stamped with the step's
 simulated time. lot_map, observation, beliefs and
@@ -62,6 +63,7 @@ class SceneNode(Node):
         self.seen: np.ndarray | None = None  # spots the ego has observed this episode (unseen ones are drawn grey)
         self.preds: dict[int, PredictedTrajectoryArray] = {}
         self.published = -1  # the last step whose scene went out
+        self.tf_step = -1  # the last step whose transforms went out (a re-sent observation sends none)
         self.reject = RateLimitedLog(self.get_logger().error)
         self.auth = Authenticator(self, p["auth_inputs"])
         self.pub_scene = self.create_publisher(MarkerArray, "viz/scene", DEBUG)
@@ -108,8 +110,9 @@ class SceneNode(Node):
             for sid in (*obs.vacant_spot_ids, *obs.occupied_spot_ids):
                 if self.lot.has_spot(int(sid)):
                     self.seen[self.lot.spot_index(int(sid))] = True
-        if self.publish_tf:
+        if self.publish_tf and k != self.tf_step:  # one transform per step (lock-step re-sends a late observation)
             self.pub_tf.publish(scene.transforms(obs, msg.header.stamp, self.prefix))
+            self.tf_step = k
         if k - 1 in self.obs and k - 1 > self.published:  # step k - 1 is over: draw it with what came
             self._publish(k - 1, self.decisions.get(k - 1))
         self._trim()
@@ -155,7 +158,7 @@ class SceneNode(Node):
     def _forget(self) -> None:
         for d in (self.obs, self.beliefs, self.preds, self.decisions, self.traces):
             d.clear()
-        self.published, self.seen, self.levels = -1, None, None
+        self.published, self.seen, self.levels, self.tf_step = -1, None, None, -1
 
     def _trim(self) -> None:
         for d in (self.obs, self.beliefs, self.preds, self.decisions, self.traces):
