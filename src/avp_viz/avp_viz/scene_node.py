@@ -12,8 +12,8 @@ transforms of step k when observation k first arrives (a re-sent one sends none)
 changed) once observation, beliefs, predictions and decision k have all arrived (in any order), or else when
 observation k + 1 does, with what came (a graph without perception or planner); each stamped with the step's
 simulated time. lot_map, observation, beliefs and
-predictions are taken only when tagged with the user's key (``auth_inputs``); the decision is not tagged by the
-planner and only draws the plan, so it is taken from any publisher (a forged one changes the picture, never the
+predictions are taken only when tagged with the user's key (``auth_inputs``); the decision only draws the plan,
+so it is taken unchecked, from any publisher (a forged one changes the picture, never the
 ego). Bad messages are dropped with one
 rate-limited log line naming the topic; the node keeps running.
 """
