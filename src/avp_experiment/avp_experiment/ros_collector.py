@@ -33,6 +33,16 @@ def deep_qos(depth: int = 2000) -> QoSProfile:
                       durability=DurabilityPolicy.VOLATILE)
 
 
+def with_perception(timings: dict, t_obs: int | None, t_preds: int | None) -> dict:
+    """A step's planner ``timings`` with the perception's critical path added to the spot-selection time: the DDS
+    source timestamps [ns] of its predictions minus its observation (belief node, prediction node, two hops)."""
+    t = dict(timings)
+    if t_obs is not None and t_preds is not None:
+        t["perception_time"] = max(0.0, (t_preds - t_obs) * 1e-9)
+        t["spot_selection_time"] += t["perception_time"]
+    return t
+
+
 def status_metrics(m) -> dict:
     """The §VI-B metrics of an avp_msgs/EpisodeMetrics as the records' dict (as EpisodeMetrics.as_dict in process)."""
     return {"success": bool(m.success), "collision": bool(m.collision), "collision_with": m.collision_with,
@@ -103,11 +113,7 @@ class EpisodeCollector(Node):
     def step_timings(self, k: int) -> dict:
         """The planner's timings of step k with the perception's critical path (see the module docstring)
         added to the spot-selection time."""
-        t = dict(self.timings[k])
-        if k in self.t_obs and k in self.t_preds:
-            t["perception_time"] = max(0.0, (self.t_preds[k] - self.t_obs[k]) * 1e-9)
-            t["spot_selection_time"] += t["perception_time"]
-        return t
+        return with_perception(self.timings[k], self.t_obs.get(k), self.t_preds.get(k))
 
     @property
     def ended(self) -> bool:

@@ -16,7 +16,7 @@ import numpy as np
 from rclpy.node import Node
 
 from avp_common.qos import STATUS
-from avp_experiment.ros_collector import NAMESPACE, STATE_NAMES, deep_qos, status_metrics
+from avp_experiment.ros_collector import NAMESPACE, STATE_NAMES, deep_qos, status_metrics, with_perception
 from avp_msgs.msg import (
     AgentState,
     BrakingFor,
@@ -142,11 +142,7 @@ class FleetCollector(Node):
 
     # ---------------------------------------------------------------- records
     def _timings(self, i: int, s: int) -> dict:
-        t = dict(self.decisions[i][s][2])
-        if s in self.t_obs[i] and s in self.t_preds[i]:  # the perception's critical path, as ros_collector's
-            t["perception_time"] = max(0.0, (self.t_preds[i][s] - self.t_obs[i][s]) * 1e-9)
-            t["spot_selection_time"] += t["perception_time"]
-        return t
+        return with_perception(self.decisions[i][s][2], self.t_obs[i].get(s), self.t_preds[i].get(s))
 
     def records(self, profiles: list, label: str, horizon: float, wall_s: float) -> list[dict]:
         """A record per ego, as :func:`avp_experiment.fleet.run_fleet_inproc` writes them."""
