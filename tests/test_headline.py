@@ -45,10 +45,11 @@ def test_a_cell_agrees_with_its_records_read_independently(committed):
     assert cell["interrupted_steps"]["mean"] == round(sum(r["interrupted_steps"] for r in recs) / n, 1)
 
 
-def test_every_cell_of_the_suite_is_a_valid_experiment_command():
+@pytest.mark.parametrize("name", ["headline", "fleet"])
+def test_every_cell_of_the_suite_is_a_valid_experiment_command(name):
     from avp_experiment.runner import _cell_args
 
-    suite = load_suite("headline")
+    suite = load_suite(name)
     for col in suite["columns"]:
         for row in suite["rows"]:
             for quick in (False, True):
@@ -56,6 +57,31 @@ def test_every_cell_of_the_suite_is_a_valid_experiment_command():
                 assert args.methods == row["methods"]
                 full = int(col["args"][col["args"].index("--scenarios") + 1])
                 assert args.scenarios == (col["quick"] if quick else full)
+
+
+def test_the_fleet_grid_gives_the_last_ego_the_time_the_second_has_in_a_pair():
+    """Every fleet column: K egos 5 s apart (egos.entry_interval), t_f = 60 + 5 (K - 2) for K >= 2, so the K-th ego
+    has the 55 s the second has in a 60 s episode of two (config/suites/fleet.yaml)."""
+    from avp_experiment.runner import _cell_args
+
+    suite = load_suite("fleet")
+    sizes = set()
+    for col in suite["columns"]:
+        args = _cell_args(cell_argv(col, suite["rows"][0], False))
+        sizes.add(args.egos)
+        assert args.t_final == 60 + 5 * max(args.egos - 2, 0), col["id"]
+        assert args.mode == "reactive" and args.scenarios == 100
+    assert sizes == {1, 2, 4, 8}
+
+
+def test_suite_columns_picks_and_names_an_unknown_column():
+    from avp_experiment.headline import suite_columns
+
+    suite = load_suite("fleet")
+    assert [c["id"] for c in suite_columns(suite, "paper_k4, busy_k2")] == ["paper_k4", "busy_k2"]
+    assert len(suite_columns(suite)) == len(suite["columns"])
+    with pytest.raises(ValueError, match="paper_k3"):
+        suite_columns(suite, "paper_k2,paper_k3")
 
 
 def test_the_readme_markers_are_required():
@@ -81,14 +107,14 @@ columns:
            "--workers", "1", "--no-progress"]
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
-    table = json.loads((out / "headline.json").read_text())
+    table = json.loads((out / "tiny.json").read_text())  # OUT/<suite name>.json
     for row in ("bezier", "blind"):
         recs = [json.loads(x) for x in (out / "paper" / row / "episodes.jsonl").read_text().splitlines()]
         assert len(recs) == 1 and recs[0]["method"] == row and recs[0]["seed"] == 0
         assert table["cells"]["paper"][row]["success"]["n"] == 1
     run = json.loads((out / "paper" / "bezier" / "runs.jsonl").read_text().splitlines()[0])
     assert run["options"]["planner_param"] == ["collision.reactive_steps=0"]
-    assert "| Bézier |" in (out / "headline.md").read_text()
+    assert "| Bézier |" in (out / "tiny.md").read_text()
     # a second invocation finds every episode done and runs none
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0 and "0 to run" in r.stdout and "1 to run" not in r.stdout

@@ -54,10 +54,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="run the table once per safety-extras variant (all_on, all_off, no_<extra>) into "
                    "OUT/<variant>/ and tabulate them (OUT/ablation.md)")
     p.add_argument("--suite", metavar="NAME|FILE",
-                   help="run a suite of experiments (config/suites/: headline, the README's results table) into "
-                   "OUT/<column>/<row>/ and tabulate it (OUT/headline.md); --workers/--backend apply to each")
+                   help="run a suite of experiments (config/suites/: headline, the README's results table; fleet, "
+                   "the fleet grid) into OUT/<column>/<row>/ and tabulate it (OUT/<suite>.md); --workers/--backend "
+                   "apply to each")
     p.add_argument("--quick", action="store_true",
                    help="with --suite: each column's small scenario count (minutes; make results QUICK=1)")
+    p.add_argument("--columns", default="", metavar="ID,ID,...",
+                   help="with --suite: run only these columns (the table still shows every column run so far)")
     p.add_argument("--egos", type=int, default=1,
                    help="automated cars per episode (1-8): each method of --methods runs as a fleet of this many "
                    "(in process; docs/world.md 'Several egos'); a record per ego")

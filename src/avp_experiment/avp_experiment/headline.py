@@ -86,7 +86,7 @@ def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], 
     suite = load_suite(args.suite)
     out = Path(args.out)
     report: dict = {"cells": 0, "ran": 0, "errors": []}  # the runner's report: errors lists the failed episodes
-    for col in suite["columns"]:
+    for col in suite_columns(suite, getattr(args, "columns", "")):
         for row in suite["rows"]:
             if not runs_in(row, col):
                 continue
@@ -101,9 +101,21 @@ def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], 
             report["ran"] += r.get("ran", 0)
             report["errors"] += r.get("errors") or []
     table = suite_table(suite, out)
-    write_table(table, out / "headline.json", out / "headline.md")
-    print(f"[avp experiment] suite {suite['name']}: {out / 'headline.md'}", file=sys.stderr)
+    write_table(table, out / f"{suite['name']}.json", out / f"{suite['name']}.md")
+    print(f"[avp experiment] suite {suite['name']}: {out / (suite['name'] + '.md')}", file=sys.stderr)
     return report
+
+
+def suite_columns(suite: Mapping, only: str = "") -> list[Mapping]:
+    """The suite's columns, or those ``only`` names (comma-separated ids); ValueError names an unknown id."""
+    if not only:
+        return list(suite["columns"])
+    ids = [c["id"] for c in suite["columns"]]
+    wanted = [w.strip() for w in only.split(",") if w.strip()]
+    unknown = [w for w in wanted if w not in ids]
+    if unknown or not wanted:
+        raise ValueError(f"--columns: unknown column(s) {unknown} of suite {suite['name']!r}; it has {ids}")
+    return [c for c in suite["columns"] if c["id"] in wanted]
 
 
 # ------------------------------------------------------------------------------------------ statistics
@@ -218,7 +230,7 @@ def _cells(metric: str, s: Mapping | None) -> list[str]:
         return [_pct(s["success"]) + (f"; {s['at_fault']} at fault" if s["at_fault"] else ""), _pct(s["spot_stolen"]),
                 f"{m['mean']:.1f} [{m['ci95'][0]:.1f}, {m['ci95'][1]:.1f}]"]
     lost = s["episodes_with_ego_loss"]
-    extra = [f"a spot lost to the other ego in {lost['k']} of {lost['n']} episodes"]
+    extra = [f"a spot lost to another ego in {lost['k']} of {lost['n']} episodes"]
     extra += [f"{s['ego_ego_collisions']} ego-ego collisions"] if s["ego_ego_collisions"] else []
     extra += [f"{s['gridlock']} gridlocked"] if s["gridlock"] else []
     return [_pct(s["success"]) + "; " + ", ".join(extra)]
@@ -294,7 +306,7 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, OSError) as exc:
         print(f"[headline] {exc}", file=sys.stderr)
         return 2
-    json_path = Path(args.json) if args.json else (Path(args.out) / "headline.json" if args.out else None)
+    json_path = Path(args.json) if args.json else (Path(args.out) / f"{suite['name']}.json" if args.out else None)
     if json_path:
         write_table(table, json_path, json_path.with_suffix(".md"))
     if args.readme:
