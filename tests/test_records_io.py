@@ -104,3 +104,17 @@ def test_avp_why_reads_a_compressed_folder_and_file(tmp_path):
                            capture_output=True, text=True, timeout=60)
         assert r.returncode == 0, r.stderr
         assert f"{source}: bezier seed 5 reactive" in r.stdout and "blocking agent(s) [1003]" in r.stdout
+
+
+def test_compare_records_keeps_every_ego_of_a_fleet_episode_apart(tmp_path, capsys):
+    """A fleet writes a record per ego with the same (method, seed, mode): each is compared with its own ego's."""
+    recs = [{"method": "fleet:bezier,bezier", "seed": 3, "mode": "reactive", "ego": i, "status": "success",
+             "timings": {"decisions": i}} for i in range(2)]
+    for name, last in (("a", "success"), ("b", "timeout")):
+        (tmp_path / name).mkdir()
+        rs = [dict(recs[0]), {**recs[1], "status": last}]
+        (tmp_path / name / "episodes.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rs))
+    assert len(compare_records._records(str(tmp_path / "a"))) == 2
+    assert compare_records.main([str(tmp_path / "a"), str(tmp_path / "a")]) == 0
+    assert compare_records.main([str(tmp_path / "a"), str(tmp_path / "b")]) == 1  # ego 1's record differs
+    assert "2 episodes in both, 1 equal, 1 differ" in capsys.readouterr().out

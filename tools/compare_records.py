@@ -2,8 +2,9 @@
 
     python tools/compare_records.py OUT_BEFORE OUT_AFTER [--new-fields]
 
-Prints how many (method, seed, mode) episodes both hold, how many are equal, and the first differences; exits 1
-if any record differs or the after folder lacks an episode the before folder has. ``--new-fields``: a field that
+Prints how many (method, seed, mode) episodes both hold (with several egos: (method, seed, mode, ego)),
+how many are equal, and the first differences; exits 1 if any record differs or the after folder lacks an episode
+the before folder has. ``--new-fields``: a field that
 no record of OUT_BEFORE has (added to the records since, e.g. ``lot`` and ``collision_at_fault``)
 is left out of the comparison, and its values in OUT_AFTER are counted.
 """
@@ -25,7 +26,8 @@ def _records(folder: str) -> dict[tuple, dict]:
         for line in lines:
             if line.strip():
                 r = json.loads(line)
-                out[(r["method"], r["seed"], r["mode"])] = {k: v for k, v in r.items() if k not in IGNORED}
+                key = (r["method"], r["seed"], r["mode"]) + ((r["ego"],) if "ego" in r else ())  # a record per ego
+                out[key] = {k: v for k, v in r.items() if k not in IGNORED}
     return out
 
 
