@@ -3,6 +3,7 @@ another ego, whether every ego parked, and the egos' parking times; exact McNema
 reference fleet.
 
     python tools/fleet_pairs.py docs/results/fleet/paper_k2 [docs/results/fleet/paper_k2_wary ...] [--ref blind]
+    python tools/fleet_pairs.py --by-folder docs/results/fleet/grid/paper_k2/*     # a column of the fleet suite
 
 Prints a Markdown table: fleet, episodes, episodes with an ego-ego spot loss (95 % Wilson interval), episodes where
 every ego parked, both against the reference on the seeds they share (discordant pairs and p).
@@ -22,15 +23,18 @@ from avp_experiment.metrics import wilson
 from avp_experiment.results import open_records
 
 
-def episodes(folders: list[Path], planner_tag: dict[Path, str]) -> dict[str, dict[int, list[dict]]]:
-    """fleet name -> seed -> the episode's records (one per ego)."""
+def episodes(folders: list[Path], planner_tag: dict[Path, str],
+             by_folder: bool = False) -> dict[str, dict[int, list[dict]]]:
+    """fleet name (its first ego's method, or with ``by_folder`` the folder's name) -> seed -> the episode's records
+    (one per ego)."""
     out: dict[str, dict[int, list[dict]]] = {}
     for f in folders:
         with open_records(f) as lines:  # its episodes.jsonl or episodes.jsonl.gz
             for line in lines:
                 if line.strip():
                     r = json.loads(line)
-                    name = r["method"][len(FLEET_PREFIX):].split(",")[0] + planner_tag.get(f, "")
+                    name = f.name if by_folder else r["method"][len(FLEET_PREFIX):].split(",")[0]
+                    name += planner_tag.get(f, "")
                     out.setdefault(name, {}).setdefault(r["seed"], []).append(r)
     return out
 
@@ -41,9 +45,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ref", default="blind")
     ap.add_argument("--tag", action="append", default=[], metavar="FOLDER=SUFFIX",
                     help="name the fleets of FOLDER with SUFFIX (e.g. a planner profile)")
+    ap.add_argument("--by-folder", action="store_true",
+                    help="name each fleet by its folder (a suite's row folders: bezier, wary, reserve, ...)")
     args = ap.parse_args(argv)
     tags = {Path(k): v for k, _, v in (t.partition("=") for t in args.tag)}
-    eps = episodes(args.folders, tags)
+    eps = episodes(args.folders, tags, args.by_folder)
     ref = eps.get(args.ref, {})
     vs = f"vs {args.ref} (b / c, p)"
     rows = [f"| fleet | episodes | with an ego-ego spot loss [95 % CI] | {vs} | every ego parked | {vs} |",
