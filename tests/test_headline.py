@@ -84,6 +84,16 @@ def test_suite_columns_picks_and_names_an_unknown_column():
         suite_columns(suite, "paper_k2,paper_k3")
 
 
+def test_suite_rows_picks_in_the_suites_order_and_names_an_unknown_row():
+    from avp_experiment.headline import suite_rows
+
+    suite = load_suite("headline")
+    assert [r["id"] for r in suite_rows(suite, "learned,nawaz")] == ["nawaz", "learned"]
+    assert len(suite_rows(suite)) == len(suite["rows"])
+    with pytest.raises(ValueError, match="--rows: unknown row.*'bezir'"):
+        suite_rows(suite, "bezier,bezir")
+
+
 def test_the_readme_markers_are_required():
     with pytest.raises(ValueError, match="headline:begin"):
         replace_block("no markers here", "| a |\n")

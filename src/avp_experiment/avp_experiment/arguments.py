@@ -61,6 +61,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="with --suite: each column's small scenario count (minutes; make results QUICK=1)")
     p.add_argument("--columns", default="", metavar="ID,ID,...",
                    help="with --suite: run only these columns (the table still shows every column run so far)")
+    p.add_argument("--rows", default="", metavar="ID,ID,...",
+                   help="with --suite: run only these rows (say --columns fleet --rows nawaz,learned)")
     p.add_argument("--egos", type=int, default=1,
                    help="automated cars per episode (1-8): each method of --methods runs as a fleet of this many "
                    "(in process; docs/world.md 'Several egos'); a record per ego")

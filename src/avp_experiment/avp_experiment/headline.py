@@ -86,8 +86,9 @@ def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], 
     suite = load_suite(args.suite)
     out = Path(args.out)
     report: dict = {"cells": 0, "ran": 0, "errors": []}  # the runner's report: errors lists the failed episodes
+    rows = suite_rows(suite, getattr(args, "rows", ""))
     for col in suite_columns(suite, getattr(args, "columns", "")):
-        for row in suite["rows"]:
+        for row in rows:
             if not runs_in(row, col):
                 continue
             cell = parse(cell_argv(col, row, args.quick))
@@ -108,14 +109,24 @@ def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], 
 
 def suite_columns(suite: Mapping, only: str = "") -> list[Mapping]:
     """The suite's columns, or those ``only`` names (comma-separated ids); ValueError names an unknown id."""
+    return _pick(suite, "columns", only)
+
+
+def suite_rows(suite: Mapping, only: str = "") -> list[Mapping]:
+    """The suite's rows, or those ``only`` names (comma-separated ids), in the suite's order; ValueError names an
+    unknown id."""
+    return _pick(suite, "rows", only)
+
+
+def _pick(suite: Mapping, key: str, only: str) -> list[Mapping]:
     if not only:
-        return list(suite["columns"])
-    ids = [c["id"] for c in suite["columns"]]
+        return list(suite[key])
+    ids = [c["id"] for c in suite[key]]
     wanted = [w.strip() for w in only.split(",") if w.strip()]
     unknown = [w for w in wanted if w not in ids]
     if unknown or not wanted:
-        raise ValueError(f"--columns: unknown column(s) {unknown} of suite {suite['name']!r}; it has {ids}")
-    return [c for c in suite["columns"] if c["id"] in wanted]
+        raise ValueError(f"--{key}: unknown {key[:-1]}(s) {unknown} of suite {suite['name']!r}; it has {ids}")
+    return [c for c in suite[key] if c["id"] in wanted]
 
 
 # ------------------------------------------------------------------------------------------ statistics

@@ -192,8 +192,8 @@ def run_experiment(args: argparse.Namespace) -> dict:
         with shared_pool(args.workers if local else 0) as pool:  # one pool for every cell (.pool)
             args.shared_pool = pool
             return run_suite(args, run_experiment, _cell_args)
-    if getattr(args, "quick", False) or getattr(args, "columns", ""):
-        raise ValueError("--quick and --columns are for --suite")
+    if getattr(args, "quick", False) or getattr(args, "columns", "") or getattr(args, "rows", ""):
+        raise ValueError("--quick, --columns and --rows are for --suite")
     if getattr(args, "sweep", None) or getattr(args, "ablation", False):
         from avp_experiment.sweep import run_ablation, run_sweep
 
