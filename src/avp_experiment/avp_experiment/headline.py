@@ -275,8 +275,9 @@ def render(table: Mapping) -> str:
             cells += out
         lines.append("| " + " | ".join(cells) + " |")
     lines.append("")
+    maker = "make results" if table["suite"] == "headline" else f"avp experiment --suite {table['suite']}"
     lines.append("Percent [95 % Wilson interval] (episodes); interrupted steps: mean [95 % interval]. \"not run\": "
-                 "no committed records at full size yet (`make results` makes them); \"–\": does not apply.")
+                 f"no committed records at full size yet (`{maker}` makes them); \"–\": does not apply.")
     lines += [f"<sup>{i + 1}</sup> {n}." for i, n in enumerate(notes)]
     return "\n".join(lines) + "\n"
 
