@@ -74,6 +74,43 @@ def test_the_fleet_grid_gives_the_last_ego_the_time_the_second_has_in_a_pair():
     assert sizes == {1, 2, 4, 8}
 
 
+@pytest.mark.parametrize("name", ["headline", "fleet"])
+def test_every_cell_of_a_shipped_suite_has_a_method_to_run(name):
+    """A cell whose method the runner would skip (say `reserve` with one ego) stops the suite: none may ship."""
+    from avp_experiment.headline import runs_in
+    from avp_experiment.runner import _cell_args, resolve_methods
+
+    suite = load_suite(name)
+    for col in suite["columns"]:
+        for row in suite["rows"]:
+            if runs_in(row, col):
+                args = _cell_args(cell_argv(col, row, False))
+                run, skipped = resolve_methods(args.methods, egos=args.egos)
+                assert run and not skipped, (col["id"], row["id"], skipped)
+
+
+def test_a_suite_with_a_cell_that_cannot_run_is_refused_before_any_cell_runs(tmp_path):
+    import argparse
+
+    from avp_experiment.headline import run_suite
+    from avp_experiment.runner import _cell_args
+
+    suite = tmp_path / "bad.yaml"
+    suite.write_text("""
+name: bad
+rows:
+  - {id: blind, label: blind, methods: blind}
+  - {id: reserve, label: reserve, methods: reserve}
+columns:
+  - {id: k1, title: K = 1, metric: fleet, args: [--egos, "1", --scenarios, "2"], quick: 1}
+""")
+    ran = []
+    args = argparse.Namespace(suite=str(suite), out=str(tmp_path / "out"), quick=False, columns="", rows="")
+    with pytest.raises(ValueError, match=r"k1 / reserve: reserve: coordinates several egos"):
+        run_suite(args, ran.append, _cell_args)
+    assert ran == []
+
+
 def test_suite_columns_picks_and_names_an_unknown_column():
     from avp_experiment.headline import suite_columns
 

@@ -87,24 +87,35 @@ def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], 
     out = Path(args.out)
     report: dict = {"cells": 0, "ran": 0, "errors": []}  # the runner's report: errors lists the failed episodes
     rows = suite_rows(suite, getattr(args, "rows", ""))
-    for col in suite_columns(suite, getattr(args, "columns", "")):
-        for row in rows:
-            if not runs_in(row, col):
-                continue
-            cell = parse(cell_argv(col, row, args.quick))
-            for keep in ("workers", "backend", "address", "no_progress", "transport", "intent_weights",
-                         "shared_pool"):  # the last: one pool for every cell (avp_experiment.pool)
-                setattr(cell, keep, getattr(args, keep, None))
-            cell.out = str(out / col["id"] / row["id"])
-            print(f"[avp experiment] suite {suite['name']}: {col['id']} / {row['id']}", file=sys.stderr, flush=True)
-            r = run_one(cell)
-            report["cells"] += 1
-            report["ran"] += r.get("ran", 0)
-            report["errors"] += r.get("errors") or []
+    cells = [(col, row, parse(cell_argv(col, row, args.quick)))
+             for col in suite_columns(suite, getattr(args, "columns", "")) for row in rows if runs_in(row, col)]
+    _check_cells(cells, getattr(args, "transport", "inproc"))  # before any cell runs, not hours into the suite
+    for col, row, cell in cells:
+        for keep in ("workers", "backend", "address", "no_progress", "transport", "intent_weights",
+                     "shared_pool"):  # the last: one pool for every cell (avp_experiment.pool)
+            setattr(cell, keep, getattr(args, keep, None))
+        cell.out = str(out / col["id"] / row["id"])
+        print(f"[avp experiment] suite {suite['name']}: {col['id']} / {row['id']}", file=sys.stderr, flush=True)
+        r = run_one(cell)
+        report["cells"] += 1
+        report["ran"] += r.get("ran", 0)
+        report["errors"] += r.get("errors") or []
     table = suite_table(suite, out)
     write_table(table, out / f"{suite['name']}.json", out / f"{suite['name']}.md")
     print(f"[avp experiment] suite {suite['name']}: {out / (suite['name'] + '.md')}", file=sys.stderr)
     return report
+
+
+def _check_cells(cells: Sequence[tuple[Mapping, Mapping, argparse.Namespace]], transport: str) -> None:
+    """ValueError naming every cell whose methods the runner would skip (say ``reserve`` with one ego)."""
+    from avp_experiment.runner import resolve_methods
+
+    bad = []
+    for col, row, cell in cells:
+        _, skipped = resolve_methods(cell.methods, transport=transport or "inproc", egos=cell.egos)
+        bad += [f"{col['id']} / {row['id']}: {name}: {why}" for name, why in skipped.items()]
+    if bad:
+        raise ValueError("suite cells that cannot run (give the row `only: [columns]`): " + "; ".join(bad))
 
 
 def suite_columns(suite: Mapping, only: str = "") -> list[Mapping]:
