@@ -2,7 +2,7 @@
 another ego, whether every ego parked, and the egos' parking times; exact McNemar p for the first two against a
 reference fleet.
 
-    python tools/fleet_pairs.py docs/results/fleet/paper_k2 [docs/results/fleet/paper_k2_wary ...] [--ref blind]
+    python tools/fleet_pairs.py OUT [OUT ...] [--ref blind]      # folders of `avp experiment --egos K` runs
     python tools/fleet_pairs.py --by-folder docs/results/fleet/grid/paper_k2/*     # a column of the fleet suite
 
 Prints a Markdown table: fleet, episodes, episodes with an ego-ego spot loss (95 % Wilson interval), episodes where
