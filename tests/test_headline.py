@@ -111,6 +111,41 @@ columns:
     assert ran == []
 
 
+def test_the_cells_of_a_column_share_the_seed_cache(tmp_path):
+    """The second cell of a column starts with the seeds the first found (valid_seeds reads OUT/seeds.json), and a
+    cell's own finds reach the column; another column starts with none."""
+    import argparse
+
+    from avp_experiment.headline import run_suite
+    from avp_experiment.runner import _cell_args
+
+    suite = tmp_path / "two.yaml"
+    suite.write_text("""
+name: two
+rows:
+  - {id: a, label: a, methods: blind}
+  - {id: b, label: b, methods: bezier}
+columns:
+  - {id: c1, title: c1, metric: success, args: [--scenarios, "2"], quick: 1}
+  - {id: c2, title: c2, metric: success, args: [--scenarios, "2"], quick: 1}
+""")
+    seen = {}
+
+    def run_one(cell):
+        f = Path(cell.out) / "seeds.json"
+        seen[cell.out] = json.loads(f.read_text()) if f.is_file() else None
+        f.parent.mkdir(parents=True, exist_ok=True)
+        f.write_text(json.dumps({**(seen[cell.out] or {}), cell.out[-4:]: True}))
+        return {}
+
+    args = argparse.Namespace(suite=str(suite), out=str(tmp_path / "out"), quick=False, columns="", rows="")
+    run_suite(args, run_one, _cell_args)
+    out = tmp_path / "out"
+    assert seen[str(out / "c1" / "a")] is None and seen[str(out / "c2" / "a")] is None
+    assert seen[str(out / "c1" / "b")] == {"c1/a": True}
+    assert json.loads((out / "c1" / "seeds.json").read_text()) == {"c1/a": True, "c1/b": True}
+
+
 def test_suite_columns_picks_and_names_an_unknown_column():
     from avp_experiment.headline import suite_columns
 

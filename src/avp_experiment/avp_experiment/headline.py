@@ -96,7 +96,9 @@ def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], 
             setattr(cell, keep, getattr(args, keep, None))
         cell.out = str(out / col["id"] / row["id"])
         print(f"[avp experiment] suite {suite['name']}: {col['id']} / {row['id']}", file=sys.stderr, flush=True)
+        _share_seeds(out / col["id"] / SEEDS_FILE, Path(cell.out) / SEEDS_FILE)
         r = run_one(cell)
+        _share_seeds(Path(cell.out) / SEEDS_FILE, out / col["id"] / SEEDS_FILE)
         report["cells"] += 1
         report["ran"] += r.get("ran", 0)
         report["errors"] += r.get("errors") or []
@@ -104,6 +106,22 @@ def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], 
     write_table(table, out / f"{suite['name']}.json", out / f"{suite['name']}.md")
     print(f"[avp experiment] suite {suite['name']}: {out / (suite['name'] + '.md')}", file=sys.stderr)
     return report
+
+
+SEEDS_FILE = "seeds.json"  # the runner's cache of which seeds build a scenario (avp_experiment.runner.valid_seeds)
+
+
+def _share_seeds(src: Path, dst: Path) -> None:
+    """Copy a column's seed cache to a cell (or back) where ``dst`` lacks seeds ``src`` has. The cells of a column
+    share the lot and simulator settings (rows set methods and planner parameters only), so a seed builds a scenario
+    in all or none of them; the busy lot spends seconds a seed finding out."""
+    if not src.is_file():
+        return
+    known = json.loads(src.read_text())
+    have = json.loads(dst.read_text()) if dst.is_file() else {}
+    if set(known) - set(have):
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        dst.write_text(json.dumps({**known, **have}, sort_keys=True))
 
 
 def _check_cells(cells: Sequence[tuple[Mapping, Mapping, argparse.Namespace]], transport: str) -> None:
