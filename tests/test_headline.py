@@ -89,46 +89,38 @@ def test_every_cell_of_a_shipped_suite_has_a_method_to_run(name):
                 assert run and not skipped, (col["id"], row["id"], skipped)
 
 
-def test_a_suite_with_a_cell_that_cannot_run_is_refused_before_any_cell_runs(tmp_path):
+def _run_tiny_suite(tmp_path: Path, text: str, run_one) -> Path:
+    """``run_suite`` on the suite file ``text`` (into tmp_path/out, every column and row) with ``run_one`` for the
+    runner; returns the OUT folder."""
     import argparse
 
     from avp_experiment.headline import run_suite
     from avp_experiment.runner import _cell_args
 
-    suite = tmp_path / "bad.yaml"
-    suite.write_text("""
+    suite = tmp_path / "tiny.yaml"
+    suite.write_text(text)
+    args = argparse.Namespace(suite=str(suite), out=str(tmp_path / "out"), quick=False, columns="", rows="")
+    run_suite(args, run_one, _cell_args)
+    return tmp_path / "out"
+
+
+def test_a_suite_with_a_cell_that_cannot_run_is_refused_before_any_cell_runs(tmp_path):
+    ran = []
+    with pytest.raises(ValueError, match=r"k1 / reserve: reserve: coordinates several egos"):
+        _run_tiny_suite(tmp_path, """
 name: bad
 rows:
   - {id: blind, label: blind, methods: blind}
   - {id: reserve, label: reserve, methods: reserve}
 columns:
   - {id: k1, title: K = 1, metric: fleet, args: [--egos, "1", --scenarios, "2"], quick: 1}
-""")
-    ran = []
-    args = argparse.Namespace(suite=str(suite), out=str(tmp_path / "out"), quick=False, columns="", rows="")
-    with pytest.raises(ValueError, match=r"k1 / reserve: reserve: coordinates several egos"):
-        run_suite(args, ran.append, _cell_args)
+""", ran.append)
     assert ran == []
 
 
 def test_the_cells_of_a_column_share_the_seed_cache(tmp_path):
     """The second cell of a column starts with the seeds the first found (valid_seeds reads OUT/seeds.json), and a
     cell's own finds reach the column; another column starts with none."""
-    import argparse
-
-    from avp_experiment.headline import run_suite
-    from avp_experiment.runner import _cell_args
-
-    suite = tmp_path / "two.yaml"
-    suite.write_text("""
-name: two
-rows:
-  - {id: a, label: a, methods: blind}
-  - {id: b, label: b, methods: bezier}
-columns:
-  - {id: c1, title: c1, metric: success, args: [--scenarios, "2"], quick: 1}
-  - {id: c2, title: c2, metric: success, args: [--scenarios, "2"], quick: 1}
-""")
     seen = {}
 
     def run_one(cell):
@@ -138,32 +130,34 @@ columns:
         f.write_text(json.dumps({**(seen[cell.out] or {}), cell.out[-4:]: True}))
         return {}
 
-    args = argparse.Namespace(suite=str(suite), out=str(tmp_path / "out"), quick=False, columns="", rows="")
-    run_suite(args, run_one, _cell_args)
-    out = tmp_path / "out"
+    out = _run_tiny_suite(tmp_path, """
+name: two
+rows:
+  - {id: a, label: a, methods: blind}
+  - {id: b, label: b, methods: bezier}
+columns:
+  - {id: c1, title: c1, metric: success, args: [--scenarios, "2"], quick: 1}
+  - {id: c2, title: c2, metric: success, args: [--scenarios, "2"], quick: 1}
+""", run_one)
     assert seen[str(out / "c1" / "a")] is None and seen[str(out / "c2" / "a")] is None
     assert seen[str(out / "c1" / "b")] == {"c1/a": True}
     assert json.loads((out / "c1" / "seeds.json").read_text()) == {"c1/a": True, "c1/b": True}
 
 
-def test_suite_columns_picks_and_names_an_unknown_column():
-    from avp_experiment.headline import suite_columns
+@pytest.mark.parametrize(("suite_name", "key", "pick", "picked", "bad", "unknown"), [
+    ("fleet", "columns", "paper_k4, busy_k2", ["paper_k4", "busy_k2"], "paper_k2,paper_k3", "paper_k3"),
+    ("headline", "rows", "learned,nawaz", ["nawaz", "learned"], "bezier,bezir", "bezir"),  # the suite's order
+])
+def test_columns_and_rows_pick_in_the_suites_order_and_name_an_unknown_id(suite_name, key, pick, picked, bad,
+                                                                          unknown):
+    from avp_experiment.headline import suite_columns, suite_rows
 
-    suite = load_suite("fleet")
-    assert [c["id"] for c in suite_columns(suite, "paper_k4, busy_k2")] == ["paper_k4", "busy_k2"]
-    assert len(suite_columns(suite)) == len(suite["columns"])
-    with pytest.raises(ValueError, match="paper_k3"):
-        suite_columns(suite, "paper_k2,paper_k3")
-
-
-def test_suite_rows_picks_in_the_suites_order_and_names_an_unknown_row():
-    from avp_experiment.headline import suite_rows
-
-    suite = load_suite("headline")
-    assert [r["id"] for r in suite_rows(suite, "learned,nawaz")] == ["nawaz", "learned"]
-    assert len(suite_rows(suite)) == len(suite["rows"])
-    with pytest.raises(ValueError, match="--rows: unknown row.*'bezir'"):
-        suite_rows(suite, "bezier,bezir")
+    choose = {"columns": suite_columns, "rows": suite_rows}[key]
+    suite = load_suite(suite_name)
+    assert [c["id"] for c in choose(suite, pick)] == picked
+    assert len(choose(suite)) == len(suite[key])
+    with pytest.raises(ValueError, match=f"--{key}: unknown .*'{unknown}'"):
+        choose(suite, bad)
 
 
 def test_the_readme_markers_are_required():
