@@ -29,6 +29,8 @@ def episodes(folders: list[Path], planner_tag: dict[Path, str],
     (one per ego)."""
     out: dict[str, dict[int, list[dict]]] = {}
     for f in folders:
+        if f.is_file() and not f.name.endswith((".jsonl", ".jsonl.gz")):
+            continue  # a glob of a suite column also matches its seed cache (OUT/<column>/seeds.json)
         with open_records(f) as lines:  # its episodes.jsonl or episodes.jsonl.gz
             for line in lines:
                 if line.strip():
