@@ -22,6 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
 
 import compare_records  # noqa: E402
+import fleet_pairs  # noqa: E402
 import records_digest  # noqa: E402
 
 
@@ -118,3 +119,16 @@ def test_compare_records_keeps_every_ego_of_a_fleet_episode_apart(tmp_path, caps
     assert compare_records.main([str(tmp_path / "a"), str(tmp_path / "a")]) == 0
     assert compare_records.main([str(tmp_path / "a"), str(tmp_path / "b")]) == 1  # ego 1's record differs
     assert "2 episodes in both, 1 equal, 1 differ" in capsys.readouterr().out
+
+
+def test_fleet_pairs_reads_a_suite_column_by_folder_and_skips_its_seed_cache(tmp_path):
+    """`fleet_pairs.py --by-folder OUT/<column>/*` also matches the column's seeds.json (a suite's shared cache)."""
+    col = tmp_path / "paper_k2"
+    for arm in ("bezier", "blind"):
+        (col / arm).mkdir(parents=True)
+        rs = [{"method": f"fleet:{arm},{arm}", "seed": 3, "mode": "reactive", "ego": i, "success": True,
+               "spots_lost_to_ego": 0} for i in range(2)]
+        (col / arm / "episodes.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rs))
+    (col / "seeds.json").write_text(json.dumps({"3": True}))
+    eps = fleet_pairs.episodes(sorted(col.iterdir()), {}, by_folder=True)
+    assert sorted(eps) == ["bezier", "blind"] and [len(v[3]) for v in eps.values()] == [2, 2]
