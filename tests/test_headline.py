@@ -91,16 +91,16 @@ def test_every_cell_of_a_shipped_suite_has_a_method_to_run(name):
 
 def _run_tiny_suite(tmp_path: Path, text: str, run_one) -> Path:
     """``run_suite`` on the suite file ``text`` (into tmp_path/out, every column and row) with ``run_one`` for the
-    runner; returns the OUT folder."""
+    runner and the runner's method check; returns the OUT folder."""
     import argparse
 
     from avp_experiment.headline import run_suite
-    from avp_experiment.runner import _cell_args
+    from avp_experiment.runner import _cell_args, resolve_methods
 
     suite = tmp_path / "tiny.yaml"
     suite.write_text(text)
     args = argparse.Namespace(suite=str(suite), out=str(tmp_path / "out"), quick=False, columns="", rows="")
-    run_suite(args, run_one, _cell_args)
+    run_suite(args, run_one, _cell_args, resolve_methods)
     return tmp_path / "out"
 
 

@@ -81,15 +81,17 @@ def cell_argv(col: Mapping, row: Mapping, quick: bool) -> list[str]:
 
 
 def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], dict],
-              parse: Callable[[list[str]], argparse.Namespace]) -> dict:
-    """Every cell of ``args.suite`` into ``args.out/<column>/<row>``; the table of what came out last."""
+              parse: Callable[[list[str]], argparse.Namespace], resolve: Callable | None = None) -> dict:
+    """Every cell of ``args.suite`` into ``args.out/<column>/<row>``; the table of what came out last. ``resolve``
+    (the runner's ``resolve_methods``), if given, checks every cell's methods before any cell runs."""
     suite = load_suite(args.suite)
     out = Path(args.out)
     report: dict = {"cells": 0, "ran": 0, "errors": []}  # the runner's report: errors lists the failed episodes
     rows = suite_rows(suite, getattr(args, "rows", ""))
     cells = [(col, row, parse(cell_argv(col, row, args.quick)))
              for col in suite_columns(suite, getattr(args, "columns", "")) for row in rows if runs_in(row, col)]
-    _check_cells(cells, getattr(args, "transport", "inproc"))  # before any cell runs, not hours into the suite
+    if resolve is not None:  # before any cell runs, not hours into the suite
+        _check_cells(cells, getattr(args, "transport", "inproc"), resolve)
     for col, row, cell in cells:
         for keep in ("workers", "backend", "address", "no_progress", "transport", "intent_weights",
                      "shared_pool"):  # the last: one pool for every cell (avp_experiment.pool)
@@ -124,13 +126,12 @@ def _share_seeds(src: Path, dst: Path) -> None:
         dst.write_text(json.dumps({**known, **have}, sort_keys=True))
 
 
-def _check_cells(cells: Sequence[tuple[Mapping, Mapping, argparse.Namespace]], transport: str) -> None:
+def _check_cells(cells: Sequence[tuple[Mapping, Mapping, argparse.Namespace]], transport: str,
+                 resolve: Callable) -> None:
     """ValueError naming every cell whose methods the runner would skip (say ``reserve`` with one ego)."""
-    from avp_experiment.runner import resolve_methods
-
     bad = []
     for col, row, cell in cells:
-        _, skipped = resolve_methods(cell.methods, transport=transport or "inproc", egos=cell.egos)
+        _, skipped = resolve(cell.methods, transport=transport or "inproc", egos=cell.egos)
         bad += [f"{col['id']} / {row['id']}: {name}: {why}" for name, why in skipped.items()]
     if bad:
         raise ValueError("suite cells that cannot run (give the row `only: [columns]`): " + "; ".join(bad))

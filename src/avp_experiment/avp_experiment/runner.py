@@ -191,7 +191,7 @@ def run_experiment(args: argparse.Namespace) -> dict:
         local = getattr(args, "backend", "local") == "local" and args.transport == "inproc"
         with shared_pool(args.workers if local else 0) as pool:  # one pool for every cell (.pool)
             args.shared_pool = pool
-            return run_suite(args, run_experiment, _cell_args)
+            return run_suite(args, run_experiment, _cell_args, resolve_methods)
     if getattr(args, "quick", False) or getattr(args, "columns", "") or getattr(args, "rows", ""):
         raise ValueError("--quick, --columns and --rows are for --suite")
     if getattr(args, "sweep", None) or getattr(args, "ablation", False):
