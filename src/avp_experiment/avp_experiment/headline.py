@@ -27,7 +27,7 @@ from pathlib import Path
 import yaml
 
 from avp_experiment.metrics import Z95, wilson
-from avp_experiment.results import read_results
+from avp_experiment.results import SEEDS_FILE, read_results
 
 BEGIN, END = "<!-- headline:begin -->", "<!-- headline:end -->"
 METRICS = ("success", "failed_or_stolen", "busy", "fleet")
@@ -81,17 +81,16 @@ def cell_argv(col: Mapping, row: Mapping, quick: bool) -> list[str]:
 
 
 def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], dict],
-              parse: Callable[[list[str]], argparse.Namespace], resolve: Callable | None = None) -> dict:
+              parse: Callable[[list[str]], argparse.Namespace], resolve: Callable) -> dict:
     """Every cell of ``args.suite`` into ``args.out/<column>/<row>``; the table of what came out last. ``resolve``
-    (the runner's ``resolve_methods``), if given, checks every cell's methods before any cell runs."""
+    (the runner's ``resolve_methods``) checks every cell's methods before any cell runs."""
     suite = load_suite(args.suite)
     out = Path(args.out)
     report: dict = {"cells": 0, "ran": 0, "errors": []}  # the runner's report: errors lists the failed episodes
     rows = suite_rows(suite, getattr(args, "rows", ""))
     cells = [(col, row, parse(cell_argv(col, row, args.quick)))
              for col in suite_columns(suite, getattr(args, "columns", "")) for row in rows if runs_in(row, col)]
-    if resolve is not None:  # before any cell runs, not hours into the suite
-        _check_cells(cells, getattr(args, "transport", "inproc"), resolve)
+    _check_cells(cells, getattr(args, "transport", "inproc"), resolve)  # before any cell runs, not hours into it
     for col, row, cell in cells:
         for keep in ("workers", "backend", "address", "no_progress", "transport", "intent_weights",
                      "shared_pool"):  # the last: one pool for every cell (avp_experiment.pool)
@@ -108,9 +107,6 @@ def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], 
     write_table(table, out / f"{suite['name']}.json", out / f"{suite['name']}.md")
     print(f"[avp experiment] suite {suite['name']}: {out / (suite['name'] + '.md')}", file=sys.stderr)
     return report
-
-
-SEEDS_FILE = "seeds.json"  # the runner's cache of which seeds build a scenario (avp_experiment.runner.valid_seeds)
 
 
 def _share_seeds(src: Path, dst: Path) -> None:
@@ -131,7 +127,7 @@ def _check_cells(cells: Sequence[tuple[Mapping, Mapping, argparse.Namespace]], t
     """ValueError naming every cell whose methods the runner would skip (say ``reserve`` with one ego)."""
     bad = []
     for col, row, cell in cells:
-        _, skipped = resolve(cell.methods, transport=transport or "inproc", egos=cell.egos)
+        _, skipped = resolve(cell.methods, transport=transport, egos=cell.egos)
         bad += [f"{col['id']} / {row['id']}: {name}: {why}" for name, why in skipped.items()]
     if bad:
         raise ValueError("suite cells that cannot run (give the row `only: [columns]`): " + "; ".join(bad))

@@ -27,6 +27,7 @@ LOCK_FILE = ".lock"
 RESULTS_FILE = "episodes.jsonl"
 RUN_FILE = "run.json"
 RUNS_LOG = "runs.jsonl"
+SEEDS_FILE = "seeds.json"  # which seeds build a scenario (avp_experiment.runner.valid_seeds caches them here)
 GZ = ".gz"
 
 

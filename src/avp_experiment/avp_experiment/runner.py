@@ -48,6 +48,7 @@ from avp_experiment.results import (  # noqa: F401 - re-exported: the runner's A
     RESULTS_FILE,
     RUN_FILE,
     RUNS_LOG,
+    SEEDS_FILE,
     ResultsWriter,
     check_method,
     check_run_file,
@@ -69,9 +70,6 @@ from avp_experiment.run_config import (  # noqa: F401 - re-exported: the runner'
     run_profile,
     sim_values,
 )
-
-SEEDS_FILE = "seeds.json"
-
 
 # ------------------------------------------------------------------------------------------ episodes
 
