@@ -80,7 +80,7 @@ def test_two_egos_over_dds_match_inprocess(paper_lot, ros_env, tmp_path, monkeyp
         "t_final": T_FINAL, "seed": SEED, "reactive": True, "publish_markers": False, "min_debug_subscribers": 1,
         "egos.entry_interval": sim_p["egos.entry_interval"]})
     assert [n.key for n in nodes] == ["avp_sim", "ego0.avp_belief", "ego0.avp_prediction", "ego0.avp_planner",
-                                      "ego1.avp_belief", "ego1.avp_prediction", "ego1.avp_planner"]
+                                      "ego1.avp_belief", "ego1.avp_prediction", "ego1.avp_planner", "avp_v2v"]
     rclpy.init()
     monitor = EpisodeMonitor()
     graph = Graph(nodes, tmp_path / "logs", env=ros_env)

@@ -12,6 +12,7 @@ from avp_perception.params import BELIEF_PARAMS, PREDICTION_PARAMS
 from avp_planner.examples.minimal_planner import MINIMAL_PARAMS
 from avp_planner.planner_node import PLANNER_PARAMS
 from avp_planner.reservation_node import RESERVATION_PARAMS
+from avp_planner.v2v_node import V2V_PARAMS
 from avp_planner.scripted_driver_node import DRIVER_PARAMS
 from avp_sim.params import SIM_PARAMS
 from avp_viz.scene_node import SCENE_PARAMS
@@ -24,7 +25,8 @@ FILES = [("avp_sim", SRC / "avp_sim/config/sim.param.yaml", SIM_PARAMS),
          ("avp_prediction", SRC / "avp_perception/config/prediction.param.yaml", PREDICTION_PARAMS),
          ("minimal_planner", SRC / "avp_planner/config/minimal_planner.param.yaml", MINIMAL_PARAMS),
          ("avp_scene", SRC / "avp_viz/config/scene.param.yaml", SCENE_PARAMS),
-         ("avp_reservation", SRC / "avp_planner/config/reservation.param.yaml", RESERVATION_PARAMS)]
+         ("avp_reservation", SRC / "avp_planner/config/reservation.param.yaml", RESERVATION_PARAMS),
+         ("avp_v2v", SRC / "avp_planner/config/v2v.param.yaml", V2V_PARAMS)]
 
 
 @pytest.mark.parametrize("node,path,specs", FILES, ids=[f[0] for f in FILES])

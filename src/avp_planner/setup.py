@@ -27,5 +27,6 @@ setup(
         "scripted_driver = avp_planner.scripted_driver_node:main",
         "minimal_planner = avp_planner.examples.minimal_planner:main",
         "reservation = avp_planner.reservation_node:main",
+        "v2v = avp_planner.v2v_node:main",
     ]},
 )

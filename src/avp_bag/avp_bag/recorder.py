@@ -68,6 +68,8 @@ def fleet_topics(egos: int) -> dict[str, tuple[str, bool]]:
     out.pop("/avp/debug/scan", None)  # the simulator's scan is ego 0's in a one-ego graph only
     for i in range(egos):
         out.update({f"/avp/ego{i}/{t}": GRAPH_TOPICS[f"/avp/{t}"] for t in EGO_TOPICS})
+        # what ego i's pipeline reads: its observation with the beacons it hears (avp_planner.v2v_node)
+        out[f"/avp/ego{i}/v2v/observation"] = GRAPH_TOPICS["/avp/observation"]
     return out
 
 
@@ -79,8 +81,8 @@ def _qos(latched: bool) -> Qos:
 
 
 #: topics whose messages the graph's nodes tag (avp_common.msg_auth): by default only tagged ones are recorded
-TAGGED_TOPICS = frozenset({"/avp/lot_map", "/avp/observation", "/avp/cmd", "/avp/beliefs", "/avp/intentions",
-                           "/avp/ego_intention", "/avp/predictions"})
+TAGGED_TOPICS = frozenset({"/avp/lot_map", "/avp/observation", "/avp/v2v/observation", "/avp/cmd", "/avp/beliefs",
+                           "/avp/intentions", "/avp/ego_intention", "/avp/predictions"})
 
 
 class BagRecorder(Node):

@@ -185,13 +185,15 @@ def cmd_params(args: argparse.Namespace) -> int:
     from avp_planner.examples.minimal_planner import MINIMAL_PARAMS
     from avp_planner.params import PLANNER_PARAMS
     from avp_planner.reservation_node import RESERVATION_PARAMS
+    from avp_planner.v2v_node import V2V_PARAMS
     from avp_planner.scripted_driver_node import DRIVER_PARAMS
     from avp_sim.params import SIM_PARAMS
     from avp_viz.scene_node import SCENE_PARAMS
 
     tables = {"avp_sim": SIM_PARAMS, "avp_belief": BELIEF_PARAMS, "avp_prediction": PREDICTION_PARAMS,
               "avp_planner": PLANNER_PARAMS, "scripted_driver": DRIVER_PARAMS, "minimal_planner": MINIMAL_PARAMS,
-              "avp_scene": SCENE_PARAMS, "avp_reservation": RESERVATION_PARAMS}
+              "avp_scene": SCENE_PARAMS, "avp_reservation": RESERVATION_PARAMS,
+              "avp_v2v": V2V_PARAMS}
     for name, specs in tables.items():
         if args.node and args.node != name:
             continue

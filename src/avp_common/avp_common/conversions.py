@@ -19,7 +19,7 @@ from avp_msgs.msg import ObservedVehicle as ObservedVehicleMsg
 from avp_msgs.msg import Road as RoadMsg
 from avp_msgs.msg import Spot as SpotMsg
 from avp_world.lot import LotMap, lot_from_dict
-from avp_world.types import Observation, ObservedPedestrian, ObservedVehicle
+from avp_world.types import Beacon, Observation, ObservedPedestrian, ObservedVehicle
 
 
 class MessageError(ValueError):
@@ -124,7 +124,36 @@ def observation_to_msg(obs: Observation, frame_id: str = "map") -> ObservationMs
     msg.ray_angle_min = float(obs.ray_angle_min)
     msg.ray_angle_increment = float(obs.ray_angle_increment)
     msg.ray_ranges = np.asarray(obs.ray_ranges, dtype=np.float32)
+    msg.beacons = [beacon_to_msg(b) for b in obs.beacons]
     return msg
+
+
+#: a fleet's beacons (avp_planner.core.ego_yield): at most this many in an observation (K <= 8 egos) ...
+MAX_BEACONS = 7
+#: ... and at most this many poses of path in one (avp_planner.core.ego_yield.MAX_BEACON_POSES)
+MAX_BEACON_POSES = 200
+
+
+def poses_to_msg(poses) -> list:
+    """(N, 3) poses as geometry_msgs/Pose2D (float64: exact)."""
+    return [Pose2D(x=float(p[0]), y=float(p[1]), theta=float(p[2])) for p in np.asarray(poses, float).reshape(-1, 3)]
+
+
+def beacon_to_msg(b: Beacon):
+    from avp_msgs.msg import EgoBeacon
+
+    return EgoBeacon(ego=int(b.ego), pose=poses_to_msg([b.pose])[0], waiting=bool(b.waiting), path=poses_to_msg(b.path))
+
+
+def beacon_from_msg(m) -> Beacon:
+    """Core beacon from its message; raises MessageError for NaN/inf or a path over MAX_BEACON_POSES poses."""
+    if len(m.path) > MAX_BEACON_POSES:
+        raise MessageError(f"beacon of ego {m.ego}: {len(m.path)} path poses, at most {MAX_BEACON_POSES}")
+    pose = np.array([m.pose.x, m.pose.y, m.pose.theta])
+    path = np.array([[q.x, q.y, q.theta] for q in m.path], dtype=float).reshape(-1, 3)
+    _finite(pose, f"beacon of ego {m.ego}: pose")
+    _finite(path, f"beacon of ego {m.ego}: path")
+    return Beacon(int(m.ego), pose, bool(m.waiting), path)
 
 
 def observation_from_msg(msg: ObservationMsg) -> Observation:
@@ -150,6 +179,8 @@ def observation_from_msg(msg: ObservationMsg) -> Observation:
         peds.append(ObservedPedestrian(int(p.id), float(p.radius), pos, prev))
     ranges = np.asarray(msg.ray_ranges, dtype=np.float32)
     _finite(ranges, "ray_ranges")
+    if len(msg.beacons) > MAX_BEACONS:
+        raise MessageError(f"{len(msg.beacons)} beacons, at most {MAX_BEACONS}")
     return Observation(
         step=int(msg.step),
         dt=float(msg.dt),
@@ -164,6 +195,7 @@ def observation_from_msg(msg: ObservationMsg) -> Observation:
         ray_angle_min=float(msg.ray_angle_min),
         ray_angle_increment=float(msg.ray_angle_increment),
         ray_ranges=ranges,
+        beacons=tuple(beacon_from_msg(b) for b in msg.beacons),
     )
 
 

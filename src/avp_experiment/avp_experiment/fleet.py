@@ -13,6 +13,7 @@ in, once per decision: for them, count the episodes with a loss, not the losses.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -96,6 +97,7 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
     from avp_experiment.ego import MethodEgo
     from avp_experiment.metrics import episode_record, lot_record
     from avp_experiment.oracle import OracleEgo, ground_truth
+    from avp_planner.core.ego_yield import beacon_of, heard_by
     from avp_planner.core.reservation import SpotReservations
     from avp_planner.core.trace import DecisionTrace
     from avp_sim.core.factory import make_world
@@ -115,9 +117,10 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
     losses = SpotLosses(k)  # the spot each ego is driving to park in, and the spots it lost
     meter = GridlockMeter(world.dt)
     holders: dict[int, str] = _holders(world)
+    beacons: list = []  # what the egos announced at the step before (avp_planner.core.ego_yield)
     while not world.done:
         driving = world.egos.driving.copy()
-        commands, decisions, claims = [], {}, {}
+        commands, decisions, claims, sent = [], {}, {}, []
         for i in range(k):
             if not driving[i]:
                 commands.append((0.0, 0.0))
@@ -127,6 +130,9 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
             obs = world.observe(i)
             if book is not None and reserve[i]:  # the spots other egos hold, shown as occupied (.reservation)
                 obs = book.apply(obs, i)
+            heard = heard_by(beacons, i)
+            if heard:  # the fleet's channel: the beacons of the egos with the right of way, sent the step before
+                obs = replace(obs, beacons=heard)
             out = egos[i].step(obs)
             if book is not None and reserve[i]:
                 claims[i] = out.decision
@@ -135,9 +141,11 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
             if out.decision is not None:
                 traces[i].add(out.step, out.decision)
                 decisions[i] = out.decision
+                sent.append(beacon_of(i, obs.ego_pose, out.decision))
                 losses.decided(i, out.decision.mode == "park", int(out.decision.spot_id), holders)
         if book is not None:  # after every ego decided: the next step's holds (SpotReservations.settle)
             book.settle(claims, world.step_index * world.dt)
+        beacons = sent
         meter.add(world.step_index, waits_for(world, decisions))
         world.step_all(commands)
         if book is not None:

@@ -56,6 +56,10 @@ SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     "wait_anywhere": {"decision.wait_anywhere": (True, False)},
     # e) "the ego would stay put" (§V-D-3) also where a standing car waits for it: step out of its way
     "make_way": {"decision.make_way": (True, False)},
+    # the same sentence for two egos of a fleet that wait for each other: the one that entered later gives way to the
+    # other's announced path (a message between egos, avp_planner.core.ego_yield; on in planner.param.yaml, inert
+    # with one ego)
+    "ego_yield": {"decision.ego_yield": (True, False)},
     # "If this path also avoids collisions with the predicted trajectories" (§V-D-1), re-checked whole every step:
     # keep driving a plan whose first meeting is more than 2 s ahead (debouncing)
     "keep_plan": {"decision.keep_plan_window": (2.0, 0.0)},

@@ -35,6 +35,7 @@ from avp_common.conversions import (
     check_probabilities,
     lot_from_msg_or_log,
     observation_from_msg,
+    poses_to_msg,
     predictions_from_msg,
 )
 from avp_common.lifecycle import guard_lifecycle_services
@@ -57,6 +58,7 @@ from avp_msgs.msg import (
     PredictedTrajectoryArray,
     SpotBeliefs,
 )
+from avp_planner.core.ego_yield import announcement
 from avp_planner.core.settings import DEFAULT_SETTINGS
 from avp_planner.core.spot_selection import spot_selector_class
 from avp_planner.core.trace import DecisionTrace as DecisionTrace_
@@ -386,6 +388,8 @@ class PlannerNode(LifecycleNode):
         msg.spot_selection_time = float(timings.get("spot_selection_time", 0.0))
         msg.path_planning_time = float(timings.get("path_planning_time", total))
         msg.reason = str(getattr(d, "reason", ""))
+        waiting, announced = announcement(d)  # what a fleet's channel (v2v_node) turns into this ego's beacon
+        msg.waiting, msg.announced = waiting, poses_to_msg(announced)
         self.pub_decision.publish(msg)
         self.pub_trace.publish(trace_to_msg(path.header, int(obs_msg.step), d,
                                             self.trace.add(int(obs_msg.step), d)))

@@ -38,6 +38,18 @@ class ObservedPedestrian:
 
 
 @dataclass(frozen=True)
+class Beacon:
+    """An announcement another automated car sent over the fleet's radio (V2V), not something observed: who sent
+    it, where it stands, whether it stands waiting, and the path it wants to drive (the plan it drives, or while it
+    waits the plan it is blocked on). Only an ego of a fleet hears one (docs/world.md, "Several egos")."""
+
+    ego: int  # the sender's index; it has the right of way over the receiver (the fleet's channel delivers so)
+    pose: np.ndarray  # (3,) the sender's pose when it sent it
+    waiting: bool  # it stands idle or waiting
+    path: np.ndarray  # (N, 3) poses of the path it wants to drive, from its pose on
+
+
+@dataclass(frozen=True)
 class Observation:
     """The ego's observation at step ``step`` (time t = step * dt), paper §III-A."""
 
@@ -54,6 +66,7 @@ class Observation:
     ray_angle_min: float = 0.0  # relative to the ego heading
     ray_angle_increment: float = 0.0
     ray_ranges: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    beacons: tuple[Beacon, ...] = ()  # what egos with the right of way announced at the step before (V2V)
 
     @property
     def t(self) -> float:

@@ -63,6 +63,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from avp_planner.core.ego_yield import EgoYieldMixin
 from avp_planner.core.making_way import MakeWayMixin
 from avp_planner.core.planner_candidates import CandidatesMixin
 from avp_planner.core.planner_inputs import InputsMixin
@@ -83,7 +84,7 @@ from avp_planner.core.planner_types import (
 )
 from avp_planner.core.settings import PlannerSettings
 from avp_planner.core.spot_selection import SelectionContext, make_spot_selector
-from avp_planner.core.trace import idle_cause
+from avp_planner.core.trace import blocked_poses, idle_cause
 from avp_planner.core.yielding import ReactionEvidence
 from avp_search.collision import DynamicObstacles, StaticWorld
 from avp_search.hybrid_astar import PlanResult
@@ -95,7 +96,7 @@ __all__ = ["EgoPlanner", "Decision", "priority_from_probabilities", "PARK", "EXP
            "EXPLORE_BACK_AFTER", "WORLD_CACHE_SIZE", "FAILED_SEARCH_CACHE", "CONTAINED_MARGIN"]
 
 
-class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWayMixin):
+class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWayMixin, EgoYieldMixin):
     """§V-D decision logic; see the module docstring. One instance per episode (or call :meth:`reset`).
 
     Args:
@@ -133,6 +134,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
         self._make_way_until = -1  # ... until this step at most
         self._make_way_retry = -(10**9)  # no new search for a way out before this step
         self._ped_heading: dict[int, float] = {}  # make_way: the direction each pedestrian last walked in
+        self._wanted = np.zeros((0, 3))  # the plan the last idle decision was blocked on (Decision.wanted)
 
     def tell_reacting(self, keys) -> None:
         """With ``collision.reactive_evidence: told``: the agents that stop for the ego (keys (is a pedestrian,
@@ -179,7 +181,8 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
             return self._finish(Decision(IDLE, reason=f"waiting: re-plan at step {self._idle_until} "
                                                       "(idle_replan_steps)", poses=np.asarray(obs.ego_pose,
                                                                                              float)[None].copy(),
-                                         trace={"mode": IDLE, **self._last_cause}), timing, t_start)
+                                         trace={"mode": IDLE, **self._last_cause}, wanted=self._wanted.copy()),
+                                timing, t_start)
         aside = self._aside_decision(obs, beliefs)  # make_way: standing aside until the agent has gone
         if aside is not None:
             return self._finish(aside, timing, t_start)
@@ -286,10 +289,12 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
                 st.stats["evasive"] = True
                 return self._finish(self._execute(plan, len(st.cands), plan.note, True), st.timing, st.t_start,
                                     st.stats)
-        plan = self._make_way(st)
-        if plan is not None:  # make_way: out of the corridor of a car waiting for the ego, then stand aside
+        plan, how = self._yield_to_ego(st), "ego_yield"
+        if plan is None:
+            plan, how = self._make_way(st), "make_way"
+        if plan is not None:  # ego_yield, make_way: out of the way of a car waiting for the ego, then stand aside
             self._plan = plan
-            st.stats["make_way"] = True
+            st.stats[how] = True
             return self._finish(self._execute(plan, len(st.cands), plan.note, True), st.timing, st.t_start,
                                 st.stats)
         plan = self._creep(st)
@@ -297,9 +302,12 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
             return self._finish(self._execute(plan, len(st.cands), plan.note, True), st.timing, st.t_start, st.stats)
         reason = "no safe parking or exploration plan" + (f" ({st.why})" if st.why else "")
         self._idle_until = st.obs.step + d.idle_replan_steps
-        self._last_cause = idle_cause(st, self.settings.control)
+        wanted = blocked_poses(st, self.settings.control)
+        self._last_cause = idle_cause(st, self.settings.control, wanted)
+        self._wanted = np.zeros((0, 3)) if wanted is None else np.asarray(wanted, dtype=float)
         return self._finish(Decision(IDLE, n_candidates=len(st.cands), reason=reason, poses=ego[None].copy(),
-                                     trace={"mode": IDLE, **self._last_cause}), st.timing, st.t_start, st.stats)
+                                     trace={"mode": IDLE, **self._last_cause}, wanted=self._wanted.copy()),
+                            st.timing, st.t_start, st.stats)
 
     def _still_valid(self, plan: _Plan, ego: np.ndarray, world: StaticWorld, dyn: DynamicObstacles) -> tuple[bool, str]:
         d = self.settings.decision

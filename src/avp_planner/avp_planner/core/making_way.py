@@ -132,11 +132,20 @@ class MakeWayMixin:
     def _way_out(self, ego, obs, st, blockers) -> _Plan | None:
         """The shortest safe manoeuvre of ``MOVES`` whose end pose is clear of every blocker's corridor."""
         d, c = self.settings.decision, self.settings.collision
-        hl, hw = 0.5 * obs.ego_length, 0.5 * obs.ego_width
         zones = [corridor(p, ln, wd, s, d.make_way_clear, c.pedestrian_margin if key[0] else c.vehicle_margin)
                  for key, p, ln, wd, s in blockers]
+        return self._way_out_of(ego, obs, st, zones)
+
+    def _way_out_of(self, ego, obs, st, zones: list[tuple]) -> _Plan | None:
+        """The shortest safe manoeuvre of ``MOVES`` whose end pose is clear of every zone (centre pose, half length,
+        half width), free of the static world and of every predicted agent; None if there is none."""
+        c = self.settings.collision
+        hl, hw = 0.5 * obs.ego_length, 0.5 * obs.ego_width
         kap = 1.0 / self.settings.plan_radius
         start = (float(ego[0]), float(ego[1]), float(ego[2]))
+        if zones:
+            zc = np.array([z[0] for z in zones], dtype=float).reshape(-1, 3)
+            zl, zw = np.array([z[1] for z in zones], dtype=float), np.array([z[2] for z in zones], dtype=float)
         paths = []
         for direction in (-1.0, 1.0):
             for f in self.settings.search.steering_fractions:
@@ -148,7 +157,7 @@ class MakeWayMixin:
         paths.sort(key=lambda p: (p.length, p.segments[0][1] < 0))
         for path in paths:
             end = np.asarray(path.end(), dtype=float)
-            if any(float(rect_gaps(end, zc, hl, hw, zl, zw)) < 0.0 for zc, zl, zw in zones):
+            if len(zones) and (rect_gaps(end[None], zc, hl, hw, zl, zw) < 0.0).any():
                 continue
             traj = track(path, self.settings.control, self.settings.vehicle.max_curvature, obs.ego_speed)
             x = traj.states

@@ -34,7 +34,8 @@ class Decision:
     ``path_planning_time``: Hybrid A* searches and tracking; ``total``); n_candidates: |I_can,0|;
     reason: why this mode (or why a plan was dropped); cost: c of the plan; stats: details; trace: the step's
     mode (park, explore, wait_and_go, detour, evasive, idle, parked) and, when idle or waiting, its cause
-    (:mod:`avp_planner.core.trace`).
+    (:mod:`avp_planner.core.trace`); wanted: (N, 3) when idle, the poses of the plan the ego is blocked on (the one
+    met latest, whose blocker the trace names) — what a fleet's beacon announces (:mod:`avp_planner.core.ego_yield`).
     """
 
     mode: str
@@ -50,6 +51,7 @@ class Decision:
     replanned: bool = False
     stats: dict = field(default_factory=dict)
     trace: dict = field(default_factory=dict)  # mode and idle cause of this step (avp_planner.core.trace)
+    wanted: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # idle: the plan it is blocked on
 
 
 @dataclass

@@ -92,6 +92,15 @@ class DecisionSettings:
     make_way_reach: float = 3.0  # m of a standing car's path in which the ego counts as in its way
     make_way_clear: float = 8.0  # m of that path the ego's end pose must be clear of
     make_way_hold: float = 5.0  # s at most to stand aside after the manoeuvre
+    # ego_yield (beyond §V-D-3 "the ego would stay put"; a fleet only: it reads the beacons other egos send, a message
+    # between egos): after ego_yield_after s without moving, if an ego with the right of way stands waiting with this
+    # ego on the first ego_yield_clear m of the path it announced, drive the shortest short manoeuvre that ends clear
+    # of that path, then stand aside until that car has moved 1 m or ego_yield_hold s have passed
+    # (avp_planner.core.ego_yield)
+    ego_yield: bool = True  # give way to an ego with the right of way that waits for this one (fleets; §V-D-3: no)
+    ego_yield_after: float = 2.0  # s stopped (idle or waiting) before giving way
+    ego_yield_clear: float = 10.0  # m of the announced path the ego must end clear of
+    ego_yield_hold: float = 5.0  # s at most to stand aside after the manoeuvre
     # debouncing (beyond §V-D's re-check of the whole plan against every prediction at every step): a plan
     # already being driven is dropped only when a predicted meeting comes within keep_plan_window s; a later one is
     # tolerated and re-checked next step (a new plan must still meet nothing); 0 = the paper
@@ -136,6 +145,9 @@ class PlannerSettings(SearchConfig):
             ("decision.make_way_reach", d.make_way_reach > 0),
             ("decision.make_way_clear", d.make_way_clear >= d.make_way_reach),
             ("decision.make_way_hold", d.make_way_hold >= 0),
+            ("decision.ego_yield_after", d.ego_yield_after >= 0),
+            ("decision.ego_yield_clear", d.ego_yield_clear > 0),
+            ("decision.ego_yield_hold", d.ego_yield_hold >= 0),
             ("decision.wait_stop_offsets", all(o > 0 for o in d.wait_stop_offsets)),
             ("collision.commit_horizon", self.collision.commit_horizon >= 0),
             ("collision.risk_bound", 0.0 <= self.collision.risk_bound <= 1.0),

@@ -83,13 +83,23 @@ def blocker_trace(dyn, poses: np.ndarray, obs: Observation) -> dict:
             "hit_step": k, "motion": agent_motion(obs, agent, ped)}
 
 
-def idle_cause(st, control) -> dict:
+def blocked_poses(st, control) -> np.ndarray | None:
+    """The poses (time-indexed from now) of the blocked plan of a decision step met latest by a predicted agent
+    (ties: the shorter), or None if no plan was blocked: the plan the ego waits to drive."""
+    if not st.blocked_plans:
+        return None
+    c = max(st.blocked_plans, key=lambda c: (c.first_hit if c.first_hit >= 0 else 10**9, -c.path.length))
+    poses, _ = reference_trajectory(c.path, control, float(st.obs.ego_speed))
+    return poses
+
+
+def idle_cause(st, control, poses: np.ndarray | None = None) -> dict:
     """Why a decision step (:class:`~avp_planner.core.planner_types._Step`) ends idle: the blocked plan hit latest
-    names its blocker (``agent``); else ``budget`` (a search hit the time cap, or the deadline passed), ``static``
-    (searches ran, none found a path) or ``no_candidate`` (nothing to search)."""
-    if st.blocked_plans:
-        c = max(st.blocked_plans, key=lambda c: (c.first_hit if c.first_hit >= 0 else 10**9, -c.path.length))
-        poses, _ = reference_trajectory(c.path, control, float(st.obs.ego_speed))
+    (``poses``, :func:`blocked_poses`) names its blocker (``agent``); else ``budget`` (a search hit the time cap, or
+    the deadline passed), ``static`` (searches ran, none found a path) or ``no_candidate`` (nothing to search)."""
+    if poses is None:
+        poses = blocked_poses(st, control)
+    if poses is not None:
         return blocker_trace(st.dyn, poses, st.obs)
     queries = st.stats.get("queries", [])
     if any(str(q.get("reason", "")).startswith("time cap") for q in queries) or time.perf_counter() > st.t_end:
