@@ -12,8 +12,8 @@ from avp_perception.params import BELIEF_PARAMS, PREDICTION_PARAMS
 from avp_planner.examples.minimal_planner import MINIMAL_PARAMS
 from avp_planner.planner_node import PLANNER_PARAMS
 from avp_planner.reservation_node import RESERVATION_PARAMS
-from avp_planner.v2v_node import V2V_PARAMS
 from avp_planner.scripted_driver_node import DRIVER_PARAMS
+from avp_planner.v2v_node import V2V_PARAMS
 from avp_sim.params import SIM_PARAMS
 from avp_viz.scene_node import SCENE_PARAMS
 

@@ -116,9 +116,9 @@ def fleet_graph(methods: list, *, deterministic: bool = False, sim_extra: dict |
     :func:`ego_namespace` (i), reading the lot's ``lot_map``, and the V2V node (:data:`V2V_NODE`) that hands each
     pipeline its observation with the beacons of the egos before it (after the reservation node for a ``reserve``
     ego). The simulator's step 0 waits for the relays and each ego's cmd publisher; the V2V node forwards an ego's
-    first observation once its pipeline's nodes subscribe. ``scene``: a scene node per ego too (its frames ``ego<i>/`` on the
-    one /tf, its colour; avp_viz.scene). One method gives the one-ego graph of :func:`method_graph`. ``intent_weights``,
-    ``intent_seed``: as :func:`method_graph`'s, for every ego."""
+    first observation once its pipeline's nodes subscribe. ``scene``: a scene node per ego too (its frames
+    ``ego<i>/`` on the one /tf, its colour; avp_viz.scene). One method gives the one-ego graph of
+    :func:`method_graph`. ``intent_weights``, ``intent_seed``: as :func:`method_graph`'s, for every ego."""
     intent = {"intent_weights": intent_weights, "intent_seed": intent_seed}
     if len(methods) == 1:
         return method_graph(methods[0], deterministic=deterministic, sim_extra=sim_extra, **intent)
