@@ -31,21 +31,25 @@ def run_episode(lot, sim: dict, profile, seed: int, k: int, ego_workers: int = 1
     > 1: the pipelines in that many processes (:class:`avp_experiment.ego_pool.EgoPool`), started before the clock."""
     from avp_experiment.ego import MethodEgo
     from avp_experiment.ego_pool import EgoPool
+    from avp_planner.core.ego_yield import beacon_of, with_beacons
     from avp_sim.core.factory import make_world
 
     world = make_world(lot, dict(sim, **{"egos.count": k}), seed, True)
     pool = EgoPool(lot, [profile] * k, workers=ego_workers, deterministic=False) if ego_workers > 1 else None
     egos = [] if pool else [MethodEgo(lot, profile, deterministic=False) for _ in range(k)]
     times: list[float] = []
+    beacons: list = []  # the V2V channel, as avp_experiment.fleet hands it over (decision.ego_yield reads it)
     try:
         while not world.done:
             t0 = time.perf_counter()
             driving = world.egos.driving.copy()
+            obs = {i: with_beacons(world.observe(i), beacons, i) for i in range(k) if driving[i]}
             if pool is not None:
-                steps = pool.step([i for i in range(k) if driving[i]], lambda i: (world.observe(i), None))
-                cmds = [steps[i].command if i in steps else (0.0, 0.0) for i in range(k)]
+                steps = pool.step(list(obs), lambda i, obs=obs: (obs[i], None))
             else:
-                cmds = [egos[i].step(world.observe(i)).command if driving[i] else (0.0, 0.0) for i in range(k)]
+                steps = {i: egos[i].step(o) for i, o in obs.items()}
+            cmds = [steps[i].command if i in steps else (0.0, 0.0) for i in range(k)]
+            beacons = [beacon_of(i, obs[i].ego_pose, s.decision) for i, s in steps.items() if s.decision is not None]
             world.step_all(cmds)
             times.append(time.perf_counter() - t0)
     finally:

@@ -6,7 +6,9 @@
 * lock-step waits for every driving ego's command, and after ``lockstep_timeout`` names the egos that did not
   answer; a command for ego 0 tagged with ego 1's key (ego 1's planner, or a copy of its command) is dropped;
 * keys: a node in /avp/ego<i> tags with ego i's key, which verifies on ego i's topics only;
-* ``avp experiment --transport ros --egos 2`` gives the in-process fleet's records, spots lost and gridlock included.
+* ``avp experiment --transport ros --egos 2`` gives the in-process fleet's records, spots lost and gridlock included;
+* with four egos on seed 29, where ego 3 gives way to ego 0 (``decision.ego_yield``), the beacons relayed by the V2V
+  node give the in-process records too.
 """
 
 from __future__ import annotations
@@ -130,6 +132,28 @@ def test_fleet_experiment_over_dds_gives_the_inprocess_records(paper_lot, ros_en
         assert g["transport"] == "ros" and g["timings"]["decisions"] == e["timings"]["decisions"] > 0
         same = {k: v for k, v in g.items() if k not in ("timings", "transport")}
         assert same == {k: v for k, v in e.items() if k not in ("timings", "transport")}, (g["seed"], g["ego"])
+
+
+def test_an_ego_gives_way_over_dds_as_in_process(paper_lot, ros_env, tmp_path, monkeypatch):
+    """Four egos on seed 29 (the paper lot's one ego-ego gridlock without ego_yield): ego 3 gives way to ego 0's
+    announced path, which it reads from the beacons the V2V node (avp_planner.v2v_node) relays; over DDS every ego's
+    record is the in-process one."""
+    from avp_bringup.ros_transport import run_ros
+    from avp_experiment.fleet import fleet_label, run_fleet_inproc
+    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+
+    cfg = RunConfig(t_final=50.0)
+    expected = run_fleet_inproc(paper_lot, sim_values(cfg), [run_profile("bezier", cfg)] * 4, 29, True, cfg)
+    assert [r["decision_trace"]["steps_by_mode"].get("make_way", 0) > 0 for r in expected] == [False] * 3 + [True]
+    for k, v in ros_env.items():
+        monkeypatch.setenv(k, v)
+    got: list[dict] = []
+    run_ros([(fleet_label(["bezier"] * 4), 29, "reactive")], cfg, lambda recs: got.extend(recs), tmp_path / "logs",
+            timeout=900.0, env=ros_env)
+    assert len(got) == 4
+    for g, e in zip(got, expected, strict=True):
+        same = {k: v for k, v in g.items() if k not in ("timings", "transport")}
+        assert same == {k: v for k, v in e.items() if k not in ("timings", "transport")}, g["ego"]
 
 
 def test_lockstep_waits_for_every_ego_and_names_the_late_one(ros_env, tmp_path, monkeypatch):

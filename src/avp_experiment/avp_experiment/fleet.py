@@ -13,7 +13,6 @@ in, once per decision: for them, count the episodes with a loss, not the losses.
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 
 import numpy as np
 
@@ -97,7 +96,7 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
     from avp_experiment.ego import MethodEgo
     from avp_experiment.metrics import episode_record, lot_record
     from avp_experiment.oracle import OracleEgo, ground_truth
-    from avp_planner.core.ego_yield import beacon_of, heard_by
+    from avp_planner.core.ego_yield import beacon_of, with_beacons
     from avp_planner.core.reservation import SpotReservations
     from avp_planner.core.trace import DecisionTrace
     from avp_sim.core.factory import make_world
@@ -130,9 +129,7 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
             obs = world.observe(i)
             if book is not None and reserve[i]:  # the spots other egos hold, shown as occupied (.reservation)
                 obs = book.apply(obs, i)
-            heard = heard_by(beacons, i)
-            if heard:  # the fleet's channel: the beacons of the egos with the right of way, sent the step before
-                obs = replace(obs, beacons=heard)
+            obs = with_beacons(obs, beacons, i)  # the fleet's channel: what egos before it sent the step before
             out = egos[i].step(obs)
             if book is not None and reserve[i]:
                 claims[i] = out.decision

@@ -140,3 +140,12 @@ def heard_by(beacons, ego: int) -> tuple[Beacon, ...]:
     """The fleet channel's rule: ego ``ego`` hears the beacons of the egos that entered before it (lower index:
     first in, first served), in index order."""
     return tuple(sorted((b for b in beacons if b.ego < ego), key=lambda b: b.ego))
+
+
+def with_beacons(obs, beacons, ego: int):
+    """``obs`` of ego ``ego`` as the in-process channel hands it over: with the beacons it hears (:func:`heard_by`)
+    of those sent the step before; ``obs`` itself if it hears none."""
+    from dataclasses import replace
+
+    heard = heard_by(beacons, ego)
+    return replace(obs, beacons=heard) if heard else obs
