@@ -87,21 +87,23 @@ def test_the_ego_is_in_the_way_of_a_waiting_sender_only_on_its_announced_path(pa
         assert swept.intersects(_box(ego, 2.4, 1.0)) and ways[0][0].id == 900000
 
 
-def test_beacons_cross_the_observation_message_exactly_and_bad_ones_are_refused():
+def test_beacons_cross_their_message_exactly_and_bad_ones_are_refused():
     pytest.importorskip("rclpy")
-    from avp_common.conversions import MessageError, observation_from_msg, observation_to_msg
+    from avp_common.conversions import MessageError, beacons_from_msg, beacons_to_msg
 
     rng = np.random.default_rng(0)
     beacons = [Beacon(i, rng.normal(size=3), bool(i % 2), rng.normal(size=(7 + i, 3))) for i in range(3)]
-    back = observation_from_msg(observation_to_msg(_obs([1.0, 2.0, 0.1], beacons=beacons)))
-    assert [(b.ego, b.waiting) for b in back.beacons] == [(b.ego, b.waiting) for b in beacons]
-    for got, sent in zip(back.beacons, beacons, strict=True):
+    msg = beacons_to_msg(12, 0.1, beacons)
+    assert msg.step == 12
+    back = beacons_from_msg(msg)
+    assert [(b.ego, b.waiting) for b in back] == [(b.ego, b.waiting) for b in beacons]
+    for got, sent in zip(back, beacons, strict=True):
         assert np.array_equal(got.pose, sent.pose) and np.array_equal(got.path, sent.path)  # float64: bit for bit
     for bad, needle in (([Beacon(0, np.zeros(3), True, np.zeros((0, 3)))] * 8, "8 beacons, at most 7"),
                         ([Beacon(0, np.zeros(3), True, np.zeros((MAX_BEACON_POSES + 1, 3)))], "path poses, at most"),
                         ([Beacon(0, np.array([np.nan, 0, 0]), True, np.zeros((1, 3)))], "beacon of ego 0: pose")):
         with pytest.raises(MessageError, match=needle):
-            observation_from_msg(observation_to_msg(_obs([0.0, 0.0, 0.0], beacons=bad)))
+            beacons_from_msg(beacons_to_msg(0, 0.1, bad))
 
 
 def test_the_later_ego_gives_way_and_the_gridlock_of_seed_29_does_not_form(paper_lot):

@@ -267,14 +267,14 @@ def test_reserve_needs_several_egos_and_the_fleet_graph_gives_it_the_reservation
     nodes = {n.key: n for n in fleet_graph(["bezier", "reserve", "reserve"])}
     book, radio = nodes["avp_reservation"], nodes["avp_v2v"]
     assert book.extra_params["egos"] == "1,2" and book.extra_params["lockstep"] is True
-    assert book.extra_params["min_subscribers"] == 1  # the V2V node reads what the book passes on
-    # every pipeline reads the V2V node, which reads the book for egos 1 and 2 and the simulator for ego 0
-    assert radio.extra_params["egos"] == "0,1,2" and radio.extra_params["reserve_egos"] == "1,2"
-    assert radio.extra_params["min_subscribers"] == 3 and radio.extra_params["lockstep"] is True
-    assert nodes["avp_sim"].extra_params["min_subscribers"] == 1  # the relays wait for the pipelines themselves
-    for i in range(3):
-        for key in ("avp_belief", "avp_prediction", "avp_planner"):
-            assert ("observation", "v2v/observation") in nodes[f"ego{i}.{key}"].remaps
+    assert radio.extra_params["egos"] == "0,1,2" and radio.extra_params["lockstep"] is True
+    # the book (and the V2V node) wait for the reserve pipelines themselves
+    assert nodes["avp_sim"].extra_params["min_subscribers"] == 2
+    for key in ("avp_belief", "avp_prediction", "avp_planner"):  # ego 0 reads the simulator; 1 and 2 the book
+        assert ("observation", "reserved/observation") not in nodes[f"ego0.{key}"].remaps
+        assert ("observation", "reserved/observation") in nodes[f"ego1.{key}"].remaps
+        assert ("observation", "reserved/observation") in nodes[f"ego2.{key}"].remaps
+    assert all(nodes[f"ego{i}.avp_planner"].extra_params["use_beacons"] is True for i in range(3))  # V2V heard
 
 
 def test_the_simulator_names_which_ego_each_braking_agent_brakes_for(paper_lot):
@@ -306,8 +306,8 @@ def test_the_live_graph_of_k_egos_its_topics_and_its_frames():
     from avp_viz import scene
 
     nodes = fleet_graph(["bezier", "blind", "bezier"], scene=True)
-    assert nodes[0].extra_params["egos.count"] == 3 and nodes[0].extra_params["min_subscribers"] == 1
-    assert nodes[-1].key == "avp_v2v" and nodes[-1].extra_params["min_subscribers"] == 4  # 3 nodes and the scene
+    assert nodes[0].extra_params["egos.count"] == 3 and nodes[0].extra_params["min_subscribers"] == 5
+    assert nodes[-1].key == "avp_v2v"  # 3 nodes, the scene and the V2V node read each ego's observation
     assert [n.key for n in nodes[1:5]] == ["ego0.avp_belief", "ego0.avp_prediction", "ego0.avp_planner",
                                            "ego0.avp_scene"]
     assert {n.namespace for n in nodes[1:-1]} == {"/avp/ego0", "/avp/ego1", "/avp/ego2"}

@@ -68,8 +68,8 @@ def fleet_topics(egos: int) -> dict[str, tuple[str, bool]]:
     out.pop("/avp/debug/scan", None)  # the simulator's scan is ego 0's in a one-ego graph only
     for i in range(egos):
         out.update({f"/avp/ego{i}/{t}": GRAPH_TOPICS[f"/avp/{t}"] for t in EGO_TOPICS})
-        # what ego i's pipeline reads: its observation with the beacons it hears (avp_planner.v2v_node)
-        out[f"/avp/ego{i}/v2v/observation"] = GRAPH_TOPICS["/avp/observation"]
+        # what ego i's planner hears over the V2V channel (avp_planner.v2v_node)
+        out[f"/avp/ego{i}/v2v/beacons"] = ("avp_msgs/msg/EgoBeaconArray", False)
     return out
 
 
@@ -81,7 +81,7 @@ def _qos(latched: bool) -> Qos:
 
 
 #: topics whose messages the graph's nodes tag (avp_common.msg_auth): by default only tagged ones are recorded
-TAGGED_TOPICS = frozenset({"/avp/lot_map", "/avp/observation", "/avp/v2v/observation", "/avp/cmd", "/avp/beliefs",
+TAGGED_TOPICS = frozenset({"/avp/lot_map", "/avp/observation", "/avp/v2v/beacons", "/avp/cmd", "/avp/beliefs",
                            "/avp/intentions", "/avp/ego_intention", "/avp/predictions"})
 
 

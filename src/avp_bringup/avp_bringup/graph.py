@@ -80,10 +80,8 @@ def default_graph(ego: str = "planner") -> list[NodeSpec]:
 SCENE_NODE = NodeSpec("avp_scene", "avp_viz", "scene_node", "config/scene.param.yaml")
 #: the spot-reservation book of a fleet with `reserve` egos (docs/world.md, "The spot-reservation reference")
 RESERVATION_NODE = NodeSpec("avp_reservation", "avp_planner", "reservation", "config/reservation.param.yaml")
-#: the radio between a fleet's egos: each ego's observation carries the beacons of the egos before it (ego_yield)
+#: the radio between a fleet's egos: each planner hears the beacons of the egos before it (decision.ego_yield)
 V2V_NODE = NodeSpec("avp_v2v", "avp_planner", "v2v", "config/v2v.param.yaml")
-#: what every pipeline of a fleet reads as its observation: the V2V node's
-FLEET_REMAPS = (("observation", "v2v/observation"),)
 
 
 def with_scene(nodes: list[NodeSpec]) -> list[NodeSpec]:
@@ -113,10 +111,10 @@ def fleet_graph(methods: list, *, deterministic: bool = False, sim_extra: dict |
                 ) -> list[NodeSpec]:
     """The live graph of K = len(methods) egos (docs/world.md, "Several egos"): one simulator (``egos.count`` K)
     and, per ego i, the belief node, prediction node and planner of its method (:func:`method_graph`) in
-    :func:`ego_namespace` (i), reading the lot's ``lot_map``, and the V2V node (:data:`V2V_NODE`) that hands each
-    pipeline its observation with the beacons of the egos before it (after the reservation node for a ``reserve``
-    ego). The simulator's step 0 waits for the relays and each ego's cmd publisher; the V2V node forwards an ego's
-    first observation once its pipeline's nodes subscribe. ``scene``: a scene node per ego too (its frames
+    :func:`ego_namespace` (i), reading the lot's ``lot_map``, and the V2V node (:data:`V2V_NODE`) that gives each
+    planner (``use_beacons``) the beacons of the egos before it. The simulator's step 0 waits for each ego's three
+    observation subscribers (the reservation node's one for a ``reserve`` ego), the V2V node and its cmd publisher.
+    ``scene``: a scene node per ego too (its frames
     ``ego<i>/`` on the one /tf, its colour; avp_viz.scene). One method gives the one-ego graph of
     :func:`method_graph`. ``intent_weights``, ``intent_seed``: as :func:`method_graph`'s, for every ego."""
     intent = {"intent_weights": intent_weights, "intent_seed": intent_seed}
@@ -130,22 +128,23 @@ def fleet_graph(methods: list, *, deterministic: bool = False, sim_extra: dict |
     for i, m in enumerate(methods):
         sim_i, *pipeline = method_graph(m, deterministic=deterministic, coordinated=i in reserve, **intent)
         sim = sim or sim_i
-        # every pipeline reads the observation the V2V node passes on (with the beacons it hears); a reserve ego's
-        # comes to that node from the reservation node (the held spots occupied)
-        remaps = EGO_REMAPS + FLEET_REMAPS
-        nodes += [replace(n, namespace=ego_namespace(i), remaps=remaps) for n in pipeline]
+        # a reserve ego's pipeline reads the observation the reservation node passes on (the held spots occupied)
+        remaps = EGO_REMAPS + ((("observation", "reserved/observation"),) if i in reserve else ())
+        # every planner hears the V2V node's beacons (decision.ego_yield)
+        nodes += [replace(with_params(n, use_beacons=True) if n.executable == "planner" else n,
+                          namespace=ego_namespace(i), remaps=remaps) for n in pipeline]
         if scene:
             nodes.append(replace(with_params(SCENE_NODE, ego_index=i), namespace=ego_namespace(i), remaps=remaps))
     assert sim is not None
     n_subs = sim.extra_params.get("min_subscribers", 3) + (1 if scene else 0)
-    extra = {"egos.count": len(methods), "min_subscribers": 1, **(sim_extra or {})}
+    # the simulator waits for each pipeline's three nodes, or the book's one subscription, and the V2V node
+    extra = {"egos.count": len(methods), "min_subscribers": (1 if reserve else n_subs) + 1, **(sim_extra or {})}
     sim = with_params(sim, **extra)
     lockstep = extra.get("mode", "lockstep") == "lockstep"
-    # the V2V channel (avp_planner.v2v_node) before every pipeline; it waits for their pipelines itself
-    nodes.append(with_params(V2V_NODE, egos=",".join(map(str, range(len(methods)))), min_subscribers=n_subs,
-                             reserve_egos=",".join(map(str, reserve)), lockstep=lockstep))
-    if reserve:  # the spot-reservation book (avp_planner.reservation_node) before the V2V node
-        nodes.append(with_params(RESERVATION_NODE, egos=",".join(map(str, reserve)), min_subscribers=1,
+    # the V2V channel (avp_planner.v2v_node): it answers each observation with the beacons its ego hears
+    nodes.append(with_params(V2V_NODE, egos=",".join(map(str, range(len(methods)))), lockstep=lockstep))
+    if reserve:  # the spot-reservation book (avp_planner.reservation_node); it waits for their pipelines itself
+        nodes.append(with_params(RESERVATION_NODE, egos=",".join(map(str, reserve)), min_subscribers=n_subs,
                                  lockstep=lockstep))
     return [sim, *nodes]
 

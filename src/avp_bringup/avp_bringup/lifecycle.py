@@ -229,7 +229,7 @@ class LifecycleClient:
 
 
 #: the planner's inputs, inherited by a swapped-in planner from the running one
-WIRING = ("use_beliefs", "use_predictions", "use_ego_intention")
+WIRING = ("use_beliefs", "use_predictions", "use_ego_intention", "use_beacons")
 
 
 def start_planner_process(name: str, profile: Path, namespace: str, log_dir: Path, user_params: str | None,
@@ -237,15 +237,14 @@ def start_planner_process(name: str, profile: Path, namespace: str, log_dir: Pat
     """``avp_planner/planner`` as a detached process named ``name`` (unconfigured: autostart false), with
     the parameters the default graph gives its planner (use_beliefs / use_predictions), replaced by ``wiring``
     (the running planner's inputs, :data:`WIRING`) where given."""
-    from avp_bringup.graph import EGO_REMAPS, FLEET_REMAPS, Graph, NodeSpec, default_graph
+    from avp_bringup.graph import EGO_REMAPS, Graph, NodeSpec, default_graph
     from avp_common.msg_auth import ego_scope
 
     base = next(s for s in default_graph("planner") if s.package == "avp_planner" and s.executable == "planner")
     extra = {**base.extra_params, **{k: v for k, v in (wiring or {}).items() if k in WIRING}, "autostart": False}
-    # in an ego's namespace (avp launch --egos K) it reads the lot's lot_map and the V2V node's observation, as
-    # that ego's pipeline does
+    # in an ego's namespace (avp launch --egos K) it reads the lot's lot_map, as that ego's pipeline does
     spec = NodeSpec(name, base.package, base.executable, base.param_file, extra, namespace=namespace,
-                    remaps=EGO_REMAPS + FLEET_REMAPS if ego_scope(namespace) else ())
+                    remaps=EGO_REMAPS if ego_scope(namespace) else ())
     cmd = Graph([spec], log_dir, user_params).command(spec)
     cmd[cmd.index("-p"):cmd.index("-p")] = ["--params-file", str(profile)]  # defaults < user < profile < -p
     log_dir.mkdir(parents=True, exist_ok=True)

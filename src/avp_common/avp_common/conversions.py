@@ -124,11 +124,10 @@ def observation_to_msg(obs: Observation, frame_id: str = "map") -> ObservationMs
     msg.ray_angle_min = float(obs.ray_angle_min)
     msg.ray_angle_increment = float(obs.ray_angle_increment)
     msg.ray_ranges = np.asarray(obs.ray_ranges, dtype=np.float32)
-    msg.beacons = [beacon_to_msg(b) for b in obs.beacons]
     return msg
 
 
-#: a fleet's beacons (avp_planner.core.ego_yield): at most this many in an observation (K <= 8 egos) ...
+#: a fleet's beacons (avp_planner.core.ego_yield): at most this many in one EgoBeaconArray (K <= 8 egos) ...
 MAX_BEACONS = 7
 #: ... and at most this many poses of path in one (avp_planner.core.ego_yield.MAX_BEACON_POSES)
 MAX_BEACON_POSES = 200
@@ -179,8 +178,6 @@ def observation_from_msg(msg: ObservationMsg) -> Observation:
         peds.append(ObservedPedestrian(int(p.id), float(p.radius), pos, prev))
     ranges = np.asarray(msg.ray_ranges, dtype=np.float32)
     _finite(ranges, "ray_ranges")
-    if len(msg.beacons) > MAX_BEACONS:
-        raise MessageError(f"{len(msg.beacons)} beacons, at most {MAX_BEACONS}")
     return Observation(
         step=int(msg.step),
         dt=float(msg.dt),
@@ -195,8 +192,27 @@ def observation_from_msg(msg: ObservationMsg) -> Observation:
         ray_angle_min=float(msg.ray_angle_min),
         ray_angle_increment=float(msg.ray_angle_increment),
         ray_ranges=ranges,
-        beacons=tuple(beacon_from_msg(b) for b in msg.beacons),
     )
+
+
+def beacons_to_msg(step: int, dt: float, beacons) -> object:
+    """avp_msgs/EgoBeaconArray of what one ego hears for ``step``."""
+    from avp_msgs.msg import EgoBeaconArray
+
+    msg = EgoBeaconArray()
+    msg.header.frame_id = "map"
+    msg.header.stamp = step_to_time(step, dt)
+    msg.step = int(step)
+    msg.beacons = [beacon_to_msg(b) for b in beacons]
+    return msg
+
+
+def beacons_from_msg(msg) -> tuple[Beacon, ...]:
+    """The beacons of an avp_msgs/EgoBeaconArray; raises MessageError for more than MAX_BEACONS, a path over
+    MAX_BEACON_POSES poses, or NaN/inf."""
+    if len(msg.beacons) > MAX_BEACONS:
+        raise MessageError(f"{len(msg.beacons)} beacons, at most {MAX_BEACONS}")
+    return tuple(beacon_from_msg(b) for b in msg.beacons)
 
 
 # ------------------------------------------------------------------------------- beliefs / predictions

@@ -4,7 +4,8 @@ egos"): the spot-reservation book (:mod:`avp_planner.reservation_node`) and the 
 
 A relay subscribes, for each ego i of parameter ``egos``, to its input observation (``ego<i>/observation`` or what
 :meth:`LockstepRelay.source` names), its planner's ``ego<i>/decision`` and its ``ego<i>/episode_status``, and
-publishes ``ego<i>/<output>``: the observation as :meth:`LockstepRelay.transform` changes it, tagged with ego i's key.
+publishes ``ego<i>/<output>``: what :meth:`LockstepRelay.transform` makes of the observation (the observation
+changed, or another message of that step), tagged with ego i's key.
 Each ego plans step k with what the relay made of step k-1 (:meth:`LockstepRelay.settle`): in lock-step it forwards
 observation k once it has every step k-1 decision of the egos it forwarded step k-1 to (and, where
 :attr:`LockstepRelay.needs_status`, their statuses of step k); the same seed then gives the in-process fleet's
@@ -52,6 +53,7 @@ class LockstepRelay(Node):
     :meth:`transform` and :meth:`source` as they need."""
 
     output = "relayed/observation"
+    output_type = Observation  # what transform() returns
     needs_status = False  # lock-step also waits for each ego's status of the step (a hold ends with its episode)
 
     def __init__(self, name: str, params: list[ParamSpec]) -> None:
@@ -64,7 +66,8 @@ class LockstepRelay(Node):
         self.min_subscribers, self.lockstep = int(p["min_subscribers"]), bool(p["lockstep"])
         self.auth = Authenticator(self)
         self.waiting = RateLimitedLog(self.get_logger().warning, period=5.0)  # what a held observation waits for
-        self.pub = {i: self.auth.publisher(Observation, f"ego{i}/{self.output}", STEP, ego=i) for i in self.egos}
+        self.pub = {i: self.auth.publisher(self.output_type, f"ego{i}/{self.output}", STEP, ego=i)
+                    for i in self.egos}
         for i in self.egos:
             self.auth.subscription(Observation, self.source(i), lambda m, i=i: self._on_obs(i, m), STEP)
             self.auth.subscription(PlannerDecision, f"ego{i}/decision", lambda m, i=i: self._on_decision(i, m), STEP)
@@ -86,8 +89,9 @@ class LockstepRelay(Node):
         """Take in the decisions of ``step`` (ego -> its decision, in ego order; in real time: those that came) at
         simulated time ``now``, before the observations of ``step + 1`` go out."""
 
-    def transform(self, i: int, msg: Observation) -> Observation:
-        """Ego i's observation as it is forwarded (changed in place, or a new one)."""
+    def transform(self, i: int, msg: Observation):
+        """What goes out to ego i for its observation ``msg`` (an :attr:`output_type`: the observation changed in
+        place, or a new message)."""
         return msg
 
     # ------------------------------------------------------------------------------------------- the relaying
@@ -95,7 +99,7 @@ class LockstepRelay(Node):
     def _new_episode(self, episode: int) -> None:
         self.episode = episode
         self.pending: dict[int, Observation] = {}  # ego -> observation not forwarded yet
-        self.sent: dict[int, tuple[int, Observation]] = {}  # ego -> (step, what it was sent): a re-send repeats it
+        self.sent: dict[int, tuple[int, object]] = {}  # ego -> (step, what it was sent): a re-send repeats it
         self.decided: dict[int, dict[int, PlannerDecision]] = {}  # step -> {ego: its decision}
         self.status: dict[int, tuple[int, int]] = {}  # ego -> (step, state) of its newest status
         self.settled = -1  # the last step whose decisions are taken in

@@ -34,5 +34,8 @@ NODE_PARAMS = [
     ParamSpec("use_ego_intention", bool, "Wait for ego_intention (the belief node's ego_intent) and try the "
               "candidate spots in decreasing eta_0,i until one has a safe plan (Table I 'Implicit'); false = the "
               "lowest c_park.", "eta_0,i", "§VI-B-3", default=False),
+    ParamSpec("use_beacons", bool, "Wait for v2v/beacons (what the egos before this one announced, avp_v2v; a message "
+              "between egos, not in the paper) and plan with them (decision.ego_yield). The fleet graph sets it for "
+              "every ego of several; false = none heard.", default=False),
 ]
 PLANNER_PARAMS = NODE_PARAMS + specs_from_dataclass(DEFAULT_SETTINGS)

@@ -2,7 +2,8 @@
 
 Subscribes lot_map (latched), observation, and — when enabled — beliefs, predictions and ego_intention (the
 belief node's ``ego_intent``: the ego's own intention eta_0,i; the candidate spots are then tried in decreasing
-eta_0,i, Table I "Implicit", §VI-B-3); in lock-step it decides once all enabled inputs stamped like observation k
+eta_0,i, Table I "Implicit", §VI-B-3) and v2v/beacons (an ego of a fleet: what the egos before it announced,
+avp_planner.v2v_node; ``use_beacons``); in lock-step it decides once all enabled inputs stamped like observation k
 have arrived. Publishes cmd
 (TwistStamped, stamped like the observation it answers), plan (nav_msgs/Path), decision
 (avp_msgs/PlannerDecision with timings). Never reads ground truth.
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import replace
 
 import numpy as np
 import rclpy
@@ -31,6 +33,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from avp_common.conversions import (
     MessageError,
+    beacons_from_msg,
     beliefs_from_msg,
     check_probabilities,
     lot_from_msg_or_log,
@@ -50,6 +53,7 @@ from avp_common.qos import LATCHED, RESEND_ANSWER_INTERVAL, STATUS, STEP, STEP_I
 from avp_common.ratelog import RateLimitedLog
 from avp_msgs.msg import (
     DecisionTrace,
+    EgoBeaconArray,
     EpisodeStatus,
     IntentionArray,
     LotMap,
@@ -95,7 +99,7 @@ class PlannerNode(LifecycleNode):
         guard_lifecycle_services(self)
         p = declare_and_validate(self, PLANNER_PARAMS)
         self.use_beliefs, self.use_predictions = p["use_beliefs"], p["use_predictions"]
-        self.use_ego_intention = p["use_ego_intention"]
+        self.use_ego_intention, self.use_beacons = p["use_ego_intention"], p["use_beacons"]
         self.stale_timeout = p["stale_input_timeout"]
         self.p_deadline = p["realtime_decision_deadline"]
         self.realtime = False  # from the simulator's latched episode_status (lock_step)
@@ -128,7 +132,8 @@ class PlannerNode(LifecycleNode):
         self.beliefs: dict[int, SpotBeliefs] = {}
         self.preds: dict[int, PredictedTrajectoryArray] = {}
         self.ego_int: dict[int, IntentionArray] = {}
-        self.inputs = (self.obs, self.beliefs, self.preds, self.ego_int)
+        self.heard: dict[int, EgoBeaconArray] = {}  # what the egos before this one announced (avp_v2v)
+        self.inputs = (self.obs, self.beliefs, self.preds, self.ego_int, self.heard)
         self.reject = RateLimitedLog(self.get_logger().error)  # bad inputs: one line a second per reason
         self.reject_warn = RateLimitedLog(self.get_logger().warning)
         self.skip_log = RateLimitedLog(self.get_logger().info, period=5.0)  # real time: steps skipped when behind
@@ -150,6 +155,8 @@ class PlannerNode(LifecycleNode):
             self.auth.subscription(PredictedTrajectoryArray, "predictions", self._on_preds, STEP_INPUT)
         if self.use_ego_intention:
             self.auth.subscription(IntentionArray, "ego_intention", self._on_ego_intention, STEP_INPUT)
+        if self.use_beacons:  # a fleet's V2V channel (decision.ego_yield)
+            self.auth.subscription(EgoBeaconArray, "v2v/beacons", lambda m: self._on_input(self.heard, m), STEP_INPUT)
         self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
         self.create_timer(0.05, self._check_stale)
         if p["autostart"]:
@@ -266,7 +273,7 @@ class PlannerNode(LifecycleNode):
         if not self.active or self.planner is None or k not in self.obs:
             return
         if ((self.use_beliefs and k not in self.beliefs) or (self.use_predictions and k not in self.preds)
-                or (self.use_ego_intention and k not in self.ego_int)):
+                or (self.use_ego_intention and k not in self.ego_int) or (self.use_beacons and k not in self.heard)):
             return
         episode = episode_of(self.obs[k].header.frame_id)
         for d in self.inputs[1:]:  # an input of another episode for this step: the earlier one goes
@@ -297,6 +304,9 @@ class PlannerNode(LifecycleNode):
             preds = predictions_from_msg(self.preds.pop(k)) if self.use_predictions else []
             topic = self.sub_obs.topic_name.replace("observation", "ego_intention")
             priority = ego_priority_from_msg(self.ego_int.pop(k), self.lot) if self.use_ego_intention else None
+            topic = self.sub_obs.topic_name.replace("observation", "v2v/beacons")
+            if self.use_beacons:
+                obs = replace(obs, beacons=beacons_from_msg(self.heard.pop(k)))
         except MessageError as exc:
             self.reject(f"{topic} step {k}: {exc}; holding still")
             self._publish_cmd(msg.header.stamp, 0.0, 0.0)
@@ -344,7 +354,8 @@ class PlannerNode(LifecycleNode):
         if self.stale_since is None:
             missing = [name for name, use, d in (("beliefs", self.use_beliefs, self.beliefs),
                                                  ("predictions", self.use_predictions, self.preds),
-                                                 ("ego_intention", self.use_ego_intention, self.ego_int))
+                                                 ("ego_intention", self.use_ego_intention, self.ego_int),
+                                                 ("v2v/beacons", self.use_beacons, self.heard))
                        if use and oldest not in d]
             self.stale_since = now
             self.get_logger().error(f"stale inputs: no {', '.join(missing) or 'input'} for step {oldest} within "
