@@ -22,7 +22,6 @@ command gives the same episodes.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from collections.abc import Callable
@@ -70,6 +69,7 @@ from avp_experiment.run_config import (  # noqa: F401 - re-exported: the runner'
     run_profile,
     sim_values,
 )
+from avp_experiment.seeds import valid_seeds  # noqa: F401 - re-exported: the runner's API
 
 # ------------------------------------------------------------------------------------------ episodes
 
@@ -114,32 +114,6 @@ def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callabl
 
 
 # ------------------------------------------------------------------------------------------ command
-
-
-def valid_seeds(n: int, seed_base: int, sim_p: dict, cache: Path | None = None) -> tuple[list[int], list[int]]:
-    """The first ``n`` seeds >= ``seed_base`` for which the §VI-A generator builds a scenario, and the seeds
-    skipped on the way (no collision-free plans for the dynamic vehicles, e.g. 53, 162, 253, 448 and 476 below 500).
-    ``cache`` (a JSON file {seed: valid}) saves the ~40 ms per seed of a re-run."""
-    from avp_sim.core.factory import generate_scenario, load_lot_param
-    from avp_sim.core.scenario import ScenarioError
-
-    known: dict[str, bool] = json.loads(cache.read_text()) if cache is not None and cache.is_file() else {}
-    lot = None
-    seeds, bad = [], []
-    s = seed_base
-    while len(seeds) < n:
-        if str(s) not in known:
-            lot = lot or load_lot_param(sim_p["lot_file"])
-            try:
-                generate_scenario(lot, sim_p, s, False)
-                known[str(s)] = True
-            except ScenarioError:
-                known[str(s)] = False
-        (seeds if known[str(s)] else bad).append(s)
-        s += 1
-    if cache is not None:
-        cache.write_text(json.dumps(known, sort_keys=True))
-    return seeds, bad
 
 
 def episode_keys(methods: list[str], seeds: list[int], modes: tuple[bool, ...]) -> list[Key]:
@@ -247,7 +221,9 @@ def _run_locked(args: argparse.Namespace, out: Path, cfg: RunConfig, profiles: l
     records = dedupe_egos(read_results(records_file(out)))
     count = Counter(record_key(r) for r in records)
     done = {k for k, c in count.items() if c >= max(1, len(fleet_names(k[0])))}  # a fleet: every ego's record
-    seeds, bad_seeds = valid_seeds(args.scenarios, args.seed_base, sim_values(cfg), out / SEEDS_FILE)
+    local = args.transport == "inproc" and getattr(args, "backend", "local") == "local"
+    seeds, bad_seeds = valid_seeds(args.scenarios, args.seed_base, sim_values(cfg), out / SEEDS_FILE,
+                                   getattr(args, "shared_pool", None), args.workers if local else 1)
     keys = episode_keys(units, seeds, MODES[args.mode])
     todo = [k for k in keys if k not in done]
     print(f"[avp experiment] {len(keys)} episodes ({len(profiles)} methods x {args.scenarios} scenarios x "
