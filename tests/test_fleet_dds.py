@@ -232,8 +232,9 @@ def test_lockstep_waits_for_every_ego_and_names_the_late_one(ros_env, tmp_path, 
 
 
 def test_swap_one_egos_planner_in_realtime_while_the_other_drives(ros_env, tmp_path, monkeypatch):
-    """Real time, two egos: `avp swap-planner cautious --ego 1` replaces ego 1's planner by a new process in
-    /avp/ego1; ego 0's planner stays active and the lot keeps stepping."""
+    """Real time, two egos, ego 1 a `reserve` ego: `avp swap-planner cautious --ego 1` replaces ego 1's planner by a
+    new process in /avp/ego1 that reads, as the one it replaced, the reservation node's observation (the held spots
+    occupied), not the simulator's; ego 0's planner stays active and the lot keeps stepping."""
     import subprocess
     import sys
 
@@ -243,7 +244,7 @@ def test_swap_one_egos_planner_in_realtime_while_the_other_drives(ros_env, tmp_p
 
     for k, v in ros_env.items():
         monkeypatch.setenv(k, v)
-    nodes = fleet_graph(["bezier", "bezier"], sim_extra={"mode": "realtime", "seed": SEED, "t_final": 60.0,
+    nodes = fleet_graph(["bezier", "reserve"], sim_extra={"mode": "realtime", "seed": SEED, "t_final": 60.0,
                                                          "publish_markers": False, "egos.entry_interval": 2.0})
     rclpy.init()
     monitor = EpisodeMonitor()
@@ -268,6 +269,9 @@ def test_swap_one_egos_planner_in_realtime_while_the_other_drives(ros_env, tmp_p
         assert "active planner: /avp/ego1/avp_planner_cautious" in out and "/avp/ego1/avp_planner" in out, out
         assert client.state("/avp/ego0/avp_planner") == "active"
         assert client.state("/avp/ego1/avp_planner_cautious") == "active"
+        assert "observation /avp/ego1/reserved/observation" in out, out
+        assert client.observation_topic("/avp/ego1/avp_planner_cautious") == "/avp/ego1/reserved/observation"
+        assert client.observation_topic("/avp/ego0/avp_planner") == "/avp/ego0/observation"
         t1 = time.monotonic()
         while max(monitor.gt) < k_swapped + 20 and time.monotonic() - t1 < 60:
             rclpy.spin_once(monitor, timeout_sec=0.05)

@@ -161,7 +161,7 @@ def cmd_swap_planner(args: argparse.Namespace) -> int:
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
-    started = f" (pid {report.pid}, log {report.log})" if report.pid else ""
+    started = f" (pid {report.pid}, log {report.log}, observation {report.observation})" if report.pid else ""
     print(f"[avp swap-planner] active planner: {report.new}{started}; deactivated {report.deactivated or 'none'}"
           f" ({report.gap_s * 1000:.0f} ms without a planner); shut down {report.shut_down or 'none'}")
     return 0

@@ -5,8 +5,10 @@ A *planner* is any node publishing on ``<namespace>/cmd``; to be swappable it mu
 
 1. (for a profile) starts ``avp_planner/planner`` as a new process with the profile's parameter file and
    ``autostart:=false``, detached, and waits for its lifecycle services; it inherits the running planner's
-   inputs (``use_beliefs``, ``use_predictions``, ``use_ego_intention``: e.g. the spot order of ``avp launch
-   --method implicit``) so that the swap keeps the graph's method;
+   inputs (``use_beliefs``, ``use_predictions``, ``use_ego_intention``, ``use_beacons``: e.g. the spot order of
+   ``avp launch --method implicit``) and the topic it reads its observation from (a ``reserve`` ego's planner reads
+   the reservation node's ``reserved/observation``, the held spots shown as occupied), so that the swap keeps the
+   graph's method and its coordination;
 2. configures the new planner (it builds its core for the lot; still silent);
 3. deactivates every other active planner — from here until step 4 no command is published: in
    lock-step the simulator waits, in real time its watchdog holds the ego still;
@@ -113,6 +115,7 @@ class SwapReport:
     deactivated: list[str] = field(default_factory=list)
     shut_down: list[str] = field(default_factory=list)
     gap_s: float = 0.0  # wall time with no active planner
+    observation: str = ""  # the topic a planner started from a profile reads its observation from
 
 
 class LifecycleClient:
@@ -222,6 +225,22 @@ class LifecycleClient:
                 return names
             self.spin(0.1)
 
+    def observation_topic(self, target: str, wait: float = 3.0) -> str | None:
+        """The topic from which the node ``target`` (fully qualified) reads its avp_msgs/Observation, if it has one
+        subscription of that type; DDS may name a node's subscriptions later than its publishers, so they are
+        waited for up to ``wait`` s."""
+        ns, _, name = target.rpartition("/")
+        t0 = time.monotonic()
+        while True:
+            try:
+                subs = self.node.get_subscriber_names_and_types_by_node(name, ns or "/")
+            except Exception:  # noqa: BLE001 - rclpy raises for a node it does not know (yet)
+                subs = []
+            topics = [t for t, types in subs if "avp_msgs/msg/Observation" in types]
+            if topics or time.monotonic() - t0 > wait:
+                return topics[0] if len(topics) == 1 else None
+            self.spin(0.1)
+
     def lifecycle_nodes(self, namespace: str) -> list[str]:
         ns = namespace.rstrip("/")
         return sorted(n[: -len("/get_state")] for n, t in self.node.get_service_names_and_types()
@@ -233,18 +252,22 @@ WIRING = ("use_beliefs", "use_predictions", "use_ego_intention", "use_beacons")
 
 
 def start_planner_process(name: str, profile: Path, namespace: str, log_dir: Path, user_params: str | None,
-                          env: dict | None = None, wiring: dict | None = None) -> tuple[subprocess.Popen, Path]:
+                          env: dict | None = None, wiring: dict | None = None,
+                          observation: str | None = None) -> tuple[subprocess.Popen, Path]:
     """``avp_planner/planner`` as a detached process named ``name`` (unconfigured: autostart false), with
     the parameters the default graph gives its planner (use_beliefs / use_predictions), replaced by ``wiring``
-    (the running planner's inputs, :data:`WIRING`) where given."""
+    (the running planner's inputs, :data:`WIRING`) where given; ``observation``: the running planner's observation
+    topic (fully qualified), read instead of ``<namespace>/observation`` when it differs."""
     from avp_bringup.graph import EGO_REMAPS, Graph, NodeSpec, default_graph
     from avp_common.msg_auth import ego_scope
 
     base = next(s for s in default_graph("planner") if s.package == "avp_planner" and s.executable == "planner")
     extra = {**base.extra_params, **{k: v for k, v in (wiring or {}).items() if k in WIRING}, "autostart": False}
     # in an ego's namespace (avp launch --egos K) it reads the lot's lot_map, as that ego's pipeline does
-    spec = NodeSpec(name, base.package, base.executable, base.param_file, extra, namespace=namespace,
-                    remaps=EGO_REMAPS if ego_scope(namespace) else ())
+    remaps = EGO_REMAPS if ego_scope(namespace) else ()
+    if observation and observation != f"{namespace.rstrip('/')}/observation":
+        remaps += (("observation", observation),)
+    spec = NodeSpec(name, base.package, base.executable, base.param_file, extra, namespace=namespace, remaps=remaps)
     cmd = Graph([spec], log_dir, user_params).command(spec)
     cmd[cmd.index("-p"):cmd.index("-p")] = ["--params-file", str(profile)]  # defaults < user < profile < -p
     log_dir.mkdir(parents=True, exist_ok=True)
@@ -283,12 +306,15 @@ def swap_planner(client: LifecycleClient, namespace: str, *, profile: str | None
         new_name = unique_name(client, namespace, base)
         log_dir = log_dir or Path.cwd() / "out" / "logs" / time.strftime("swap-%Y%m%d-%H%M%S")
         wiring: dict = {}
+        observation = None
         for running in client.cmd_publishers(namespace):  # keep the graph's method (module docstring, step 1)
             wiring = client.parameters(running, WIRING, timeout=min(timeout, 5.0))
+            observation = client.observation_topic(running, wait=min(timeout, 10.0))
             if wiring:
                 break
-        proc, log = start_planner_process(new_name, path, namespace, log_dir, user_params, env, wiring)
+        proc, log = start_planner_process(new_name, path, namespace, log_dir, user_params, env, wiring, observation)
         report.new, report.pid, report.log = fq_name(namespace, new_name), proc.pid, log
+        report.observation = observation or f"{namespace.rstrip('/')}/observation"
         t0 = time.monotonic()
         while not client.is_lifecycle(report.new):
             if proc.poll() is not None:
