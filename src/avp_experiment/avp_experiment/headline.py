@@ -185,15 +185,18 @@ def cell_stats(metric: str, records: Sequence[Mapping]) -> dict | None:
                 "spot_stolen": _rate(sum(bool(r["spot_stolen"]) for r in records), n),
                 "at_fault": sum(bool(r.get("collision_at_fault")) for r in records),
                 "interrupted_steps": _mean([float(r["interrupted_steps"]) for r in records])}
-    # fleet: parks per ego-episode; an ego-ego spot loss per episode (any ego lost one: docs/results/fleet)
-    episodes: dict[tuple, bool] = {}
+    # fleet: parks per ego-episode; an ego-ego spot loss and a gridlock per episode (any ego's record says so: every
+    # ego of a gridlocked episode carries it; docs/results/fleet); the egos that collided with another ego
+    lost: dict[tuple, bool] = {}
+    locked: dict[tuple, bool] = {}
     for r in records:
         key = (r["seed"], r["mode"])
-        episodes[key] = episodes.get(key, False) or bool(r.get("spots_lost_to_ego"))
+        lost[key] = lost.get(key, False) or bool(r.get("spots_lost_to_ego"))
+        locked[key] = locked.get(key, False) or bool(r.get("gridlock"))
     return {"success": _rate(sum(bool(r["success"]) for r in records), n),
-            "episodes_with_ego_loss": _rate(sum(episodes.values()), len(episodes)),
+            "episodes_with_ego_loss": _rate(sum(lost.values()), len(lost)),
             "ego_ego_collisions": sum(str(r.get("collision_with", "")).startswith("ego") for r in records),
-            "gridlock": sum(bool(r.get("gridlock")) for r in records)}
+            "episodes_with_gridlock": _rate(sum(locked.values()), len(locked))}
 
 
 def _select(records: Sequence[Mapping], spec: Mapping) -> list[Mapping]:
@@ -268,8 +271,9 @@ def _cells(metric: str, s: Mapping | None) -> list[str]:
                 f"{m['mean']:.1f} [{m['ci95'][0]:.1f}, {m['ci95'][1]:.1f}]"]
     lost = s["episodes_with_ego_loss"]
     extra = [f"a spot lost to another ego in {lost['k']} of {lost['n']} episodes"]
-    extra += [f"{s['ego_ego_collisions']} ego-ego collisions"] if s["ego_ego_collisions"] else []
-    extra += [f"{s['gridlock']} gridlocked"] if s["gridlock"] else []
+    extra += [f"{s['ego_ego_collisions']} egos in a collision with another ego"] if s["ego_ego_collisions"] else []
+    grid = s["episodes_with_gridlock"]
+    extra += [f"a gridlock in {grid['k']} of {grid['n']} episodes"] if grid["k"] else []
     return [_pct(s["success"]) + "; " + ", ".join(extra)]
 
 
