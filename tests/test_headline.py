@@ -207,3 +207,25 @@ columns:
         return {k: v for k, v in rec.items() if k not in ("timings", "wall_time", "wall_s")}
 
     assert bare(out / "paper" / "blind") == bare(alone)
+
+
+def test_a_fleet_cell_counts_gridlocks_and_spot_losses_per_episode():
+    """Every ego of a gridlocked episode carries the episode's gridlock: one episode of eight egos is one gridlock, not
+    eight; a spot loss counts once per episode however many egos lost one."""
+    from avp_experiment.headline import _cells, cell_stats
+
+    def ego(seed, i, success, lost=0, grid=False, hit=""):
+        return {"seed": seed, "mode": "reactive", "ego": i, "success": success, "spots_lost_to_ego": lost,
+                "gridlock": grid, "collision_with": hit}
+
+    records = [ego(1, i, i < 5, lost=int(i == 6), grid=True) for i in range(8)]
+    records += [ego(2, i, True, lost=1, hit="ego:1" if i == 0 else ("ego:0" if i == 1 else "")) for i in range(8)]
+    records += [ego(3, i, True) for i in range(8)]
+    s = cell_stats("fleet", records)
+    assert s["success"]["k"] == 5 + 8 + 8 and s["success"]["n"] == 24
+    assert (s["episodes_with_ego_loss"]["k"], s["episodes_with_ego_loss"]["n"]) == (2, 3)
+    assert (s["episodes_with_gridlock"]["k"], s["episodes_with_gridlock"]["n"]) == (1, 3)
+    assert s["ego_ego_collisions"] == 2
+    text = _cells("fleet", s)[0]
+    assert "a gridlock in 1 of 3 episodes" in text and "a spot lost to another ego in 2 of 3 episodes" in text
+    assert "2 egos in a collision with another ego" in text
