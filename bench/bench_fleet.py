@@ -9,7 +9,7 @@ episodes' outcomes and the machine's load; K = 1 in the same run is the referenc
 Usage:
     python bench/bench_fleet.py --lot src/avp_world/avp_world/maps/dlp_lot.yaml --scenario busy --egos 1,8 \\
         [--method bezier] [--seeds 0-2] [--t-final 60] [--entry-interval 5] [--ego-workers 2] \\
-        [--json out/bench_fleet.json]
+        [--torch-threads 1] [--json out/bench_fleet.json]
 """
 
 from __future__ import annotations
@@ -62,6 +62,12 @@ def run_episode(lot, sim: dict, profile, seed: int, k: int, ego_workers: int = 1
     return outcome, times
 
 
+def _torch_threads() -> int:
+    import torch
+
+    return torch.get_num_threads()
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--lot", default="")
@@ -73,8 +79,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--entry-interval", type=float, default=5.0, help="egos.entry_interval [s]")
     ap.add_argument("--ego-workers", type=int, default=1, help="processes the K pipelines are spread over "
                     "(avp_experiment.ego_pool; 1: one thread, one after the other) [1]")
+    ap.add_argument("--torch-threads", type=int, default=0, help="torch's intra-op threads for the intent CNN (0: "
+                    "torch's default, one per core; the experiment's workers use 1) [0]")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
+    if args.torch_threads > 0:
+        import torch
+
+        torch.set_num_threads(args.torch_threads)
     from avp_experiment.run_config import RunConfig, run_profile, sim_values
     from avp_sim.core.factory import load_lot_param
 
@@ -88,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     profile = run_profile(args.method, cfg)
     report = {"lot": lot.name, "scenario": args.scenario, "method": args.method, "seeds": seeds,
               "t_final": args.t_final, "entry_interval": args.entry_interval, "ego_workers": args.ego_workers,
-              "cpus": os.cpu_count(),
+              "cpus": os.cpu_count(), "torch_threads": _torch_threads(),
               "machine": platform.processor() or platform.machine(), "python": sys.version.split()[0], "runs": {}}
     for k in [int(x) for x in args.egos.split(",")]:
         all_t: list[float] = []
