@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -200,17 +201,21 @@ def test_planner_tries_spots_in_priority_order_until_one_is_safe(paper_lot):
     """decide(spot_priority=...): the first spot of the list with a safe plan, not the cheapest one."""
     ego = (21.5, 24.0, -math.pi / 2)
     obs = obs_with(paper_lot, ego, vacant=[22, 25, 14])
-    cheapest = EgoPlanner(paper_lot, PlannerSettings()).decide(obs)
+    # wall-clock caps lifted (as avp experiment does): the test judges the order, not the machine's speed
+    base = PlannerSettings()
+    unhurried = replace(base, search=replace(base.search, time_cap=1.0e3),
+                        decision=replace(base.decision, decision_time_cap=1.0e4, fallback_time_cap=1.0e3))
+    cheapest = EgoPlanner(paper_lot, unhurried).decide(obs)
     assert cheapest.mode == "park"
     others = [s for s in (22, 25, 14) if s != cheapest.spot_id]
-    d = EgoPlanner(paper_lot, PlannerSettings()).decide(obs, spot_priority=[others[0], cheapest.spot_id])
+    d = EgoPlanner(paper_lot, unhurried).decide(obs, spot_priority=[others[0], cheapest.spot_id])
     assert d.mode == "park" and d.spot_id == others[0]
     # the first choice is taken by a car predicted to stand in it for 10 s: the next one of the list is planned
     sx, sy, sth = paper_lot.spot_poses[paper_lot.spot_index(others[0])]
     pred = PredictedTrajectory(agent_id=1001, poses=np.tile([sx, sy, sth], (100, 1)), dt=0.1, length=L, width=W)
-    d = EgoPlanner(paper_lot, PlannerSettings()).decide(obs, predictions=[pred],
+    d = EgoPlanner(paper_lot, unhurried).decide(obs, predictions=[pred],
                                                         spot_priority=[others[0], others[1], cheapest.spot_id])
     assert d.mode == "park" and d.spot_id == others[1]
     # spots missing from the list come after the listed ones
-    d = EgoPlanner(paper_lot, PlannerSettings()).decide(obs, spot_priority=[99, others[1]])
+    d = EgoPlanner(paper_lot, unhurried).decide(obs, spot_priority=[99, others[1]])
     assert d.spot_id == others[1]
