@@ -167,13 +167,13 @@ def _standing_car_and_its_moving_hypothesis(y0: float = 13.0, probability: float
 def _planner(lot, **kw):
     """The planner with ``evasive`` and the agents' reaction (``collision.reactive_steps``) off unless given: the
     mechanisms are tested against the paper's check."""
-    s = PlannerSettings()
+    from unhurried import unhurried
+
+    s = unhurried()  # no wall-clock caps: a loaded machine must not change a decision
     dec = {k: v for k, v in kw.items() if hasattr(s.decision, k)}
     col = {"reactive_steps": 0, **{k: v for k, v in kw.items() if hasattr(s.collision, k)}}
-    # no wall-clock caps (as the experiments' DETERMINISTIC_PLANNER): a loaded machine must not change a decision
-    return EgoPlanner(lot, replace(s, decision=replace(s.decision, evasive=False, decision_time_cap=1e4,
-                                                       fallback_time_cap=1e3, **dec),
-                                   collision=replace(s.collision, **col), search=replace(s.search, time_cap=1e3)))
+    return EgoPlanner(lot, replace(s, decision=replace(s.decision, evasive=False, **dec),
+                                   collision=replace(s.collision, **col)))
 
 
 def test_assume_yielding_lets_the_ego_go_when_the_car_waits_for_it(paper_lot):
