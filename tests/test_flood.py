@@ -94,7 +94,9 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
         while not monitor.finished and time.monotonic() - t0 < 600:
             rclpy.spin_once(monitor, timeout_sec=0.05)
             assert all(rc is None for rc in graph.poll().values()), "a node died under the flood"
-            if time.monotonic() - last >= 1.0:
+            # RSS once a second from the episode's step 10 on: before that the nodes still import and load (the
+            # belief node's torch and intent CNN take > 300 MB, and 10 s or more on a loaded 2-core machine)
+            if monitor.status is not None and monitor.status.step >= 10 and time.monotonic() - last >= 1.0:
                 last = time.monotonic()
                 for name, p in graph.procs.items():
                     rss[name].append(_rss_mb(p.pid))
@@ -134,7 +136,8 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
         # episode; a message of the episode before), plus one per newly seen publisher
         assert len(lines) <= 3 * n_topics * (wall + 5) + 20, (name, len(lines), wall)
     for name, series in rss.items():
-        settled = series[3:] or series
+        settled = series[3:] or series or [0.0]  # the first forward passes may still allocate
+        print(f"[rss] {name}: {' '.join(f'{v:.0f}' for v in series)} MB")  # pytest -s
         assert max(settled) - settled[0] < 150, (name, series)  # bounded (queues are bounded): no growth with time
 
 
