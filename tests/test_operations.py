@@ -484,8 +484,13 @@ def test_sigstopped_nodes_in_realtime_hold_the_ego_then_resume(ros, tmp_path):
         assert all(k <= k_stop + 8 for k in moving), (name, k_stop, moving)
         print(f"[stall] {name}: SIGSTOP at step {k_stop}, last ego motion {max(moving, default=k_stop) - k_stop} "
               f"step(s) later, {k_cont - k_stop} steps stalled")  # docs/benchmarks.md (pytest -s)
+        # ... and it drives again after SIGCONT
+        later = [k for k in sorted(poses) if k > k_cont + 1]
+        assert any(not np.allclose(poses[k][:2], poses[k_cont][:2]) for k in later), (name, k_cont)
     m = probe.status.metrics
-    assert probe.finished and not m.collision and probe.status.state == 2, probe.status
+    # parked, or out of time: in real time a step the loaded machine answers late holds the ego, and with four test
+    # processes on 2 cores (CI) seed 3's ~50 s of driving took more than t_f = 150 s (as in the SIGKILL test above)
+    assert probe.finished and not m.collision and probe.status.state in (2, 4), probe.status
     planner_log = (tmp_path / "logs" / "avp_planner.log").read_text()
     sim_log = (tmp_path / "logs" / "avp_sim.log").read_text()
     # one line as each stall starts (the belief node's stall starves the prediction node too), one as it ends
