@@ -13,9 +13,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from test_planner_decision import L, W, make_obs, static_car
+from unhurried import unhurried
 
 from avp_planner.core.decision import EgoPlanner
-from avp_planner.core.settings import PlannerSettings
 from avp_planner.core.trace import DecisionTrace, agent_motion, cause_key
 from avp_world.types import ObservedVehicle, PredictedTrajectory
 
@@ -31,7 +31,7 @@ def _rushing_car(speed: float = 5.0):
 
 
 def test_an_idle_step_names_the_agent_that_blocks_it(paper_lot):
-    s = PlannerSettings()
+    s = unhurried()
     s = replace(s, collision=replace(s.collision, reactive_steps=0))  # the paper's check: no car assumed to stop
     calm = EgoPlanner(paper_lot, replace(s, decision=replace(s.decision, evasive=False)))
     car, pred = _rushing_car()
@@ -55,7 +55,7 @@ def test_evasive_horizon_evades_only_an_imminent_hit(paper_lot):
 
     car, pred = _rushing_car()
     ego = (21.5, 25.0, -math.pi / 2)
-    s = PlannerSettings()
+    s = unhurried()
     s = replace(s, collision=replace(s.collision, reactive_steps=0))  # the paper's check, whatever the default
     hit = DynamicObstacles([pred], L, W).first_collision(np.repeat(np.array([ego]), 45, axis=0))
     assert 5 < hit < 40  # the car meets the standing ego later than half a second from now
@@ -75,17 +75,17 @@ def test_evasive_horizon_evades_only_an_imminent_hit(paper_lot):
 def test_an_idle_step_without_agents_is_static_or_has_no_candidate(paper_lot):
     ego = (21.5, 20.0, -math.pi / 2)
     boxed = [static_car(500, 21.5, 10.0, 0.0, length=5.0), static_car(501, 21.5, 29.0, 0.0, length=5.0)]
-    d = EgoPlanner(paper_lot, PlannerSettings()).decide(make_obs(paper_lot, ego, vehicles=boxed))
+    d = EgoPlanner(paper_lot, unhurried()).decide(make_obs(paper_lot, ego, vehicles=boxed))
     # every spot occupied, both exploration goals on the middle road beyond the cars: nothing to search
     assert d.mode == "idle" and d.trace == {"mode": "idle", "cause": "no_candidate"}, d.trace
     # a vacant spot, but a search too short to reach it (and the exploration goals): searched, no path
-    s = PlannerSettings()
+    s = unhurried()
     short = EgoPlanner(paper_lot, replace(s, search=replace(s.search, max_iterations=3)))
     d = short.decide(make_obs(paper_lot, ego, vacant=[3], vehicles=boxed))
     assert d.mode == "idle" and d.trace == {"mode": "idle", "cause": "static"}, d.trace
-    bad = EgoPlanner(paper_lot, PlannerSettings()).decide(make_obs(paper_lot, (np.nan, 30.0, 0.0)))
+    bad = EgoPlanner(paper_lot, unhurried()).decide(make_obs(paper_lot, (np.nan, 30.0, 0.0)))
     assert bad.trace == {"mode": "idle", "cause": "invalid_input"}
-    p = EgoPlanner(paper_lot, PlannerSettings())
+    p = EgoPlanner(paper_lot, unhurried())
     d = p.decide(make_obs(paper_lot, (21.5, 30.0, -math.pi / 2), vacant=[22]))
     assert d.trace == {"mode": "park"} and d.command[0] != 0.0
 
@@ -167,7 +167,6 @@ def _standing_car_and_its_moving_hypothesis(y0: float = 13.0, probability: float
 def _planner(lot, **kw):
     """The planner with ``evasive`` and the agents' reaction (``collision.reactive_steps``) off unless given: the
     mechanisms are tested against the paper's check."""
-    from unhurried import unhurried
 
     s = unhurried()  # no wall-clock caps: a loaded machine must not change a decision
     dec = {k: v for k, v in kw.items() if hasattr(s.decision, k)}

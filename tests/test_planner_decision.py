@@ -10,9 +10,9 @@ import pytest
 from shapely import affinity
 from shapely.geometry import Polygon, box
 from shapely.ops import unary_union
+from unhurried import unhurried
 
 from avp_planner.core.decision import EgoPlanner
-from avp_planner.core.settings import PlannerSettings
 from avp_world.kinematics import rollout_vehicle
 from avp_world.types import Observation, ObservedVehicle, PredictedTrajectory
 
@@ -39,7 +39,7 @@ def static_car(vid, x, y, th, length=L, width=W):
 
 @pytest.fixture()
 def planner(paper_lot):
-    return EgoPlanner(paper_lot, PlannerSettings())
+    return EgoPlanner(paper_lot, unhurried())
 
 
 def test_beliefs_from_observation_only(paper_lot, planner):
@@ -75,10 +75,10 @@ def test_time_budget_stops_the_searches(paper_lot):
     """decide(time_budget=...) (the planner node's real-time deadline): with no time left no search starts and
     the ego waits; with enough, the same step parks as without a budget."""
     obs = make_obs(paper_lot, np.array([21.5, 30.0, -math.pi / 2]), vacant=[22])
-    starved = EgoPlanner(paper_lot, PlannerSettings()).decide(obs, time_budget=0.0)
+    starved = EgoPlanner(paper_lot, unhurried()).decide(obs, time_budget=0.0)
     assert starved.mode == "idle" and not starved.stats.get("queries")
-    roomy = EgoPlanner(paper_lot, PlannerSettings()).decide(obs, time_budget=5.0)
-    free = EgoPlanner(paper_lot, PlannerSettings()).decide(obs)
+    roomy = EgoPlanner(paper_lot, unhurried()).decide(obs, time_budget=5.0)
+    free = EgoPlanner(paper_lot, unhurried()).decide(obs)
     assert roomy.mode == free.mode == "park" and roomy.spot_id == free.spot_id == 22
     np.testing.assert_array_equal(roomy.controls, free.controls)
 
@@ -161,7 +161,7 @@ def test_determinism(paper_lot):
     seq = [make_obs(paper_lot, (21.5, 30.0, -math.pi / 2), vacant=[22, 14], step=0)]
     outs = []
     for _ in range(2):
-        p = EgoPlanner(paper_lot, PlannerSettings())
+        p = EgoPlanner(paper_lot, unhurried())
         d = p.decide(seq[0])
         outs.append((d.mode, d.spot_id, d.command, d.controls.tobytes(), d.poses.tobytes(), d.cost))
     assert outs[0] == outs[1]
@@ -216,7 +216,7 @@ def _run_episode(lot, seed, reactive):
 
     p = load_yaml_params(ROOT / "src/avp_sim/config/sim.param.yaml", "avp_sim", avp_sim.params.SIM_PARAMS)
     world = make_world(lot, p, seed, reactive)
-    planner = EgoPlanner(lot, PlannerSettings())
+    planner = EgoPlanner(lot, unhurried())
     while not world.done:
         d = planner.decide(world.observe(), None, [])
         world.step(*d.command)
@@ -241,7 +241,7 @@ def test_evasive_when_standing_still_is_hit(paper_lot):
     check (``collision.reactive_steps: 0``): with the shipped assumption the car would stop for the ego."""
     from dataclasses import replace
 
-    s = PlannerSettings()
+    s = unhurried()
     planner = EgoPlanner(paper_lot, replace(s, collision=replace(s.collision, reactive_steps=0)))
     ego = np.array([21.5, 25.0, -math.pi / 2])
     n = 40
@@ -294,8 +294,8 @@ def test_idle_replan_steps(paper_lot):
 
     ego = (21.5, 20.0, -math.pi / 2)
     walls = [static_car(500, 21.5, 10.0, 0.0, length=5.0), static_car(501, 21.5, 29.0, 0.0, length=5.0)]
-    every = EgoPlanner(paper_lot, PlannerSettings())
-    five = EgoPlanner(paper_lot, replace(PlannerSettings(), decision=replace(PlannerSettings().decision,
+    every = EgoPlanner(paper_lot, unhurried())
+    five = EgoPlanner(paper_lot, replace(unhurried(), decision=replace(unhurried().decision,
                                                                              idle_replan_steps=5)))
     reasons = {1: [], 5: []}
     for k in range(7):
@@ -323,7 +323,7 @@ def test_failed_searches_are_not_repeated(paper_lot, monkeypatch):
     from avp_search.hybrid_astar import HybridAStar
 
     ego = (21.5, 30.0, -math.pi / 2)
-    s = PlannerSettings()
+    s = unhurried()
     p = EgoPlanner(paper_lot, replace(s, search=replace(s.search, max_iterations=3)))
     spot0 = p.spot_goals(paper_lot.spot_index(0)).tobytes()
     searched = []

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 from shapely.geometry import Polygon
+from unhurried import unhurried
 
 from avp_search.dynamic import DynamicObstacles
 from avp_world.geometry import rect_corners
@@ -75,11 +76,10 @@ def test_the_planner_no_longer_flees_a_car_that_will_stop_for_it(paper_lot):
     from test_planner_decision import make_obs
 
     from avp_planner.core.decision import EgoPlanner
-    from avp_planner.core.settings import PlannerSettings
 
     car, pred = _rushing_car()
     obs = make_obs(paper_lot, (21.5, 25.0, -math.pi / 2), vehicles=[car])
-    s = PlannerSettings()
+    s = unhurried()
     s = replace(s, collision=replace(s.collision, reactive_steps=0))  # the paper's check, whatever the default
     paper = EgoPlanner(paper_lot, s).decide(obs, predictions=[pred])
     assert paper.trace["mode"] == "evasive" and paper.command[0] != 0.0
@@ -230,10 +230,9 @@ def test_the_evidence_switch_changes_the_decision(paper_lot):
     from test_planner_decision import make_obs
 
     from avp_planner.core.decision import EgoPlanner
-    from avp_planner.core.settings import PlannerSettings
 
     ego = (21.5, 25.0, -math.pi / 2)
-    s = PlannerSettings()
+    s = unhurried()
     s = replace(s, collision=replace(s.collision, reactive_steps=0))  # the paper's check, whatever the default
 
     def planner(evidence: str) -> EgoPlanner:
@@ -270,10 +269,9 @@ def test_told_reactions_change_the_decision_and_nothing_else(paper_lot):
     from test_planner_decision import make_obs
 
     from avp_planner.core.decision import EgoPlanner
-    from avp_planner.core.settings import PlannerSettings
 
     ego = (21.5, 25.0, -math.pi / 2)
-    s = PlannerSettings()
+    s = unhurried()
     s = replace(s, collision=replace(s.collision, reactive_steps=2, reactive_evidence="told"))
     moving, pred = _stopping_car([5.0] * 6)
     stopped, pred_stopped = _stopping_car([5.0] * 5 + [0.0])
