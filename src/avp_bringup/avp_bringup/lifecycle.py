@@ -307,7 +307,13 @@ def swap_planner(client: LifecycleClient, namespace: str, *, profile: str | None
         log_dir = log_dir or Path.cwd() / "out" / "logs" / time.strftime("swap-%Y%m%d-%H%M%S")
         wiring: dict = {}
         observation = None
-        for running in client.cmd_publishers(namespace):  # keep the graph's method (module docstring, step 1)
+        # the running planner(s), waited for: a fresh process on a loaded machine may not yet have discovered them,
+        # and a swap that found none would start the new planner with the default inputs instead of theirs
+        t0, runners = time.monotonic(), client.cmd_publishers(namespace)
+        while not runners and time.monotonic() - t0 < min(timeout, 10.0):
+            client.spin(0.1)
+            runners = client.cmd_publishers(namespace)
+        for running in runners:  # keep the graph's method (module docstring, step 1)
             wiring = client.parameters(running, WIRING, timeout=min(timeout, 5.0))
             observation = client.observation_topic(running, wait=min(timeout, 10.0))
             if wiring:
