@@ -135,16 +135,19 @@ def test_fleet_experiment_over_dds_gives_the_inprocess_records(paper_lot, ros_en
 
 
 def test_an_ego_gives_way_over_dds_as_in_process(paper_lot, ros_env, tmp_path, monkeypatch):
-    """Four egos on seed 29 (the paper lot's one ego-ego gridlock without ego_yield): ego 3 gives way to ego 0's
-    announced path, which it reads from the beacons the V2V node (avp_planner.v2v_node) relays; over DDS every ego's
-    record is the in-process one."""
+    """Four egos on seed 29 (the paper lot's one ego-ego gridlock without ego_yield, tests/test_ego_yield.py): in
+    process, ego 3 (the later) gives way to ego 0's announced path, no gridlock forms and nobody collides; over DDS,
+    where ego 3 reads that path from the beacons the V2V node (avp_planner.v2v_node) relays, every ego's record is
+    the in-process one."""
     from avp_bringup.ros_transport import run_ros
     from avp_experiment.fleet import fleet_label, run_fleet_inproc
     from avp_experiment.run_config import RunConfig, run_profile, sim_values
 
     cfg = RunConfig(t_final=50.0)
     expected = run_fleet_inproc(paper_lot, sim_values(cfg), [run_profile("bezier", cfg)] * 4, 29, True, cfg)
+    # the later ego gives way; ego 0 has the right of way
     assert [r["decision_trace"]["steps_by_mode"].get("make_way", 0) > 0 for r in expected] == [False] * 3 + [True]
+    assert not any(r["gridlock"] or r["collision"] for r in expected)
     for k, v in ros_env.items():
         monkeypatch.setenv(k, v)
     got: list[dict] = []

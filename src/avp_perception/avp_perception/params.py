@@ -12,11 +12,10 @@ from dataclasses import replace
 from typing import Any
 
 from avp_common.params import ParamSpec, dataclass_from_values, specs_from_dataclass
-from avp_perception.core.belief import BELIEF_INIT
+from avp_perception.core.belief import BELIEF_INIT, BELIEF_SOURCES
 from avp_perception.core.bev import EXPLORATION_SHAPES, BEVConfig
-from avp_perception.core.intent_model import MODES as INTENT_MODES
+from avp_perception.core.intent_features import INTENT_MODES
 from avp_perception.core.nawaz import COVARIANCE_MODES, MAHALANOBIS_MODES, NawazConfig
-from avp_perception.core.pipeline import BELIEF_SOURCES
 from avp_perception.core.prediction import START_TANGENTS, PredictionConfig, available_predictors
 
 DEBUG_CHOICES = ("never", "subscribed", "always")

@@ -20,6 +20,10 @@ import numpy as np
 
 from avp_world.lot import LotMap
 
+#: where the belief map's update takes its evidence (pipeline.PerceptionCore; here, apart from torch, for the
+#: parameter specs)
+BELIEF_SOURCES = ("intent", "nawaz", "observation")
+
 BELIEF_INIT = 0.5  # b_-dt (§V-B)
 BETA = 0.5  # belief threshold: occupied iff b >= beta (§VI-A)
 

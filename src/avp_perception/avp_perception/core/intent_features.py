@@ -9,6 +9,10 @@ import math
 
 import numpy as np
 
+#: how the intent model runs on a step's images (intent_model.IntentPredictor); here, apart from torch, for the
+#: parameter specs of nodes that never load the model
+INTENT_MODES = ("incremental", "fused", "reference")
+
 PARKPREDICT_FEATURES = ("cos_to_target", "distance_to_target", "speed", "distance_to_entrance", "time_in_lot_min")
 SPEED_WINDOWS = 4  # past 1 s windows of the motion features (4 s: the history the observation model gives)
 MOTION_FEATURES = ("sin_to_target", *(f"mean_speed_{j}_{j + 1}s" for j in range(SPEED_WINDOWS)),

@@ -57,6 +57,7 @@ from avp_perception.core.belief import BeliefMap
 from avp_perception.core.bev import BEVConfig, BEVRenderer, VehicleBEV
 from avp_perception.core.intent_features import (  # noqa: F401 - re-exported: the model's API
     FEATURE_NAMES,
+    INTENT_MODES,
     MOTION_COLUMN,
     MOTION_FEATURES,
     N_FEATURES,
@@ -86,7 +87,10 @@ from avp_perception.core.intention import Intention, split_none_mass
 from avp_world.lot import LotMap
 from avp_world.types import Observation, ObservedVehicle
 
-MODES = ("incremental", "fused", "reference")
+#: how the model runs on a step's images (its torch-free home is intent_features, for the parameter specs)
+MODES = INTENT_MODES
+
+
 class IntentPredictor:
     """The intent model of §V-A on reconstructed BEVs: ``predict(obs, vehicle, beliefs, lot) -> Intention``.
 

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from avp_perception.core.belief import BELIEF_INIT, BeliefMap
+from avp_perception.core.belief import BELIEF_INIT, BELIEF_SOURCES, BeliefMap  # noqa: F401 - re-exported
 from avp_perception.core.bev import BEVConfig, VehicleBEV
 from avp_perception.core.ego_trail import EgoTrail
 from avp_perception.core.implicit import ego_intention
@@ -43,7 +43,6 @@ class PerceptionOutput:
     bevs: list[VehicleBEV] = field(default_factory=list)  # only with keep_bevs=True
 
 
-BELIEF_SOURCES = ("intent", "nawaz", "observation")
 
 
 @dataclass(frozen=True)
