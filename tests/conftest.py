@@ -13,12 +13,13 @@ from avp_world.lot import load_bundled_lot
 #: Four DDS modules at once on 2 cores (each test starts about five node processes) made real-time tests miss their
 #: deadlines; two leave room for what they measure.
 DDS_LANES = 2
-#: rough wall seconds of each module's DDS tests under four test processes (pytest --durations at eb81055), to deal
-#: the modules to the lanes longest first; a module not listed counts 10 s a test
-DDS_SECONDS = {"test_operations.py": 245, "test_demo_and_bag.py": 100, "test_perception_nodes.py": 76,
-               "test_fleet_dds.py": 150, "test_experiment.py": 52, "test_security.py": 45, "test_teleop.py": 45,
-               "test_bad_input.py": 40, "test_nodes.py": 40, "test_bag_damage.py": 30, "test_flood.py": 25,
-               "test_dds_lockstep.py": 20, "test_foxglove.py": 10}
+#: rough wall seconds of each module's DDS tests under four test processes (pytest --durations of a fresh clone's
+#: make test on a 2-core machine, at 1f47510), to deal the modules to the lanes longest first; a module not listed
+#: counts 10 s a test
+DDS_SECONDS = {"test_fleet_dds.py": 560, "test_operations.py": 380, "test_perception_nodes.py": 190,
+               "test_demo_and_bag.py": 160, "test_experiment.py": 130, "test_teleop.py": 120,
+               "test_dds_lockstep.py": 80, "test_flood.py": 65, "test_security.py": 60, "test_bag_damage.py": 55,
+               "test_bad_input.py": 45, "test_nodes.py": 40, "test_foxglove.py": 25}
 
 
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist's own hook reads the xdist_group marks
