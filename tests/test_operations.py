@@ -195,8 +195,9 @@ def _steps(raws: list[bytes]) -> list[int]:
 def test_swap_to_a_user_node_in_lockstep(ros, tmp_path):
     """Lock-step: with the planner deactivated the simulator waits; `swap_planner` brings up the example
     user node (docs/custom_planner.md), which then drives to the end of the episode."""
-    from avp_bringup.lifecycle import LifecycleClient, swap_planner
+    from avp_bringup.lifecycle import LifecycleClient
     from avp_bringup.monitor import EpisodeMonitor
+    from avp_bringup.swap import swap_planner
 
     env = ros
     nodes = default_graph()

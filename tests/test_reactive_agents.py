@@ -95,7 +95,7 @@ def test_every_shipped_planner_profile_validates():
     will load them: known keys, right types and ranges."""
     from pathlib import Path
 
-    from avp_bringup.lifecycle import validate_profile
+    from avp_bringup.swap import validate_profile
 
     d = Path(__file__).resolve().parents[1] / "src/avp_planner/config/profiles"
     names = sorted(p.stem for p in d.glob("*.yaml"))

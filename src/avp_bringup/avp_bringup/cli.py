@@ -142,7 +142,8 @@ def _foxglove(args: argparse.Namespace, drive: bool = False, egos: int = 1):
 def cmd_swap_planner(args: argparse.Namespace) -> int:
     import rclpy
 
-    from avp_bringup.lifecycle import LifecycleClient, SwapError, swap_planner
+    from avp_bringup.lifecycle import LifecycleClient
+    from avp_bringup.swap import SwapError, swap_planner
 
     rclpy.init()
     node = rclpy.create_node("avp_swap_planner")
