@@ -290,13 +290,13 @@ def test_failure_analysis_reruns_failed_episodes(tmp_path):
     (rec,) = read_results(path)
     assert not rec["success"] and rec["status"] == "collision"
     md = tmp_path / "failures.md"
-    assert failures.main([str(out), "--markdown", str(md)]) == 0
+    assert failures.main([str(out), "--markdown", str(md), "--workers", "0"]) == 0  # no pool to start
     text = md.read_text()
     row = next(line for line in text.splitlines() if line.startswith("| 59 |"))
     assert "| yes |" in row
     # a record the re-run does not reproduce is flagged
     path.write_text(json.dumps(dict(rec, status="timeout", steps=rec["steps"] + 1)) + "\n")
-    assert failures.main([str(out), "--markdown", str(md)]) == 0
+    assert failures.main([str(out), "--markdown", str(md), "--workers", "0"]) == 0  # no pool to start
     assert "| NO |" in next(line for line in md.read_text().splitlines() if line.startswith("| 59 |"))
     sc = generate_paper_scenario(load_bundled_lot(), 59, False, scenario_params(sim_values(RunConfig())))
     dyn = [v for v in sc.vehicles if not v.parked]
