@@ -99,6 +99,11 @@ class SwapReport:
 WIRING = ("use_beliefs", "use_predictions", "use_ego_intention", "use_beacons")
 
 
+def default_observation(namespace: str) -> str:
+    """The observation topic a planner in ``namespace`` reads unless remapped (the simulator's)."""
+    return f"{namespace.rstrip('/')}/observation"
+
+
 def start_planner_process(name: str, profile: Path, namespace: str, log_dir: Path, user_params: str | None,
                           env: dict | None = None, wiring: dict | None = None,
                           observation: str | None = None) -> tuple[subprocess.Popen, Path]:
@@ -113,7 +118,7 @@ def start_planner_process(name: str, profile: Path, namespace: str, log_dir: Pat
     extra = {**base.extra_params, **{k: v for k, v in (wiring or {}).items() if k in WIRING}, "autostart": False}
     # in an ego's namespace (avp launch --egos K) it reads the lot's lot_map, as that ego's pipeline does
     remaps = EGO_REMAPS if ego_scope(namespace) else ()
-    if observation and observation != f"{namespace.rstrip('/')}/observation":
+    if observation and observation != default_observation(namespace):
         remaps += (("observation", observation),)
     spec = NodeSpec(name, base.package, base.executable, base.param_file, extra, namespace=namespace, remaps=remaps)
     cmd = Graph([spec], log_dir, user_params).command(spec)
@@ -168,7 +173,7 @@ def swap_planner(client: LifecycleClient, namespace: str, *, profile: str | None
                 break
         proc, log = start_planner_process(new_name, path, namespace, log_dir, user_params, env, wiring, observation)
         report.new, report.pid, report.log = fq_name(namespace, new_name), proc.pid, log
-        report.observation = observation or f"{namespace.rstrip('/')}/observation"
+        report.observation = observation or default_observation(namespace)
         t0 = time.monotonic()
         while not client.is_lifecycle(report.new):
             if proc.poll() is not None:
