@@ -116,10 +116,11 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
     assert out.strip(), f"the flooder printed no report (exit {flood.returncode}): {err[-3000:]}"
     report = json.loads(out.strip().splitlines()[-1])
     sent = {t: sum(k.values()) for t, k in report["sent"].items()}
-    # it did flood: at least 100 messages on each topic, at no less than 30 % of the asked rate (the achieved rate
-    # depends on the machine's load: 71-75 % beside two CPU hogs; an episode can end within 5 s of flood)
+    # it did flood: at least 100 messages on each topic, at no less than 10 % of the asked rate, twice the graph's own
+    # 10 Hz (the achieved rate is the machine's: 71-75 % beside two CPU hogs on one 2-core machine, 28-31 % beside
+    # two hogs and another DDS test on one twice as slow); an episode can end within 5 s of flood
     assert all(n >= 100 for n in sent.values()), (report, err)
-    assert all(r >= 0.3 * FLOOD_RATE for r in report["rate_hz"].values()), (report, err)
+    assert all(r >= 0.1 * FLOOD_RATE for r in report["rate_hz"].values()), (report, err)
     assert all(k["replay"] > 0 for k in report["sent"].values()), report  # tagged copies of the graph's messages
     # the running episode's first messages (step 0) replayed, and messages of the episode before
     assert all(k["replay_first"] > 0 and k["earlier_episode"] > 0 for k in report["sent"].values()), report
