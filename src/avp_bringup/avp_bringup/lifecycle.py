@@ -142,6 +142,16 @@ class LifecycleClient:
                 return names
             self.spin(0.1)
 
+    def planners(self, namespace: str, wait: float = 0.0, exclude: str = "") -> list[str]:
+        """:meth:`cmd_publishers` of ``namespace`` other than ``exclude``, waited for up to ``wait`` s of discovery
+        until there is one (a fresh process on a loaded machine may not have discovered them yet)."""
+        t0 = time.monotonic()
+        while True:
+            names = [n for n in self.cmd_publishers(namespace) if n != exclude]
+            if names or time.monotonic() - t0 >= wait:
+                return names
+            self.spin(0.1)
+
     def observation_topic(self, target: str, wait: float = 3.0) -> str | None:
         """The topic from which the node ``target`` (fully qualified) reads its avp_msgs/Observation, if it has one
         subscription of that type; DDS may name a node's subscriptions later than its publishers, so they are

@@ -162,11 +162,8 @@ def swap_planner(client: LifecycleClient, namespace: str, *, profile: str | None
         observation = None
         # the running planner(s), waited for: a fresh process on a loaded machine may not yet have discovered them,
         # and a swap that found none would start the new planner with the default inputs instead of theirs
-        t0, runners = time.monotonic(), client.cmd_publishers(namespace)
-        while not runners and time.monotonic() - t0 < min(timeout, 10.0):
-            client.spin(0.1)
-            runners = client.cmd_publishers(namespace)
-        for running in runners:  # keep the graph's method (module docstring, step 1)
+        # (module docstring, step 1: keep the graph's method)
+        for running in client.planners(namespace, wait=min(timeout, 10.0)):
             wiring = client.parameters(running, WIRING, timeout=min(timeout, 5.0))
             observation = client.observation_topic(running, wait=min(timeout, 10.0))
             if wiring:
@@ -194,10 +191,8 @@ def swap_planner(client: LifecycleClient, namespace: str, *, profile: str | None
             client.change(target, "configure", timeout)
         elif state not in ("inactive", "active"):
             raise SwapError(f"{target}: cannot bring it up from state '{state}'")
-        t0 = time.monotonic()  # the planners to replace: every other publisher on cmd
-        while not [n for n in client.cmd_publishers(namespace) if n != target] and time.monotonic() - t0 < discovery:
-            client.spin(0.1)
-        others = [n for n in client.cmd_publishers(namespace) if n != target]
+        # the planners to replace: every other publisher on cmd
+        others = client.planners(namespace, wait=discovery, exclude=target)
         unmanaged = [n for n in others if not client.is_lifecycle(n)]
         if unmanaged:
             raise SwapError(f"{unmanaged} publish {namespace}/cmd but are not lifecycle nodes: stop them first "
