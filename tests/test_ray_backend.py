@@ -28,13 +28,30 @@ COMMON = ["--seed-base", "1", "--methods", "bezier,nawaz", "--no-progress"]
 
 @pytest.fixture(scope="module")
 def cluster():
-    """A two-node Ray cluster on loopback: the head and one worker node, 1 CPU each, in a temp dir of their own."""
+    """A two-node Ray cluster on loopback: the head and one worker node, 1 CPU each, in a temp dir of their own.
+    The worker node's first ``ray start`` fails (a ``ray`` first on the cluster's PATH exits 1 once, as Ray's own
+    does when the raylet misses its 30 s to register on a loaded machine); the cluster starts it again."""
     tmp = tempfile.mkdtemp(prefix="avpray", dir="/tmp")  # short: Ray's socket paths must fit in 107 bytes
     try:
-        with LocalRayCluster(tmp, cpus=(1, 1)) as c:
+        wrapper = Path(tmp) / "bin" / "ray"
+        wrapper.parent.mkdir()
+        wrapper.write_text(f"#!/bin/sh\ncase \"$*\" in *--address*) [ -e {tmp}/failed ] || "
+                           f"{{ touch {tmp}/failed; echo 'first start fails' >&2; exit 1; }};; esac\n"
+                           f"exec {shutil.which('ray')} \"$@\"\n")
+        wrapper.chmod(0o755)
+        c = LocalRayCluster(tmp, cpus=(1, 1))
+        c.env["PATH"] = f"{wrapper.parent}:{c.env['PATH']}"
+        with c:
             yield c
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def test_a_worker_node_whose_start_fails_is_started_again(cluster):
+    """The fixture's worker node failed its first ``ray start`` and came up on the second: two CPUs in all."""
+    log = (Path(cluster.temp_dir) / "node1.log").read_text()
+    assert "first start fails" in log and "attempt 2" in log and "attempt 3" not in log, log[-2000:]
+    assert cluster.cluster_cpus() == 2.0
 
 
 def _records(out: Path) -> dict:

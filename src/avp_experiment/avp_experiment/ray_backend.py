@@ -126,10 +126,12 @@ class LocalRayCluster:
         self.procs: list = []
         self.env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32)}
 
-    def _node(self, i: int, args: list[str]):
+    def _node(self, i: int, args: list[str], attempt: int = 1):
         import subprocess
 
-        log = open(f"{self.temp_dir}/node{i}.log", "w")  # noqa: SIM115 - the node's own output, open while it runs
+        log = open(f"{self.temp_dir}/node{i}.log", "a")  # noqa: SIM115 - the node's own output, open while it runs
+        log.write(f"# ray start of node {i}, attempt {attempt}\n")
+        log.flush()
         return subprocess.Popen(["ray", "start", "--block", "--node-ip-address", "127.0.0.1", "--num-cpus",
                                  str(self.cpus[i]), "--object-store-memory", str(self.object_store_mb << 20),
                                  "--disable-usage-stats", "--temp-dir", f"{self.temp_dir}/node{i}", *args],
@@ -147,7 +149,10 @@ class LocalRayCluster:
         except (ValueError, IndexError):
             return 0.0
 
-    def start(self, timeout: float = 120.0) -> LocalRayCluster:
+    def start(self, timeout: float = 300.0, attempts: int = 3) -> LocalRayCluster:
+        """Start the nodes one after another, each when the one before counts its CPUs. A node whose ``ray start``
+        exits before it registers is started again, up to ``attempts`` times in all: Ray gives a raylet a fixed 30 s
+        to register with the head, which a machine under load (CI: four test processes on two cores) can miss."""
         import time
         from pathlib import Path
 
@@ -155,31 +160,43 @@ class LocalRayCluster:
         deadline = time.monotonic() + timeout
         for i in range(len(self.cpus)):
             head = ["--head", "--port", str(self.port), "--include-dashboard=false"]
-            self.procs.append(self._node(i, head if i == 0 else ["--address", self.address]))
+            args = head if i == 0 else ["--address", self.address]
+            self.procs.append(self._node(i, args))
+            tries = 1
             while self.cluster_cpus() < sum(self.cpus[:i + 1]):
-                if self.procs[i].poll() is not None or time.monotonic() > deadline:
+                exited = self.procs[i].poll() is not None
+                if exited and tries < attempts and time.monotonic() < deadline:
+                    self._end(self.procs[i])  # what the failed start left in its process group
+                    tries += 1
+                    self.procs[i] = self._node(i, args, tries)
+                elif exited or time.monotonic() > deadline:
                     self.stop()
                     log = Path(f"{self.temp_dir}/node{i}.log").read_text()[-2000:]
-                    raise RuntimeError(f"Ray node {i} did not come up on {self.address}:\n{log}")
+                    raise RuntimeError(f"Ray node {i} did not come up on {self.address} in {tries} tries:\n{log}")
                 time.sleep(1.0)
         return self
 
     def stop(self) -> None:
+        for proc in reversed(self.procs):
+            self._end(proc)
+        self.procs = []
+
+    @staticmethod
+    def _end(proc) -> None:
+        """End a node's process group: SIGTERM, then SIGKILL if it is still there after 10 s."""
         import os
         import signal
         import subprocess
 
-        for proc in reversed(self.procs):
-            for sig, wait in ((signal.SIGTERM, 10.0), (signal.SIGKILL, 5.0)):
-                try:
-                    os.killpg(proc.pid, sig)
-                    proc.wait(wait)
-                    break
-                except ProcessLookupError:
-                    break
-                except subprocess.TimeoutExpired:
-                    continue
-        self.procs = []
+        for sig, wait in ((signal.SIGTERM, 10.0), (signal.SIGKILL, 5.0)):
+            try:
+                os.killpg(proc.pid, sig)
+                proc.wait(wait)
+                return
+            except ProcessLookupError:
+                return
+            except subprocess.TimeoutExpired:
+                continue
 
     def __enter__(self) -> LocalRayCluster:
         return self.start()
