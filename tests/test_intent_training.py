@@ -286,7 +286,7 @@ def test_a_few_training_steps_reduce_the_loss():
     torch.set_num_threads(1)
     model = build_model(cfg)
     opt = torch.optim.AdamW(model.parameters(), lr=3e-3)
-    idx = np.arange(min(len(s), 20))
+    idx = np.arange(min(len(s), 12))
     x, f, spans, w, tg = make_batch(s, idx, None, 10**6)
 
     def loss_eval() -> float:
@@ -296,7 +296,7 @@ def test_a_few_training_steps_reduce_the_loss():
 
     before = loss_eval()
     model.train()
-    for _ in range(45):  # (batch-norm running statistics need a few dozen steps to follow the weights)
+    for _ in range(30):  # (batch-norm running statistics need a few dozen steps to follow the weights)
         opt.zero_grad()
         grouped_loss(model(x, f), spans, w, tg).backward()
         opt.step()
