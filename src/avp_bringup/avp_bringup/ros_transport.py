@@ -29,7 +29,9 @@ from pathlib import Path
 from avp_experiment.protocols import load_protocol
 from avp_experiment.run_config import Key, RunConfig, run_profile, sim_values
 
-DRAIN_S = 10.0  # wall seconds to wait for the last messages after the episode ended
+#: wall seconds to wait for the next of the last messages after the episode ended: a collector behind a loaded
+#: machine's graph sees the episode's status (a topic of its own) before the backlog of the others
+DRAIN_S = 10.0
 
 
 def run_ros(keys: list[Key], cfg: RunConfig, on_record: Callable, log_dir: Path,
@@ -131,12 +133,14 @@ def _run_graph(nodes, collector, executor, keys: list[Key], ready: Callable[[], 
                 raise RuntimeError(f"reset_episode(seed={seed}, reactive={reactive}) failed: {exc}") from None
             if res is not None and not res.success:
                 raise RuntimeError(f"reset_episode(seed={seed}, reactive={reactive}) failed: {res.message}")
-            t_end = None
+            t_end, left = None, None
             while not collector.finished:
                 executor.spin_once(timeout_sec=0.1)
                 _check_alive(graph, logs)
-                if collector.ended and t_end is None:
-                    t_end = time.monotonic()
+                if collector.ended:  # the status can overtake a backlog of other topics: wait while it drains
+                    now_left = sum(len(v) for v in collector.missing().values())
+                    if left is None or now_left < left:
+                        t_end, left = time.monotonic(), now_left
                 if t_end is not None and time.monotonic() - t_end > DRAIN_S:
                     missing = {k: v[:10] for k, v in collector.missing().items() if v}
                     raise RuntimeError(f"{unit} seed {seed} {mode}: the episode ended but messages of steps "
