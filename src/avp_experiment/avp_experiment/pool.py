@@ -20,10 +20,66 @@ from avp_experiment.run_config import Key
 
 
 def ignore_sigint() -> None:
-    """A pool worker leaves Ctrl-C to the parent, which lets the running episodes finish and records them."""
+    """A pool worker leaves Ctrl-C to the parent, which lets the running episodes finish and records them; and it
+    ends with its parent, however the parent ended (:func:`end_with_parent`)."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    end_with_parent()
+
+
+def end_with_parent() -> None:
+    """Linux: this process gets SIGTERM when the process that started it ends (``PR_SET_PDEATHSIG``), so that a
+    killed ``avp experiment`` (SIGKILL, the OOM killer) leaves no workers behind holding a torch model each. The
+    pools start their workers from the main thread, which lives as long as the process. Elsewhere: nothing."""
+    import multiprocessing
+    import os
+    import signal
+
+    parent = multiprocessing.parent_process()
+    if not sys.platform.startswith("linux") or parent is None:
+        return
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG
+    if os.getppid() != parent.pid:  # the parent ended before the line above
+        os._exit(0)
+
+
+@contextlib.contextmanager
+def end_workers_on_sigterm(message: str) -> Iterator[None]:
+    """While inside (main thread only, where signal handlers live), SIGTERM prints ``message`` and exits with status
+    143: with pool workers, it ends them and exits at once; without, it raises ``SystemExit(143)``. A scheduler's
+    SIGTERM (Slurm, systemd) leaves seconds before its SIGKILL, not the minutes a running episode may take; the
+    records already written stay (each line is fsync'ed, :class:`~.results.ResultsWriter`), and the same command
+    runs the rest."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminated(signum, frame) -> None:
+        import multiprocessing
+        import os
+
+        print(message, file=sys.stderr, flush=True)
+        workers = multiprocessing.active_children()
+        if not workers:  # in process, Ray, a DDS graph: through the callers' finally blocks (graph.stop())
+            raise SystemExit(143)
+        for child in workers:  # a pool whose workers are ended cannot be shut down cleanly (CPython 3.11's
+            child.terminate()  # executor thread raises InvalidStateError on the cancelled episodes): exit now
+        for child in workers:
+            child.join(5.0)
+        os._exit(143)
+
+    before = signal.signal(signal.SIGTERM, terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, before)
 
 
 def make_pool(workers: int, initializer: Callable | None = None, initargs: tuple = ()) -> ProcessPoolExecutor:

@@ -38,6 +38,7 @@ from avp_experiment.episodes import (  # noqa: F401 - re-exported: the runner's 
     episode_in_worker,
     run_episode_inproc,
 )
+from avp_experiment.pool import end_workers_on_sigterm
 from avp_experiment.profiles import (
     MethodProfile,
     ProfileError,
@@ -341,9 +342,12 @@ def parse_planner_params(items: list[str] | None) -> dict[str, Any]:
 
 def run_command(args: argparse.Namespace) -> int:
     """``avp experiment`` with its exit status: 0 done, 1 some episodes raised (not recorded; the same command
-    retries them), 2 bad arguments or run folder (one line naming what), 130 interrupted."""
+    retries them), 2 bad arguments or run folder (one line naming what), 130 interrupted (Ctrl-C: the running
+    episodes finish and are recorded), 143 terminated (SIGTERM: the workers end now, their episodes unrecorded)."""
     try:
-        report = run_experiment(args)
+        with end_workers_on_sigterm(f"[avp experiment] terminated; the finished episodes are in {args.out}/"
+                                    f"{RESULTS_FILE}: run the same command to continue"):
+            report = run_experiment(args)
     except (ValueError, ProfileError, RuntimeError) as exc:
         print(f"[avp experiment] {exc}", file=sys.stderr)
         return 2
