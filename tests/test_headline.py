@@ -229,3 +229,23 @@ def test_a_fleet_cell_counts_gridlocks_and_spot_losses_per_episode():
     text = _cells("fleet", s)[0]
     assert "a gridlock in 1 of 3 episodes" in text and "a spot lost to another ego in 2 of 3 episodes" in text
     assert "2 egos in a collision with another ego" in text
+
+
+def test_a_cell_being_written_is_left_out_of_the_suite_table(tmp_path):
+    """A suite run's table while another `avp experiment` writes one of its cells: that cell is "not run" (its records
+    are a run still going), and counted once the run has released the folder."""
+    from avp_experiment.results import being_written, lock_folder
+
+    suite = {"name": "tiny", "rows": [{"id": "blind", "label": "blind", "methods": "blind"}],
+             "columns": [{"id": "paper", "title": "paper: parks", "metric": "success", "args": []}]}
+    folder = tmp_path / "paper" / "blind"
+    folder.mkdir(parents=True)
+    (folder / "episodes.jsonl").write_text(json.dumps({"seed": 0, "mode": "reactive", "success": True}) + "\n")
+    held = lock_folder(folder)
+    try:
+        assert being_written(folder)
+        assert suite_table(suite, tmp_path)["cells"]["paper"] == {}
+    finally:
+        held.close()
+    assert not being_written(folder)
+    assert suite_table(suite, tmp_path)["cells"]["paper"]["blind"]["success"]["n"] == 1

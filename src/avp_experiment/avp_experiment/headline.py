@@ -27,7 +27,7 @@ from pathlib import Path
 import yaml
 
 from avp_experiment.metrics import Z95, wilson
-from avp_experiment.results import SEEDS_FILE, read_results
+from avp_experiment.results import SEEDS_FILE, being_written, read_results
 
 BEGIN, END = "<!-- headline:begin -->", "<!-- headline:end -->"
 METRICS = ("success", "failed_or_stolen", "busy", "fleet")
@@ -224,8 +224,8 @@ def committed_records(specs: Sequence[Mapping], root: Path) -> tuple[list[Mappin
 
 
 def suite_table(suite: Mapping, out: Path | None = None, root: Path | None = None) -> dict:
-    """{columns, rows, cells: {column: {row: stats+sources}}} from a suite run (``out``) or the committed records
-    (``root``: the repository)."""
+    """{columns, rows, cells: {column: {row: stats+sources}}} from a suite run (``out``; a cell whose folder an
+    ``avp experiment`` is writing now is left out) or the committed records (``root``: the repository)."""
     cells: dict[str, dict] = {}
     for col in suite["columns"]:
         cells[col["id"]] = {}
@@ -240,6 +240,8 @@ def suite_table(suite: Mapping, out: Path | None = None, root: Path | None = Non
                 sources = sorted({s["file"] for s in specs})
             else:
                 folder = out / col["id"] / row["id"]
+                if being_written(folder):  # a cell still running is "not run" until it ends
+                    continue
                 records, notes, sources = read_results(folder), [], [str(folder)]
             stats = cell_stats(col["metric"], records)
             if stats is not None:

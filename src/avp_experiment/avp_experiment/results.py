@@ -238,6 +238,24 @@ def log_invocation(out: Path, args: argparse.Namespace, started: str, wall_s: fl
         f.write(json.dumps(line) + "\n")
 
 
+def being_written(out: Path) -> bool:
+    """Whether an ``avp experiment`` holds ``out``'s lock now (:func:`lock_folder`): its records are a run still
+    going, not a cell's."""
+    import fcntl
+
+    try:
+        f = open(out / LOCK_FILE)  # noqa: SIM115 - closed below
+    except OSError:
+        return False
+    with f:
+        try:
+            fcntl.flock(f.fileno(), fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return True
+        fcntl.flock(f.fileno(), fcntl.LOCK_UN)
+        return False
+
+
 def lock_folder(out: Path):
     """Hold an exclusive lock on the results folder while this invocation writes it (released when the returned
     file is closed or the process ends); ValueError when another ``avp experiment`` holds it. Two invocations on one
