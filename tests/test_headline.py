@@ -231,13 +231,14 @@ def test_a_fleet_cell_counts_gridlocks_and_spot_losses_per_episode():
     assert "2 egos in a collision with another ego" in text
 
 
-def test_a_cell_being_written_is_left_out_of_the_suite_table(tmp_path):
+def test_a_cell_being_written_or_cut_short_is_left_out_of_the_suite_table(tmp_path):
     """A suite run's table while another `avp experiment` writes one of its cells: that cell is "not run" (its records
-    are a run still going), and counted once the run has released the folder."""
+    are a run still going); once the run has released the folder, it counts when it has its full size."""
     from avp_experiment.results import being_written, lock_folder
 
     suite = {"name": "tiny", "rows": [{"id": "blind", "label": "blind", "methods": "blind"}],
-             "columns": [{"id": "paper", "title": "paper: parks", "metric": "success", "args": []}]}
+             "columns": [{"id": "paper", "title": "paper: parks", "metric": "success",
+                          "args": ["--scenarios", "2", "--mode", "reactive"], "quick": 1}]}
     folder = tmp_path / "paper" / "blind"
     folder.mkdir(parents=True)
     (folder / "episodes.jsonl").write_text(json.dumps({"seed": 0, "mode": "reactive", "success": True}) + "\n")
@@ -248,4 +249,9 @@ def test_a_cell_being_written_is_left_out_of_the_suite_table(tmp_path):
     finally:
         held.close()
     assert not being_written(folder)
-    assert suite_table(suite, tmp_path)["cells"]["paper"]["blind"]["success"]["n"] == 1
+    # one of the cell's two scenarios: a run that stopped part-way, a cell only at the --quick size (1)
+    assert suite_table(suite, tmp_path)["cells"]["paper"] == {}
+    assert suite_table(suite, tmp_path, quick=True)["cells"]["paper"]["blind"]["success"]["n"] == 1
+    with (folder / "episodes.jsonl").open("a") as f:
+        f.write(json.dumps({"seed": 1, "mode": "reactive", "success": False}) + "\n")
+    assert suite_table(suite, tmp_path)["cells"]["paper"]["blind"]["success"]["n"] == 2

@@ -80,6 +80,19 @@ def cell_argv(col: Mapping, row: Mapping, quick: bool) -> list[str]:
     return argv
 
 
+def full_size(col: Mapping, row: Mapping, quick: bool = False) -> int:
+    """The records a finished cell holds: ``--scenarios`` x modes (``--mode``) x methods x egos (a fleet records each
+    ego). A folder with fewer is a run that stopped part-way, not a cell."""
+    import argparse
+
+    from avp_experiment.arguments import MODES, add_arguments
+
+    p = argparse.ArgumentParser(add_help=False)
+    add_arguments(p)
+    a = p.parse_args(cell_argv(col, row, quick))
+    return a.scenarios * len(MODES[a.mode]) * len(a.methods.split(",")) * max(1, a.egos)
+
+
 def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], dict],
               parse: Callable[[list[str]], argparse.Namespace], resolve: Callable) -> dict:
     """Every cell of ``args.suite`` into ``args.out/<column>/<row>``; the table of what came out last. ``resolve``
@@ -103,7 +116,7 @@ def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], 
         report["cells"] += 1
         report["ran"] += r.get("ran", 0)
         report["errors"] += r.get("errors") or []
-    table = suite_table(suite, out)
+    table = suite_table(suite, out, quick=args.quick)
     write_table(table, out / f"{suite['name']}.json", out / f"{suite['name']}.md")
     print(f"[avp experiment] suite {suite['name']}: {out / (suite['name'] + '.md')}", file=sys.stderr)
     return report
@@ -223,9 +236,10 @@ def committed_records(specs: Sequence[Mapping], root: Path) -> tuple[list[Mappin
     return records, [s["note"] for s in specs if s.get("note")]
 
 
-def suite_table(suite: Mapping, out: Path | None = None, root: Path | None = None) -> dict:
-    """{columns, rows, cells: {column: {row: stats+sources}}} from a suite run (``out``; a cell whose folder an
-    ``avp experiment`` is writing now is left out) or the committed records (``root``: the repository)."""
+def suite_table(suite: Mapping, out: Path | None = None, root: Path | None = None, quick: bool = False) -> dict:
+    """{columns, rows, cells: {column: {row: stats+sources}}} from a suite run (``out``, run with ``--quick`` or not;
+    a cell whose folder an ``avp experiment`` is writing now, or that holds fewer records than :func:`full_size`, is
+    left out) or the committed records (``root``: the repository)."""
     cells: dict[str, dict] = {}
     for col in suite["columns"]:
         cells[col["id"]] = {}
@@ -243,6 +257,8 @@ def suite_table(suite: Mapping, out: Path | None = None, root: Path | None = Non
                 if being_written(folder):  # a cell still running is "not run" until it ends
                     continue
                 records, notes, sources = read_results(folder), [], [str(folder)]
+                if len(records) < full_size(col, row, quick):  # a run that stopped part-way
+                    continue
             stats = cell_stats(col["metric"], records)
             if stats is not None:
                 cells[col["id"]][row["id"]] = {**stats, "sources": sources, "notes": notes}
@@ -340,13 +356,15 @@ def main(argv: list[str] | None = None) -> int:
     t.add_argument("--committed", action="store_true", help="from the committed records the suite file names")
     t.add_argument("--root", default=".", help="the repository (committed records are under it) [.]")
     t.add_argument("--json", help="write the table's JSON here [OUT/headline.json]")
+    t.add_argument("--quick", action="store_true", help="OUT was run with --quick: the cells are that size")
     t.add_argument("--readme", help="replace the table between the headline markers of this file")
     args = ap.parse_args(argv)
     if args.committed == bool(args.out):
         ap.error("give a suite's OUT folder or --committed, one of them")
     try:
         suite = load_suite(args.suite)
-        table = suite_table(suite, root=Path(args.root)) if args.committed else suite_table(suite, Path(args.out))
+        table = (suite_table(suite, root=Path(args.root)) if args.committed
+                 else suite_table(suite, Path(args.out), quick=args.quick))
     except (ValueError, OSError) as exc:
         print(f"[headline] {exc}", file=sys.stderr)
         return 2
