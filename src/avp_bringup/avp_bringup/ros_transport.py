@@ -134,17 +134,20 @@ def _run_graph(nodes, collector, executor, keys: list[Key], ready: Callable[[], 
             if res is not None and not res.success:
                 raise RuntimeError(f"reset_episode(seed={seed}, reactive={reactive}) failed: {res.message}")
             t_end, left = None, None
-            while not collector.finished:
+            while True:
                 executor.spin_once(timeout_sec=0.1)
                 _check_alive(graph, logs)
                 if collector.ended:  # the status can overtake a backlog of other topics: wait while it drains
-                    now_left = sum(len(v) for v in collector.missing().values())
-                    if left is None or now_left < left:
-                        t_end, left = time.monotonic(), now_left
-                if t_end is not None and time.monotonic() - t_end > DRAIN_S:
-                    missing = {k: v[:10] for k, v in collector.missing().items() if v}
-                    raise RuntimeError(f"{unit} seed {seed} {mode}: the episode ended but messages of steps "
-                                       f"{missing} never arrived; logs in {logs}")
+                    missing = collector.missing()
+                    now_left = sum(len(v) for v in missing.values())
+                    if now_left == 0:
+                        break
+                    if now_left != left:  # a message arrived (a fleet's count can grow: decisions are counted
+                        t_end, left = time.monotonic(), now_left  # once the ground truth is complete)
+                    if time.monotonic() - t_end > DRAIN_S:
+                        missing = {k: v[:10] for k, v in missing.items() if v}
+                        raise RuntimeError(f"{unit} seed {seed} {mode}: the episode ended but messages of steps "
+                                           f"{missing} never arrived; logs in {logs}")
                 if time.monotonic() - t0 > timeout:
                     raise RuntimeError(f"{unit} seed {seed} {mode}: no complete episode after {timeout} s wall "
                                        f"time; logs in {logs}")

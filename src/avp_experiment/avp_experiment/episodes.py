@@ -61,9 +61,9 @@ def _init_worker(cfg: RunConfig, pool_worker: bool = False, sources: dict[str, s
     import torch
 
     if pool_worker:
-        from avp_experiment.pool import ignore_sigint
+        from avp_experiment.pool import worker_signals
 
-        ignore_sigint()
+        worker_signals()
 
     torch.set_num_threads(1)
     from avp_sim.core.factory import load_lot_param

@@ -19,9 +19,9 @@ from multiprocessing import get_context
 from avp_experiment.run_config import Key
 
 
-def ignore_sigint() -> None:
-    """A pool worker leaves Ctrl-C to the parent, which lets the running episodes finish and records them; and it
-    ends with its parent, however the parent ended (:func:`end_with_parent`)."""
+def worker_signals() -> None:
+    """A pool worker's signals: it leaves Ctrl-C to the parent, which lets the running episodes finish and records
+    them, and it ends with its parent, however the parent ended (:func:`end_with_parent`)."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -85,7 +85,7 @@ def end_workers_on_sigterm(message: str) -> Iterator[None]:
 def make_pool(workers: int, initializer: Callable | None = None, initargs: tuple = ()) -> ProcessPoolExecutor:
     """``workers`` spawned processes (torch and a forked parent do not mix)."""
     return ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"),
-                               initializer=initializer or ignore_sigint, initargs=initargs)
+                               initializer=initializer or worker_signals, initargs=initargs)
 
 
 @contextlib.contextmanager

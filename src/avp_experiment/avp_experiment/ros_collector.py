@@ -128,10 +128,6 @@ class EpisodeCollector(Node):
             out["decision_trace"] = [k for k in range(n) if k not in self.traces]
         return out
 
-    @property
-    def finished(self) -> bool:
-        return self.ended and not any(self.missing().values())
-
     def ego_publishers_ready(self) -> bool:
         return all(self.count_publishers(f"{NAMESPACE}/{t}") >= 1 for t in ("predictions", "decision"))
 

@@ -130,10 +130,6 @@ class FleetCollector(Node):
                 out[f"ego{i}/decision_trace"] = [s for s in steps if s not in self.traces[i]]
         return out
 
-    @property
-    def finished(self) -> bool:
-        return self.ended and not any(self.missing().values())
-
     def publishers_ready(self) -> bool:
         """Every pipeline's decision and trace and the simulator's debug topics are discovered."""
         topics = ["debug/ground_truth", "debug/braking_for"] + [
