@@ -111,18 +111,19 @@ def test_fleet_experiment_over_dds_gives_the_inprocess_records(paper_lot, ros_en
     """The experiment's DDS transport with two egos (the fleet graph, a reset per episode, the fleet collector)
     writes the records of the in-process fleet, field by field apart from the timings: bezier on seed 85, where ego 0
     loses a spot to ego 1 and one to an agent, and the spot-reservation reference on the same seed, through the
-    reservation node (avp_planner.reservation_node)."""
+    reservation node (avp_planner.reservation_node), where it loses none to ego 1. t_f = 36 s ends the episodes once
+    that has happened (at 60 s both fleets ran 600 steps: 40 % more of make test's DDS lane)."""
     from avp_bringup.ros_transport import run_ros
     from avp_experiment.fleet import fleet_label, run_fleet_inproc
     from avp_experiment.run_config import RunConfig, run_profile, sim_values
 
-    cfg = RunConfig(t_final=60.0)
+    cfg = RunConfig(t_final=36.0)
     keys = [(fleet_label([m, m]), 85, "reactive") for m in ("bezier", "reserve")]
     expected = [r for label, s, _ in keys for r in run_fleet_inproc(
         paper_lot, sim_values(cfg), [run_profile(label.split(",")[-1], cfg)] * 2, s, True, cfg)]
-    assert [(r["spots_lost_to_ego"], r["spots_lost_to_agent"], r["status"]) for r in expected[:2]] == [
-        (1, 1, "success"), (0, 0, "success")]  # what the seed exercises
-    assert expected[2]["ego_method"] == "reserve" and expected[2]["status"] != expected[0]["status"]  # the book acts
+    assert [(r["ego_method"], r["spots_lost_to_ego"], r["spots_lost_to_agent"], r["status"]) for r in expected] == [
+        ("bezier", 1, 1, "timeout"), ("bezier", 0, 0, "success"),  # what the seed exercises
+        ("reserve", 0, 1, "timeout"), ("reserve", 0, 0, "timeout")]  # the book acts
     for k, v in ros_env.items():
         monkeypatch.setenv(k, v)
     got: list[dict] = []

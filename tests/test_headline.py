@@ -176,7 +176,7 @@ rows:
   - {id: blind, label: "blind", methods: blind}
 columns:
   - {id: paper, title: "paper: parks", metric: success,
-     args: [--protocol, paper, --mode, non-reactive, --scenarios, "50", --t-final, "100"], quick: 1}
+     args: [--protocol, paper, --mode, non-reactive, --scenarios, "50", --t-final, "8"], quick: 1}
 """)
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "avp_experiment.runner", "--suite", str(suite), "--quick", "--out", str(out),
@@ -198,7 +198,7 @@ columns:
     # blind's cell gives with a pool of its own (timings aside)
     alone = tmp_path / "alone"
     r = subprocess.run([sys.executable, "-m", "avp_experiment.runner", "--protocol", "paper", "--mode", "non-reactive",
-                        "--scenarios", "1", "--t-final", "100", "--methods", "blind", "--out", str(alone),
+                        "--scenarios", "1", "--t-final", "8", "--methods", "blind", "--out", str(alone),
                         "--workers", "1", "--no-progress"], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
 

@@ -286,7 +286,7 @@ def test_a_few_training_steps_reduce_the_loss():
     torch.set_num_threads(1)
     model = build_model(cfg)
     opt = torch.optim.AdamW(model.parameters(), lr=3e-3)
-    idx = np.arange(min(len(s), 12))
+    idx = np.arange(4)  # 31 candidate images: the loss falls to 0.31 of its start in 30 steps (3 s on one core)
     x, f, spans, w, tg = make_batch(s, idx, None, 10**6)
 
     def loss_eval() -> float:
