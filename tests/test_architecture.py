@@ -98,6 +98,17 @@ def test_packages_import_along_the_data_flow_and_declare_it():
         assert used <= declared, f"{pkg}/package.xml does not declare {sorted(used - declared)}"
 
 
+def test_every_ros_package_a_package_imports_is_declared():
+    """rclpy, ament_index_python and every interface package (``*_msgs``, ``*_interfaces``) a package's sources
+    import is an ``exec_depend`` (or ``depend``) of its package.xml, as rosdep and a binary release need."""
+    ros = re.compile(r"^\s*(?:from|import)\s+(rclpy|ament_index_python|\w+_msgs|\w+_interfaces)\b", re.M)
+    for pkg in ALLOWED:
+        xml = (SRC / pkg / "package.xml").read_text()
+        declared = set(re.findall(r"<(?:exec_|build_)?depend>(\w+)</", xml))
+        used = {m for f in SRC.glob(f"{pkg}/{pkg}/**/*.py") for m in ros.findall(f.read_text())} - {pkg}
+        assert used <= declared, f"{pkg}/package.xml does not declare {sorted(used - declared)}"
+
+
 def test_a_wrong_way_import_fails_the_layering_check(tmp_path):
     """The check above catches an import against the data flow: here the simulator importing the planner."""
     core = tmp_path / "avp_sim/avp_sim/core"
