@@ -30,7 +30,8 @@ COMMON = ["--seed-base", "1", "--methods", "bezier,nawaz", "--no-progress"]
 def cluster():
     """A two-node Ray cluster on loopback: the head and one worker node, 1 CPU each, in a temp dir of their own.
     The worker node's first ``ray start`` fails (a ``ray`` first on the cluster's PATH exits 1 once, as Ray's own
-    does when the raylet misses its 30 s to register on a loaded machine); the cluster starts it again."""
+    does when the raylet misses its 30 s to register on a loaded machine); the cluster starts it again, with the
+    three real tries a user's cluster has."""
     tmp = tempfile.mkdtemp(prefix="avpray", dir="/tmp")  # short: Ray's socket paths must fit in 107 bytes
     try:
         wrapper = Path(tmp) / "bin" / "ray"
@@ -41,16 +42,20 @@ def cluster():
         wrapper.chmod(0o755)
         c = LocalRayCluster(tmp, cpus=(1, 1))
         c.env["PATH"] = f"{wrapper.parent}:{c.env['PATH']}"
-        with c:
-            yield c
+        try:
+            yield c.start(attempts=4)
+        finally:
+            c.stop()
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
 def test_a_worker_node_whose_start_fails_is_started_again(cluster):
-    """The fixture's worker node failed its first ``ray start`` and came up on the second: two CPUs in all."""
+    """The fixture's worker node failed its first ``ray start`` and came up on a later one: two CPUs in all. (Under
+    make test's load a real start can miss Ray's 30 s too: one fresh clone's node came up on attempt 3.)"""
     log = (Path(cluster.temp_dir) / "node1.log").read_text()
-    assert "first start fails" in log and "attempt 2" in log and "attempt 3" not in log, log[-2000:]
+    assert "first start fails" in log and "attempt 2" in log, log[-2000:]
+    assert "Ray runtime started." in log.split("attempt ")[-1], log[-2000:]
     assert cluster.cluster_cpus() == 2.0
 
 
