@@ -255,3 +255,19 @@ def test_a_cell_being_written_or_cut_short_is_left_out_of_the_suite_table(tmp_pa
     with (folder / "episodes.jsonl").open("a") as f:
         f.write(json.dumps({"seed": 1, "mode": "reactive", "success": False}) + "\n")
     assert suite_table(suite, tmp_path)["cells"]["paper"]["blind"]["success"]["n"] == 2
+
+
+def test_a_cells_full_size_counts_every_egos_record():
+    """--scenarios x modes x the records of each run unit: a plain method one, a fleet of --egos K of each method K,
+    a mixed --fleet one per ego."""
+    from avp_experiment.headline import full_size
+
+    def size(*args: str, methods: str = "bezier") -> int:
+        return full_size({"args": list(args)}, {"methods": methods})
+
+    assert size("--scenarios", "10", "--mode", "reactive") == 10
+    assert size("--scenarios", "10", "--mode", "both", methods="bezier,blind") == 40
+    assert size("--scenarios", "10", "--mode", "reactive", "--egos", "2", methods="bezier,blind") == 40
+    assert size("--scenarios", "10", "--mode", "reactive", "--fleet", "bezier,bezier,blind") == 30
+    assert full_size({"args": ["--scenarios", "100", "--mode", "reactive"], "quick": 3}, {"methods": "blind"},
+                     quick=True) == 3

@@ -81,16 +81,17 @@ def cell_argv(col: Mapping, row: Mapping, quick: bool) -> list[str]:
 
 
 def full_size(col: Mapping, row: Mapping, quick: bool = False) -> int:
-    """The records a finished cell holds: ``--scenarios`` x modes (``--mode``) x methods x egos (a fleet records each
-    ego). A folder with fewer is a run that stopped part-way, not a cell."""
-    import argparse
-
+    """The records a finished cell holds: ``--scenarios`` x modes (``--mode``) x the egos of every run unit (a
+    method, a fleet of ``--egos`` of it or the ``--fleet``; a fleet records each ego, as the runner counts them). A
+    folder with fewer is a run that stopped part-way, not a cell."""
     from avp_experiment.arguments import MODES, add_arguments
+    from avp_experiment.fleet import fleet_names, run_units
 
     p = argparse.ArgumentParser(add_help=False)
     add_arguments(p)
     a = p.parse_args(cell_argv(col, row, quick))
-    return a.scenarios * len(MODES[a.mode]) * len(a.methods.split(",")) * max(1, a.egos)
+    units = run_units([m.strip() for m in a.methods.split(",") if m.strip()], a.egos, a.fleet)
+    return a.scenarios * len(MODES[a.mode]) * sum(max(1, len(fleet_names(u))) for u in units)
 
 
 def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], dict],
