@@ -362,17 +362,21 @@ def test_demo_drive_records_the_driven_car_and_metrics_recompute_it(ros_env, tmp
         assert driven.poses, "the driven car never entered"
         timeline = [f"entered at step {min(driven.poses)} ({time.monotonic() - t0:.1f} s)"]
 
+        body = VehicleSpec()
+
+        def here() -> np.ndarray:
+            """The driven car's latest pose."""
+            return driven.poses[max(driven.poses)]
+
         def gap() -> float:
             """Centre-to-centre distance from the driven car to the ego."""
-            return float(np.hypot(*(driven.ego[:2] - driven.poses[max(driven.poses)][:2]))) if driven.ego is not None \
-                else 0.0
+            return float(np.hypot(*(driven.ego[:2] - here()[:2]))) if driven.ego is not None else 0.0
 
         def clearance() -> float:
             """Free space between the two bodies (shapely), as a person judges it through the windscreen."""
             if driven.ego is None:
                 return 0.0
-            body = VehicleSpec()
-            car = Polygon(rect_corners(driven.poses[max(driven.poses)], body.length, body.width))
+            car = Polygon(rect_corners(here(), body.length, body.width))
             return float(car.distance(Polygon(rect_corners(driven.ego, body.length, body.width))))
 
         # a person waits until the car ahead has pulled away, at most 60 s: on CI's loaded machine the ego, held on
@@ -384,20 +388,23 @@ def test_demo_drive_records_the_driven_car_and_metrics_recompute_it(ros_env, tmp
         timeline.append(f"drives at step {max(driven.poses)} ({time.monotonic() - t0:.1f} s), the ego {gap():.1f} m "
                         f"ahead, the demo {'ended' if demo.poll() is not None else 'running'}")
         t1 = time.monotonic()
-        start = driven.poses[max(driven.poses)][:2]
+        start = here()[:2]
+
+        def moved() -> float:
+            return float(np.hypot(*(here()[:2] - start)))
+
         # 0.8 m/s down the road from the gate until the car has moved 1.5 m (2 s on an idle machine; a loaded one
         # drops commands older than drivers.watchdog) while more than 1.5 m stays free ahead, then let go
-        while demo.poll() is None and time.monotonic() - t1 < 60.0 \
-                and np.hypot(*(driven.poses[max(driven.poses)][:2] - start)) < 1.5:
+        while demo.poll() is None and time.monotonic() - t1 < 60.0 and moved() < 1.5:
             free = clearance() > 1.5
-            if not free and np.hypot(*(driven.poses[max(driven.poses)][:2] - start)) > 0.3:
+            if not free and moved() > 0.3:
                 break  # it has driven; the ego is too close to go on
             t = Twist()
             t.linear.x = 0.8 if free else 0.0
             pub.publish(t)
             _spin_for(node, 0.1)
         timeline.append(f"let go at step {max(driven.poses)} ({time.monotonic() - t0:.1f} s), moved "
-                        f"{np.hypot(*(driven.poses[max(driven.poses)][:2] - start)):.2f} m, {clearance():.1f} m free")
+                        f"{moved():.2f} m, {clearance():.1f} m free")
         text = demo.communicate(timeout=600)[0]
         print("[drive]", "; ".join(timeline))  # pytest -s
     finally:
