@@ -110,7 +110,7 @@ def test_without_ego_yield_the_gridlock_of_seed_29_forms(paper_lot):
     """The paper lot's one ego-ego gridlock (bezier, K = 4, seed 29: egos 0 and 3 face to face at the east end from
     42.8 s, docs/results/fleet/README.md) forms without ego_yield, and nobody collides. With the rule (the shipped
     default) ego 3 gives way and none forms: tests/test_fleet_dds.py's `test_an_ego_gives_way_over_dds_as_in_process`
-    asserts that on its in-process run (one 50 s run of four egos fewer in `make test`)."""
+    asserts that on its in-process run (one run of four egos fewer in `make test`)."""
     from avp_experiment.fleet import run_fleet_inproc
     from avp_experiment.run_config import RunConfig, run_profile, sim_values
 

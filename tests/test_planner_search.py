@@ -77,6 +77,42 @@ def test_scalar_reeds_shepp_matches_the_vectorised_one():
         assert len({c[1] for c in cands}) == len(cands)
 
 
+def test_the_rs_table_read_from_the_disk_cache_is_the_one_built(tmp_path, monkeypatch):
+    """avp_search.table_cache: the first process builds the table and keeps it, the next reads it back bit for bit;
+    its cells are the scalar Reeds-Shepp lengths; a damaged file is built anew; other parameters use another file;
+    with the cache off nothing is written."""
+    from avp_search.heuristic import rs_length_table
+
+    def fresh(*args):
+        rs_length_table.cache_clear()
+        return rs_length_table(*args)
+
+    args = (3.5, 1.0, 6.0, 16)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    monkeypatch.setenv("AVP_CACHE_DIR", "")  # off
+    built = fresh(*args)
+    assert not (tmp_path / "xdg").exists()
+    monkeypatch.delenv("AVP_CACHE_DIR")  # the default: $XDG_CACHE_HOME/avp
+    assert np.array_equal(fresh(*args), built) and len(list((tmp_path / "xdg" / "avp").glob("*.npy"))) == 1
+    monkeypatch.setenv("AVP_CACHE_DIR", str(tmp_path))
+    first = fresh(*args)
+    files = list(tmp_path.glob("rs_length_table-*.npy"))
+    assert len(files) == 1 and np.array_equal(first, built) and not first.flags.writeable
+    assert np.array_equal(np.load(files[0]), built)
+    files[0].write_bytes(b"\x93NUMPY" + b"\x00" * 40)  # garbage: built again and replaced
+    again = fresh(*args)
+    assert np.array_equal(again, built) and np.array_equal(np.load(files[0]), built)
+    np.save(files[0], np.zeros((2, 2), np.float32))  # the wrong shape: built again
+    assert np.array_equal(fresh(*args), built)
+    th = -math.pi + 2.0 * math.pi * (np.arange(16) + 0.5) / 16
+    for ix, iy, ib in ((0, 0, 0), (3, 5, 7), (6, 2, 15), (1, 6, 9)):  # the oracle: the scalar implementation
+        assert abs(again[ix, iy, ib] - rs_shortest((0.0, 0.0, 0.0), (ix * 1.0, iy * 1.0, th[ib]), 3.5)[0]) < 1e-4
+    fresh(3.5, 1.0, 6.0, 8)
+    assert len(list(tmp_path.glob("rs_length_table-*.npy"))) == 2
+    assert not list(tmp_path.glob(".*.tmp"))
+    rs_length_table.cache_clear()
+
+
 # ---------------------------------------------------------------------------------------------- Hybrid A*
 
 VACANT = {3, 11, 13, 14, 20, 22, 24, 35}

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import math
+import sys
 
 import cv2
 import numpy as np
@@ -17,6 +18,8 @@ import numpy as np
 from avp_search.collision import StaticWorld
 from avp_search.paths import wrap
 from avp_search.settings import SearchConfig
+from avp_search.table_cache import cached_table
+from avp_world import reeds_shepp
 from avp_world.reeds_shepp import reeds_shepp_batch
 
 BIG = 1e9  # "unreachable" distance
@@ -26,15 +29,21 @@ DISTANCE_CACHE_SIZE = 64  # 2-D distance maps a cache keeps (one per static worl
 @functools.lru_cache(maxsize=8)
 def rs_length_table(radius: float, res: float, extent: float, bins: int) -> np.ndarray:
     """Reeds-Shepp lengths from the origin (heading 0) to (x, y, φ) for x, y in [0, extent] step ``res`` and φ
-    at the centres of ``bins`` heading bins; (nx, ny, bins) float32. Other quadrants follow by symmetry."""
+    at the centres of ``bins`` heading bins; (nx, ny, bins) float32. Other quadrants follow by symmetry. Built once
+    per process, and kept on disk for the next (:mod:`avp_search.table_cache`)."""
     xs = np.arange(0.0, extent + 1e-9, res)
     th = -math.pi + 2.0 * math.pi * (np.arange(bins) + 0.5) / bins
-    gx, gy, gt = np.meshgrid(xs, xs, th, indexing="ij")
-    goals = np.stack([gx.ravel(), gy.ravel(), gt.ravel()], axis=1)
-    out = np.empty(len(goals))
-    for i in range(0, len(goals), 8192):
-        out[i:i + 8192] = reeds_shepp_batch(np.zeros(3), goals[i:i + 8192], radius).length
-    table = out.reshape(gx.shape).astype(np.float32)
+
+    def build() -> np.ndarray:
+        gx, gy, gt = np.meshgrid(xs, xs, th, indexing="ij")
+        goals = np.stack([gx.ravel(), gy.ravel(), gt.ravel()], axis=1)
+        out = np.empty(len(goals))
+        for i in range(0, len(goals), 8192):
+            out[i:i + 8192] = reeds_shepp_batch(np.zeros(3), goals[i:i + 8192], radius).length
+        return out.reshape(gx.shape).astype(np.float32)
+
+    table = cached_table("rs_length_table", (radius, res, extent, bins), (sys.modules[__name__], reeds_shepp),
+                         (len(xs), len(xs), bins), build)
     table.flags.writeable = False
     return table
 
