@@ -1,5 +1,5 @@
 """A disk cache of look-up tables that every process would otherwise build alike (the Reeds-Shepp length table of
-:func:`avp_search.heuristic.rs_length_table`: about 1 s of CPU at each planner or prediction node's start).
+:func:`avp_search.heuristic.rs_length_table`: about 0.6 s of CPU at each planner or prediction node's start).
 
 A table is stored as ``<dir>/<name>-<digest>.npy``; the digest covers the table's parameters, the source of the
 modules that compute it and numpy's version, so a changed parameter or a changed computation never reads an old
