@@ -332,3 +332,38 @@ def test_the_live_graph_of_k_egos_its_topics_and_its_frames():
     tf = scene.transforms(obs, Time(), "ego1/")
     assert [(t.header.frame_id, t.child_frame_id) for t in tf.transforms] == [("ego1/odom", "ego1/base_link"),
                                                                              ("map", "ego1/agent_5")]
+
+
+def _spot_pose(lot, spot_id: int, shift: float = 0.0) -> np.ndarray:
+    """A pose at the centre of a spot, heading along its long side, moved ``shift`` m along it."""
+    c = np.asarray(lot.spot_corners[lot.spot_index(spot_id)], dtype=float)
+    sides = [c[1] - c[0], c[2] - c[1]]
+    long = max(sides, key=np.linalg.norm)
+    u = long / np.linalg.norm(long)
+    x, y = c.mean(axis=0) + shift * u
+    return np.array([x, y, math.atan2(u[1], u[0])])
+
+
+def test_the_occupancy_with_egos_is_the_stacked_classification(paper_lot):
+    """World.occupancy_with (the agents' per-step classification, then the egos alone) gives what classifying
+    every agent and ego together gives, and a parked ego holds its spot (shapely judges which ego lies inside)."""
+    from avp_experiment.fleet import _holders
+    from avp_experiment.fleet_metrics import spot_holders
+    from avp_sim.core.observation import classify_world
+
+    w = World(paper_lot, _scene(paper_lot, [17, 26], []), WorldConfig(n_egos=3))
+    w.egos.present[:] = True
+    w.egos.poses[1] = _spot_pose(paper_lot, 17)  # inside spot 17
+    w.egos.poses[2] = _spot_pose(paper_lot, 26, shift=3.0)  # half out of spot 26
+    assert _inside(paper_lot, w.egos.poses[1], 17) and not _inside(paper_lot, w.egos.poses[2], 26)
+    for rows in ([], [1], [0, 2], [0, 1, 2]):
+        rows = np.array(rows, dtype=np.int64)
+        corners = np.concatenate([w.vehicle_corners(), w.egos.corners(rows)]) if len(rows) else w.vehicle_corners()
+        want = classify_world(paper_lot, corners)
+        got = w.occupancy_with(rows)
+        assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    holders = _holders(w)
+    assert holders == spot_holders(paper_lot, w.vehicle_corners(), w.egos.corners(np.arange(3)), range(3))
+    assert holders[17] == "ego:1" and 26 not in holders
+    seen = {v.id: v.is_static for i in range(3) for v in w.observe(i).vehicles if v.id >= EGO_ID_BASE}
+    assert seen == {EGO_ID_BASE: False, EGO_ID_BASE + 1: True, EGO_ID_BASE + 2: False}

@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from avp_experiment.fleet_metrics import SpotLosses, spot_holders, trace_wait, wait_edges
+from avp_experiment.fleet_metrics import SpotLosses, holders_of, trace_wait, wait_edges
 from avp_experiment.gridlock import GridlockMeter, Node
 from avp_experiment.profiles import MethodProfile
 from avp_experiment.run_config import ORACLE_HORIZON, RunConfig
@@ -68,7 +68,7 @@ def parse_fleet(spec: str, egos: int | None = None, option: str = "--fleet") -> 
 def _holders(world) -> dict[int, str]:
     """Spot id -> "agent" or "ego:<j>" for every spot a vehicle or ego lies inside now (§III-A's rule)."""
     rows = np.nonzero(world.egos.present)[0]
-    return spot_holders(world.lot, world.vehicle_corners(), world.egos.corners(rows), rows)
+    return holders_of(world.lot, world.occupancy_with(rows)[1], len(world.states), rows)
 
 
 def waits_for(world, decisions: dict[int, object]) -> dict[Node, set[Node]]:

@@ -24,11 +24,17 @@ def spot_holders(lot, agent_corners: np.ndarray, ego_corners: np.ndarray, ego_id
     ego_ids = [int(j) for j in ego_ids]
     corners = np.concatenate([agent_corners, ego_corners]) if len(ego_ids) else agent_corners
     _, vehicle_spot = classify_world(lot, corners)
-    n = len(agent_corners)
+    return holders_of(lot, vehicle_spot, len(agent_corners), ego_ids)
+
+
+def holders_of(lot, vehicle_spot: np.ndarray, n_agents: int, ego_ids: Iterable[int]) -> dict[int, str]:
+    """:func:`spot_holders` from the classification (:func:`~avp_sim.core.observation.classify_world`'s
+    ``vehicle_spot``) of the ``n_agents`` agents and then the egos ``ego_ids``."""
+    ego_ids = [int(j) for j in ego_ids]
     out: dict[int, str] = {}
     for r, row in enumerate(vehicle_spot):
         if row >= 0:
-            out[int(lot.spot_ids[row])] = "agent" if r < n else f"ego:{ego_ids[r - n]}"
+            out[int(lot.spot_ids[row])] = "agent" if r < n_agents else f"ego:{ego_ids[r - n_agents]}"
     return out
 
 

@@ -319,6 +319,16 @@ class World:
             self._occupancy_step = self.step_index
         return self._occupancy
 
+    def occupancy_with(self, egos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(spot_occupied, vehicle_spot) of the agents and then the egos ``egos`` (rows in that order): what
+        :func:`classify_world` gives for their corners stacked, with the agents' part taken from
+        :meth:`occupancy`. Each vehicle's spot depends on that vehicle alone, so only the egos are classified."""
+        occupied, vehicle_spot = self.occupancy()
+        if not len(egos):
+            return occupied, vehicle_spot
+        ego_occupied, ego_spot = classify_world(self.lot, self.egos.corners(egos))
+        return occupied | ego_occupied, np.concatenate([vehicle_spot, ego_spot])
+
     def observe(self, i: int = 0) -> Observation:
         """What ego ``i`` senses now: rays stop at the lot boundary, other vehicles (the other egos among them) or dQ
         (no ground truth)."""
@@ -328,7 +338,7 @@ class World:
         others = eg.others(i)
         corners, _ = self._with_egos(self.vehicle_corners(), self.vehicle_ids, others)
         scan = self.caster.cast(eg.poses[i], corners, self.ped_pos, self.ped_radii)
-        occupied, vehicle_spot = classify_world(self.lot, corners) if len(others) else self.occupancy()
+        occupied, vehicle_spot = self.occupancy_with(others)
         seen_spots = scan.seen_spots
         vac = self.lot.spot_ids[seen_spots & ~occupied]
         occ = self.lot.spot_ids[seen_spots & occupied]
