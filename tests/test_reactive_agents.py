@@ -168,6 +168,60 @@ def test_the_vectorised_roll_out_equals_the_recurrence_written_out():
     assert checked >= 20  # enough scenes where an agent is met
 
 
+def _plain_roll_out(g, margin, react, steps, own_n, hold_last, k0, first_only, ego_closes):
+    """The recurrence over a gap table G[a, j, k], one agent and one step at a time, every step from 1."""
+    a_n, h, n = g.shape
+    out = []
+    for a in range(a_n):
+        j = -1
+        for k in range(1, n):
+            if not any(g[a, min(j + i, h - 1), k - 1] <= react[a] for i in range(1, steps + 1)):
+                j = min(j + 1, h - 1)
+            now = g[a, max(j, 0), k]
+            met = k >= k0 and now <= margin[a]
+            if met and ego_closes and np.isfinite(react[a]):
+                met = now <= 0.0 or now < g[a, max(j, 0), k - 1] - 1e-9
+            if met and not hold_last:
+                met = j < own_n[a]
+            if met:
+                out.append((k, a))
+    out.sort()
+    if first_only and out:
+        out = [(k, a) for k, a in out if k == out[0][0]]
+    return [k for k, _ in out], [a for _, a in out]
+
+
+def test_the_roll_out_over_a_gap_table_equals_the_plain_recurrence():
+    """avp_search.reactive._roll_out (tables of both tests, j stepped through bytes, only the steps where some gap
+    is finite) against the recurrence written out, on random gap tables with unreachable pairs (+inf), agents the
+    rule leaves out (-inf), and every switch: the same meetings in the same order."""
+    from avp_search.reactive import _roll_out
+
+    rng = np.random.default_rng(11)
+    met = 0
+    for _ in range(150):
+        a_n, h, n = int(rng.integers(1, 5)), int(rng.integers(1, 12)), int(rng.integers(2, 30))
+        g = rng.uniform(-0.5, 3.0, (a_n, h, n))
+        if rng.random() < 0.5:
+            g = np.round(g * 4.0) / 4.0  # ties with the margin and the reaction distance
+        g[rng.random(g.shape) < 0.5] = np.inf
+        if rng.random() < 0.3:
+            g[:, :, : int(rng.integers(0, n))] = np.inf  # the plan reaches the agents late
+        margin = np.round(rng.uniform(0.2, 0.6, a_n) * 4.0) / 4.0
+        react = np.where(rng.random(a_n) < 0.25, -np.inf, margin + np.round(rng.uniform(0.0, 0.8, a_n) * 4.0) / 4.0)
+        own_n = rng.integers(0, h + 1, a_n)
+        steps, k0 = int(rng.integers(1, 4)), int(rng.integers(0, 6))
+        for hold_last in (True, False):
+            for first_only in (True, False):
+                for ego_closes in (True, False):
+                    args = (g, margin, react, steps, own_n, hold_last, k0, first_only, ego_closes)
+                    k, a = _roll_out(*args)
+                    assert k.dtype == a.dtype == np.int64
+                    assert (list(k), list(a)) == _plain_roll_out(*args), args[3:]
+                    met += len(k) > 0
+    assert met >= 300  # most tables have meetings
+
+
 def _stopping_car(speeds: list[float], y_end: float = 16.0, vid: int = 7):
     """A car driving north up the middle aisle at the given speeds (m/s, one per 0.1 s step, the last = now),
     ending at y = ``y_end``, and its prediction: it drives on north at 5 m/s."""

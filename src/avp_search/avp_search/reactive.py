@@ -95,42 +95,57 @@ def _cached_gap_table(dyn, kind: str, ego: np.ndarray, poses: np.ndarray, gaps_o
 def _roll_out(g: np.ndarray, margin: np.ndarray, react: np.ndarray, steps: int, own_n: np.ndarray,
               hold_last: bool, k0: int, first_only: bool = False,
               ego_closes: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """The recurrence of the module docstring for every agent of ``g`` at once: (k, agent row) of every meeting
-    (``first_only``: of the first). Only the steps where some gap is finite can brake or meet: before them every
-    agent follows its hypothesis (j_k = k - 1), after them nothing happens. ``ego_closes`` (the ``overlap``
-    trigger): an agent that reacts meets the ego within the margin only where the ego's own move from step k - 1
-    brought it nearer to the agent's pose j_k, or where they overlap. Its own approach is its business: it brakes
-    before it would overlap, so the ego standing while it comes up is no meeting."""
+    """The recurrence of the module docstring for every agent of ``g``: (k, agent row) of every meeting, by time
+    then row (``first_only``: of the first time). Only the steps where some gap is finite can brake or meet: before
+    them every agent follows its hypothesis (j_k = k - 1), after them nothing happens. ``ego_closes`` (the
+    ``overlap`` trigger): an agent that reacts meets the ego within the margin only where the ego's own move from
+    step k - 1 brought it nearer to the agent's pose j_k, or where they overlap. Its own approach is its business:
+    it brakes before it would overlap, so the ego standing while it comes up is no meeting.
+
+    Both tests of a step are tabled at once over every (agent, j, k) of that window: "brakes" (one of the poses
+    j + 1 .. j + L within the reaction distance of the ego's pose k - 1) and "meets" (pose j within the margin of
+    the ego's pose k). What is left sequential, each agent's j from step to step, reads the two tables as bytes."""
     a_n, h, n = g.shape
     live = np.nonzero(np.isfinite(g).any(axis=(0, 1)))[0]
+    none = np.zeros(0, np.int64), np.zeros(0, np.int64)
     if a_n == 0 or not len(live):
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    start = max(1, int(live[0]))
-    cols = np.arange(a_n)
-    reacts = np.isfinite(react)  # -inf: an agent the rule does not apply to (react_keys)
-    j = np.full(a_n, min(start - 2, h - 1))
-    offs = np.arange(1, steps + 1)
+        return none
+    start, end = max(1, int(live[0])), min(n, int(live[-1]) + 1)
+    if end <= start:
+        return none
+    w = g[:, :, start - 1:end]  # the ego's poses start - 1 .. end - 1
+    m = end - start + 1
+    js = np.arange(-1, h)  # j = -1 (where the agent is) .. h - 1: row j + 1 of the tables
+    ahead = np.minimum(js[:, None] + np.arange(1, steps + 1)[None, :], h - 1)  # (h + 1, L)
+    brakes = (w <= react[:, None, None])[:, ahead, :].any(axis=2)  # (A, h + 1, m): column k - 1 decides step k
+    now = w[:, np.maximum(js, 0), :]
+    meets = now <= margin[:, None, None]
+    if ego_closes:
+        before = np.concatenate([np.full((a_n, h + 1, 1), np.nan), now[:, :, :-1]], axis=2)
+        meets &= ~np.isfinite(react)[:, None, None] | (now <= 0.0) | (now < before - 1e-9)
+    if not hold_last:
+        meets &= js[None, :, None] < own_n[:, None, None]
+    br, mt = brakes.tobytes(), meets.tobytes()
+    j0, last = min(start - 2, h - 1), h - 1
     hit_k, hit_a = [], []
-    for k in range(start, min(n, int(live[-1]) + 1)):
-        ahead = np.minimum(j[:, None] + offs[None, :], h - 1)
-        brake = (g[cols[:, None], ahead, k - 1] <= react[:, None]).any(axis=1)
-        j = np.where(brake, j, np.minimum(j + 1, h - 1))
-        if k < k0:
-            continue
-        now = g[cols, np.maximum(j, 0), k]
-        hit = now <= margin
-        if ego_closes:
-            before = g[cols, np.maximum(j, 0), k - 1]
-            hit &= ~reacts | (now <= 0.0) | (now < before - 1e-9)
-        if not hold_last:
-            hit &= j < own_n
-        if hit.any():
-            hit_k.append(np.full(int(hit.sum()), k)), hit_a.append(cols[hit])
-            if first_only:
-                break
+    for a in range(a_n):
+        base = a * (h + 1) * m - start + 1  # byte of (a, j + 1, column of step k) = base + (j + 1) * m + k
+        j = j0
+        for k in range(start, end):
+            if not br[base + (j + 1) * m + k - 1]:
+                j = j + 1 if j < last else last
+            if k >= k0 and mt[base + (j + 1) * m + k]:
+                hit_k.append(k), hit_a.append(a)
+                if first_only:
+                    break
     if not hit_k:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    return np.concatenate(hit_k), np.concatenate(hit_a)
+        return none
+    k, a = np.array(hit_k, dtype=np.int64), np.array(hit_a, dtype=np.int64)
+    if first_only:
+        first = k == k.min()
+        return k[first], a[first]
+    order = np.lexsort((a, k))
+    return k[order], a[order]
 
 
 def reactive_hits(dyn, ego: np.ndarray, vm: np.ndarray, pm: np.ndarray, k0: int, first_only: bool = False):
