@@ -386,6 +386,45 @@ def test_classify_world_overlapping_spots_lowest_row():
     np.testing.assert_array_equal(vspot, [5])
 
 
+def test_the_occupancy_tracker_is_classify_world_step_after_step():
+    """OccupancyTracker (tests again only the cars that moved) against classify_world of every car, over 60 steps
+    in which some cars park, some leave their spots and some drive on, on a lot whose spot 5 is there twice
+    (both rows occupied, the lowest named): the same arrays each step; a change in the number of cars too."""
+    from avp_sim.core.occupancy import OccupancyTracker
+
+    lot = load_bundled_lot("paper_lot")
+    twin = LotMap(name="twin", boundary=lot.boundary, entrance=lot.entrance, roads=lot.roads,
+                  spots=(*lot.spots, dataclasses.replace(lot.spots[5], id=9999)))
+    rng = np.random.default_rng(3)
+    parked = twin.spot_poses[rng.choice(twin.n_spots, 40, replace=False)]
+    parked[0] = twin.spot_poses[5]
+    lo, hi = twin.spot_poses[:, :2].min(0), twin.spot_poses[:, :2].max(0)
+    driving = np.column_stack([rng.uniform(lo, hi, (10, 2)), rng.uniform(-np.pi, np.pi, 10)])
+    poses = np.vstack([parked, driving])
+    tracker = OccupancyTracker(twin)
+    left = parked_now = 0  # cars that left their spot, cars that parked
+    prev = None
+    for step in range(60):
+        movers = rng.choice(len(poses), 6, replace=False)
+        poses[movers] += rng.normal(0.0, 0.4, (6, 3)) * [1.0, 1.0, 0.05]  # some leave their spot
+        back = rng.choice(len(poses), 3, replace=False)
+        poses[back] = twin.spot_poses[rng.integers(0, twin.n_spots, 3)]  # some park
+        if step == 30:
+            poses = poses[:-2]  # two cars leave the lot
+        cars = rect_corners(poses, 4.6, 1.85)
+        occ, vspot = tracker.classify(cars)
+        want_occ, want_spot = classify_world(twin, cars)
+        np.testing.assert_array_equal(occ, want_occ)
+        np.testing.assert_array_equal(vspot, want_spot)
+        if prev is not None and len(prev) == len(vspot):
+            left += int(((prev >= 0) & (vspot < 0)).sum())
+            parked_now += int(((prev < 0) & (vspot >= 0)).sum())
+        prev = vspot
+        if step == 0:
+            assert occ[5] and occ[twin.n_spots - 1] and vspot[0] == 5
+    assert left >= 20 and parked_now >= 20
+
+
 # ------------------------------------------------------------------------------- SensorConfig
 
 

@@ -8,6 +8,7 @@ from typing import Any
 from avp_sim.core.busy import BusyParams, generate_busy_scenario
 from avp_sim.core.observation import SensorConfig
 from avp_sim.core.scenario import ScenarioParams, generate_paper_scenario
+from avp_sim.core.scenario_cache import cached_scenario
 from avp_sim.core.scenario_file import load_scenario_file, scenario_from_dict
 from avp_sim.core.world import World, WorldConfig
 from avp_world.lot import LotMap, load_bundled_lot, load_lot
@@ -87,9 +88,11 @@ def busy_params(p: dict[str, Any]) -> BusyParams:
 
 def generate_scenario(lot: LotMap, p: dict[str, Any], seed: int, reactive: bool):
     """The seeded scenario of the family ``scenario.family`` (ScenarioError when the seed has none)."""
-    if p.get("scenario.family", "paper") == "busy":
-        return generate_busy_scenario(lot, seed, reactive, dt=p["dt"], t_hist=p["t_hist"], t_final=p["t_final"],
-                                      busy=busy_params(p))
+    if p.get("scenario.family", "paper") == "busy":  # kept on disk: about 9 s of CPU a seed
+        busy = busy_params(p)
+        return cached_scenario(lot, ("busy", seed, reactive, p["dt"], p["t_hist"], p["t_final"], busy),
+                               lambda: generate_busy_scenario(lot, seed, reactive, dt=p["dt"], t_hist=p["t_hist"],
+                                                              t_final=p["t_final"], busy=busy))
     return generate_paper_scenario(lot, seed, reactive, scenario_params(p))
 
 

@@ -32,8 +32,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from avp_sim.core.occupancy import classify_world
 from avp_sim.core.ray_geometry import curve_polygon, point_segment_dist, ray_polyline_t, slab_interval, slabs
-from avp_world.geometry import rect_inside_rect, wrap_angle
+from avp_world.geometry import wrap_angle
 from avp_world.lot import LotMap
 
 SHAPES = ("disc", "rectangle", "ellipse", "polygon")
@@ -360,45 +361,6 @@ class RayCaster:
                 dist2 = pd2[cand, None] - 2.0 * t * proj + t * t
                 seen_peds[cand] = (dist2 <= (pr[cand] ** 2)[:, None]).any(axis=1)
         return seen_peds
-
-
-# ------------------------------------------------------------------------------------- classifier
-
-
-def classify_world(
-    lot: LotMap, vehicle_corners: np.ndarray, tol: float = 1e-6
-) -> tuple[np.ndarray, np.ndarray]:
-    """Occupied spots and static vehicles (paper §III-A).
-
-    A spot S_i is occupied iff some vehicle lies entirely inside it (V_k ⊆ S_i); a vehicle is static iff
-    it lies inside some spot, dynamic otherwise.
-
-    Args:
-        lot: the lot map.
-        vehicle_corners: (N, 4, 2) corners of the vehicles to classify.
-        tol: slack of the containment test as a fraction of the spot's side lengths.
-    Returns:
-        spot_occupied (n_spots,) bool and vehicle_spot (N,) int (the containing spot's row in the lot's
-        spot arrays, -1 for a dynamic vehicle; the lowest row if spots overlap).
-    """
-    vc = np.asarray(vehicle_corners, dtype=float).reshape(-1, 4, 2)
-    sc = np.asarray(lot.spot_corners, dtype=float).reshape(-1, 4, 2)
-    spot_occupied = np.zeros(sc.shape[0], dtype=bool)
-    vehicle_spot = np.full(vc.shape[0], -1, dtype=np.int64)
-    if vc.shape[0] == 0 or sc.shape[0] == 0:
-        return spot_occupied, vehicle_spot
-    # Only pairs within reach can pass: a vehicle inside a spot has its centre (the mean of its corners, an
-    # affine image) inside the spot grown by tol, so within the spot's half-diagonal × (1 + tol) of its centre.
-    reach = 0.5 * np.hypot(lot.spot_dims[:, 0], lot.spot_dims[:, 1]) * (1.0 + tol) + 1e-9
-    gap = vc.mean(axis=1)[:, None, :] - sc.mean(axis=1)[None, :, :]
-    ii, jj = np.nonzero(np.hypot(gap[..., 0], gap[..., 1]) <= reach[None])  # row-major: jj ascending per ii
-    if ii.size:
-        inside = rect_inside_rect(vc[ii], sc[jj], tol=tol)
-        ii, jj = ii[inside], jj[inside]
-        spot_occupied[jj] = True
-        first_vehicle, first = np.unique(ii, return_index=True)
-        vehicle_spot[first_vehicle] = jj[first]  # the lowest row wins if spots overlap
-    return spot_occupied, vehicle_spot
 
 
 __all__ = ["SHAPES", "RayCaster", "RayScan", "SensorConfig", "classify_world"]

@@ -25,6 +25,7 @@ from avp_sim.core.agent_yield import agents_yield, plan_lookahead
 from avp_sim.core.egos import EGO_ID_BASE, Egos
 from avp_sim.core.metrics import COLLISION, RUNNING, SUCCESS, TIMEOUT, EpisodeMetrics, apply_event, step_event
 from avp_sim.core.observation import RayCaster, SensorConfig, classify_world
+from avp_sim.core.occupancy import OccupancyTracker
 from avp_sim.core.scenario import Scenario
 from avp_world.geometry import disc_rect_overlap, rect_corners, rects_overlap
 from avp_world.kinematics import step_pedestrian, step_vehicle
@@ -101,6 +102,7 @@ class World:
             self.history[:, k + 1] = self.states
         self.step_index = 0
         self._occupancy_step = -1  # occupancy() cache: state changes only in step()
+        self._tracker = OccupancyTracker(lot)  # occupancy(): tests again only the vehicles that moved
         self.egos = Egos(np.array(sc.ego_start, dtype=float), config.n_egos,
                          int(round(config.entry_interval / self.dt)), self.hist, sc.ego.length, sc.ego.width,
                          tuple((pose, int(round(t / self.dt))) for pose, t in sc.ego_entries),
@@ -315,7 +317,7 @@ class World:
     def occupancy(self) -> tuple[np.ndarray, np.ndarray]:
         """(spot_occupied, vehicle_spot) of the current step (:func:`classify_world`), computed once per step."""
         if self._occupancy_step != self.step_index:
-            self._occupancy = classify_world(self.lot, self.vehicle_corners())
+            self._occupancy = self._tracker.classify(self.vehicle_corners())
             self._occupancy_step = self.step_index
         return self._occupancy
 
