@@ -16,32 +16,20 @@ from types import ModuleType
 
 import numpy as np
 
-from avp_world.disk_cache import ENV, cache_dir, digest, save_atomic
+from avp_world.disk_cache import ENV, cache_dir, cached
 
 
 def cached_table(name: str, key: tuple, modules: Sequence[ModuleType], shape: tuple[int, ...],
                  build: Callable[[], np.ndarray]) -> np.ndarray:
     """The float32 table ``build()`` returns for ``key``, read from the cache when a whole one is there (else built
     and stored). ``modules``: the modules whose source computes it (part of the file's digest)."""
-    d = cache_dir()
-    if d is None:
-        return build()
-    try:
-        path = d / f"{name}-{digest(key, modules)}.npy"
-    except OSError:
-        return build()
-    try:
+
+    def read(path):
         table = np.load(path, allow_pickle=False)
-        if table.shape == tuple(shape) and table.dtype == np.float32 and np.isfinite(table).all():
-            return table
-    except (OSError, ValueError, EOFError):
-        pass  # absent, cut short or not an .npy: build it
-    table = build()
-    try:
-        save_atomic(path, lambda f: np.save(f, table, allow_pickle=False))
-    except OSError:
-        pass  # a read-only or full disk: the table is still right, only not kept
-    return table
+        whole = table.shape == tuple(shape) and table.dtype == np.float32 and np.isfinite(table).all()
+        return table if whole else None
+
+    return cached(name, ".npy", key, modules, read, build, lambda f, table: np.save(f, table, allow_pickle=False))
 
 
 __all__ = ["ENV", "cache_dir", "cached_table"]

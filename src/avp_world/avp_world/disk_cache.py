@@ -15,14 +15,17 @@ from __future__ import annotations
 import hashlib
 import os
 import tempfile
+import zipfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import ModuleType
-from typing import BinaryIO
+from typing import BinaryIO, TypeVar
 
 import numpy as np
 
 ENV = "AVP_CACHE_DIR"
+T = TypeVar("T")
+UNREADABLE = (OSError, ValueError, KeyError, TypeError, IndexError, EOFError, zipfile.BadZipFile)
 
 
 def cache_dir() -> Path | None:
@@ -57,4 +60,31 @@ def save_atomic(path: Path, write: Callable[[BinaryIO], None]) -> None:
             os.unlink(tmp)
 
 
-__all__ = ["ENV", "cache_dir", "digest", "save_atomic"]
+def cached(stem: str, suffix: str, key: tuple, sources: Sequence[ModuleType | Path], read: Callable[[Path], T | None],
+           build: Callable[[], T], write: Callable[[BinaryIO, T], None], keep: Callable[[T], bool] | None = None) -> T:
+    """What ``build()`` returns for ``key``: ``read`` from ``<dir>/<stem>-<digest><suffix>`` when that gives a whole
+    value (None, or an error of :data:`UNREADABLE`: absent, cut short or not ours), else built and ``write``-n there
+    (unless ``keep`` says no). With the cache off, or the disk failing, simply built."""
+    d = cache_dir()
+    if d is None:
+        return build()
+    try:
+        path = d / f"{stem}-{digest(key, sources)}{suffix}"
+    except OSError:
+        return build()
+    try:
+        value = read(path)
+        if value is not None:
+            return value
+    except UNREADABLE:
+        pass
+    value = build()
+    if keep is None or keep(value):
+        try:
+            save_atomic(path, lambda f: write(f, value))
+        except OSError:
+            pass  # a read-only or full disk: the value is still right, only not kept
+    return value
+
+
+__all__ = ["ENV", "UNREADABLE", "cache_dir", "cached", "digest", "save_atomic"]

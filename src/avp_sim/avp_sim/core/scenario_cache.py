@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import zipfile
 from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
@@ -22,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from avp_sim.core.scenario import PedestrianAgent, Scenario, VehicleAgent
-from avp_world.disk_cache import cache_dir, digest, save_atomic
+from avp_world.disk_cache import cached
 from avp_world.lot import LotMap
 from avp_world.vehicle import VehicleSpec
 
@@ -83,29 +82,17 @@ def _unpack(z) -> Scenario:
                     t_hist=meta["t_hist"], passiveness_step=meta["passiveness_step"])
 
 
+def _read(path: Path) -> Scenario:
+    with np.load(path, allow_pickle=False) as z:
+        return _unpack(z)
+
+
 def cached_scenario(lot: LotMap, key: tuple, generate: Callable[[], Scenario]) -> Scenario:
     """The scenario ``generate()`` makes for ``key`` (every input of the generator but the lot), read from the cache
-    when a whole one is there, else generated and stored."""
-    d = cache_dir()
-    if d is None:
-        return generate()
-    try:
-        path = d / f"scenario-{digest((FORMAT, key, lot_key(lot)), _sources())}.npz"
-    except OSError:
-        return generate()
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            return _unpack(z)
-    except (OSError, ValueError, KeyError, TypeError, IndexError, EOFError, zipfile.BadZipFile):
-        pass  # absent, cut short or not ours: generate it
-    sc = generate()
-    if sc.ego_entries:
-        return sc  # only generated scenarios (a scenario file's further egos are not kept)
-    try:
-        save_atomic(path, lambda f: np.savez_compressed(f, **_pack(sc)))
-    except OSError:
-        pass
-    return sc
+    when a whole one is there, else generated and stored (only generated scenarios: a scenario file's further egos
+    are not kept)."""
+    return cached("scenario", ".npz", (FORMAT, key, lot_key(lot)), _sources(), _read, generate,
+                  lambda f, sc: np.savez_compressed(f, **_pack(sc)), keep=lambda sc: not sc.ego_entries)
 
 
 __all__ = ["cached_scenario", "lot_key"]
