@@ -229,6 +229,10 @@ def test_a_fleet_cell_counts_gridlocks_and_spot_losses_per_episode():
     text = _cells("fleet", s)[0]
     assert "a gridlock in 1 of 3 episodes" in text and "a spot lost to another ego in 2 of 3 episodes" in text
     assert "2 egos in a collision with another ego" in text
+    single = [{"seed": s, "mode": "reactive", "success": s != 2, "collision_with": ""} for s in range(4)]  # K = 1
+    s = cell_stats("fleet", single)
+    assert s["success"]["k"] == 3 and s["episodes_with_ego_loss"] is s["episodes_with_gridlock"] is None
+    assert _cells("fleet", s) == ["75.0 [30.1, 95.4] (4)"]  # no ego-ego or gridlock figure it never measured
 
 
 def test_a_cell_being_written_or_cut_short_is_left_out_of_the_suite_table(tmp_path):

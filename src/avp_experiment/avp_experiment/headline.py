@@ -200,7 +200,11 @@ def cell_stats(metric: str, records: Sequence[Mapping]) -> dict | None:
                 "at_fault": sum(bool(r.get("collision_at_fault")) for r in records),
                 "interrupted_steps": _mean([float(r["interrupted_steps"]) for r in records])}
     # fleet: parks per ego-episode; an ego-ego spot loss and a gridlock per episode (any ego's record says so: every
-    # ego of a gridlocked episode carries it; docs/results/fleet); the egos that collided with another ego
+    # ego of a gridlocked episode carries it; docs/results/fleet); the egos that collided with another ego. A single
+    # ego's records carry no such fields (its episode is the single-ego one): those figures are then None, not 0.
+    if not any("spots_lost_to_ego" in r for r in records):
+        return {"success": _rate(sum(bool(r["success"]) for r in records), n), "episodes_with_ego_loss": None,
+                "ego_ego_collisions": None, "episodes_with_gridlock": None}
     lost: dict[tuple, bool] = {}
     locked: dict[tuple, bool] = {}
     for r in records:
@@ -289,6 +293,8 @@ def _cells(metric: str, s: Mapping | None) -> list[str]:
         return [_pct(s["success"]) + (f"; {s['at_fault']} at fault" if s["at_fault"] else ""), _pct(s["spot_stolen"]),
                 f"{m['mean']:.1f} [{m['ci95'][0]:.1f}, {m['ci95'][1]:.1f}]"]
     lost = s["episodes_with_ego_loss"]
+    if lost is None:  # one ego: no other ego to lose a spot to, no gridlock measured
+        return [_pct(s["success"])]
     extra = [f"a spot lost to another ego in {lost['k']} of {lost['n']} episodes"]
     extra += [f"{s['ego_ego_collisions']} egos in a collision with another ego"] if s["ego_ego_collisions"] else []
     grid = s["episodes_with_gridlock"]
