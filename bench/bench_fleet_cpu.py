@@ -22,26 +22,14 @@ import time
 from pathlib import Path
 
 import torch
+from bench_closed_loop import _seeds  # noqa: E402  (bench/ is the script's directory: one seed-range parser)
 
 from avp_experiment.fleet import run_fleet_inproc
 from avp_experiment.run_config import RunConfig, run_profile, sim_values
+from avp_experiment.runner import parse_planner_params
 from avp_world.lot import load_bundled_lot, load_lot
 
 ROW_BEZIER = ["collision.reactive_steps=2", "collision.reactive_evidence=assumed"]  # the fleet suite's `bezier` row
-
-
-def seeds_of(text: str) -> list[int]:
-    if "-" in text:
-        a, b = text.split("-")
-        return list(range(int(a), int(b) + 1))
-    return [int(s) for s in text.split(",")]
-
-
-def value(text: str):
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError:
-        return text
 
 
 def digest(records: list[dict]) -> str:
@@ -63,8 +51,7 @@ def main() -> int:
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args()
     torch.set_num_threads(1)
-    params = ROW_BEZIER if args.planner_param is None else args.planner_param
-    planner = {k: value(v) for k, v in (p.split("=", 1) for p in params)}
+    planner = parse_planner_params(ROW_BEZIER if args.planner_param is None else args.planner_param)
     sim = {"scenario.family": args.scenario}
     if args.lot:
         sim["lot_file"] = args.lot
@@ -72,7 +59,7 @@ def main() -> int:
     lot = load_lot(args.lot) if args.lot else load_bundled_lot()
     profiles = [run_profile(args.method, cfg) for _ in range(args.egos)]
     rows = []
-    for seed in seeds_of(args.seeds):
+    for seed in _seeds(args.seeds):
         c0, t0 = time.process_time(), time.perf_counter()
         records = run_fleet_inproc(lot, sim_values(cfg), profiles, seed, True, cfg)
         cpu, wall = time.process_time() - c0, time.perf_counter() - t0
