@@ -222,6 +222,28 @@ def test_the_roll_out_over_a_gap_table_equals_the_plain_recurrence():
     assert met >= 300  # most tables have meetings
 
 
+
+def test_the_plan_poses_are_made_distinct_as_numpy_does():
+    """avp_search.reactive._unique_rows against np.unique(axis=0, return_inverse=True) on plans with repeated poses
+    (an ego that waits): the same rows in the same order and the same inverse, bit for bit where no -0.0 is in play
+    (where one is, 0.0 and -0.0 are one row, as in numpy, and equal by value)."""
+    from avp_search.reactive import _unique_rows
+
+    rng = np.random.default_rng(5)
+    exact = 0
+    for _ in range(400):
+        r = int(rng.integers(1, 80))
+        x = np.round(rng.normal(0.0, 10.0, (r, 3)), int(rng.integers(0, 3)))
+        x = x[rng.integers(0, r, int(rng.integers(1, 3 * r)))]  # waits: poses repeated, out of order too
+        u, inv = np.unique(x, axis=0, return_inverse=True)
+        u2, inv2 = _unique_rows(x)
+        assert np.array_equal(u, u2) and np.array_equal(inv.reshape(-1), inv2) and inv2.dtype == np.intp
+        assert np.array_equal(u2[inv2], x)
+        if not np.any(np.signbit(x) & (x == 0.0)):
+            assert u.tobytes() == u2.tobytes()
+            exact += 1
+    assert exact >= 100
+
 def _stopping_car(speeds: list[float], y_end: float = 16.0, vid: int = 7):
     """A car driving north up the middle aisle at the given speeds (m/s, one per 0.1 s step, the last = now),
     ending at y = ``y_end``, and its prediction: it drives on north at 5 m/s."""
