@@ -271,8 +271,11 @@ def test_two_demos_at_once_do_not_cross_talk(ros_env, tmp_path):
     domains = [next(ln for ln in o.splitlines() if "ROS_DOMAIN_ID=" in ln) for o in outs[:2]]
     assert domains[0] != domains[1], domains  # two graphs, two domains
     trajectories = []
-    for tag in ("a", "b", "lone"):
-        ep = read_episode(tmp_path / f"bag_{tag}")
+    for tag, out in zip(("a", "b", "lone"), outs, strict=True):
+        try:
+            ep = read_episode(tmp_path / f"bag_{tag}")
+        except ValueError as exc:  # what the demo said (a recorder that stopped or dropped messages says why)
+            raise AssertionError(f"{exc}\n--- avp demo {tag}:\n{out}") from exc
         trajectories.append(np.array([[a.pose.x, a.pose.y, a.pose.theta] for g in ep["ground_truth"]
                                       for a in g.agents if a.kind == 0]))
     assert len(trajectories[2]) == 61
