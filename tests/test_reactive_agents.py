@@ -222,7 +222,6 @@ def test_the_roll_out_over_a_gap_table_equals_the_plain_recurrence():
     assert met >= 300  # most tables have meetings
 
 
-
 def test_the_plan_poses_are_made_distinct_as_numpy_does():
     """avp_search.reactive._unique_rows against np.unique(axis=0, return_inverse=True) on plans with repeated poses
     (an ego that waits): the same rows in the same order and the same inverse, bit for bit where no -0.0 is in play
@@ -243,6 +242,7 @@ def test_the_plan_poses_are_made_distinct_as_numpy_does():
             assert u.tobytes() == u2.tobytes()
             exact += 1
     assert exact >= 100
+
 
 def _stopping_car(speeds: list[float], y_end: float = 16.0, vid: int = 7):
     """A car driving north up the middle aisle at the given speeds (m/s, one per 0.1 s step, the last = now),

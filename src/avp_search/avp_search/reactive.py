@@ -79,8 +79,9 @@ def _gap_table(ego: np.ndarray, poses: np.ndarray, gaps_of, reach: np.ndarray) -
 
 def _unique_rows(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The distinct rows of ``x`` sorted lexicographically and, for each row, the index of its own:
-    ``np.unique(x, axis=0, return_inverse=True)`` without its sort of a structured view (ten times as long on a
-    plan's hundred poses). Rows equal by ``==`` are one (0.0 and -0.0 too; the first of them stands for both)."""
+    ``np.unique(x, axis=0, return_inverse=True)`` without its sort of a structured view (in a busy eight-ego
+    episode it took 6 % of the CPU, this 3 %). Rows equal by ``==`` are one (0.0 and -0.0 too; the first of them
+    stands for both)."""
     order = np.lexsort(x.T[::-1])
     s = x[order]
     new = np.ones(len(x), bool)
