@@ -181,6 +181,53 @@ def test_sigkilled_recorder_mid_episode_reads_back_a_prefix(ros, tmp_path):
     assert steps == list(range(len(recorded)))
 
 
+_PUBLISHER_SCRIPT = """
+import time, rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from avp_msgs.msg import GroundTruth
+rclpy.init()
+n = rclpy.create_node("writers")
+n.create_publisher(Clock, "/clock", 10)  # reliable, as the recorder's reader: they match
+best_effort = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+n.create_publisher(GroundTruth, "/avp/debug/ground_truth", best_effort)
+print("up", flush=True)
+while rclpy.ok():
+    rclpy.spin_once(n, timeout_sec=0.1)
+"""
+
+
+def test_the_recorder_names_its_readers_that_matched_no_writer(ros, tmp_path):
+    """`BagRecorder.unmatched` (what `avp demo` waits on before it starts the episode): a required topic is named
+    until its reader matched a writer of another process; a topic the graph shows a writer of is named while that
+    writer cannot match (best-effort against the recorder's reliable reader); a topic nobody writes is not."""
+    from avp_bag.recorder import GRAPH_TOPICS, BagRecorder
+
+    topics = {t: GRAPH_TOPICS[t] for t in ("/clock", "/avp/debug/ground_truth", "/avp/episode_status")}
+    rec = BagRecorder(tmp_path / "bag", topics)
+    writers = None
+    try:
+        assert rec.unmatched(("/clock",)) == ["/clock"] and rec.unmatched() == []
+        writers = subprocess.Popen([sys.executable, "-c", _PUBLISHER_SCRIPT], env=ros, stdout=subprocess.PIPE,
+                                   text=True)
+        assert writers.stdout.readline().strip() == "up"
+        t0 = time.monotonic()
+        while (rec.unmatched(("/clock",)) != ["/avp/debug/ground_truth"]) and time.monotonic() - t0 < 60:
+            rclpy.spin_once(rec, timeout_sec=0.05)
+        assert rec.unmatched(("/clock",)) == ["/avp/debug/ground_truth"]
+        assert rec.count_publishers("/avp/debug/ground_truth") == 1  # shown by the graph, never matched
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 1.0:
+            rclpy.spin_once(rec, timeout_sec=0.05)
+        assert rec.unmatched() == ["/avp/debug/ground_truth"]  # a QoS mismatch does not resolve by waiting
+    finally:
+        if writers is not None:
+            writers.terminate()
+            writers.wait(10)
+        rec.close()
+        rec.destroy_node()
+
+
 def _steps(raws: list[bytes]) -> list[int]:
     from rclpy.serialization import deserialize_message
 

@@ -113,15 +113,23 @@ class BagRecorder(Node):
         self.error: str | None = None  # set when the file system failed and recording stopped
         self.clock_ns = 0
         self.counts: dict[str, int] = {}
-        self._subs = []
+        self._subs: dict[str, object] = {}
         for topic, (typename, latched) in topics.items():
             conn = self.writer.add_connection(topic, typename, typestore=self.ts, offered_qos_profiles=[_qos(latched)])
             # reader queue as deep as the ground-truth writer keeps (30 s of steps): a recorder stalled on a split
             # or an fsync drops nothing
             qos = reader_qos(latched, GROUND_TRUTH.depth)
             # bursts (a flood) are taken in one executor round (avp_common.drain)
-            self._subs.append(draining_subscription(self, message_class(typename), topic, self._callback(topic, conn),
-                                                    qos))
+            self._subs[topic] = draining_subscription(self, message_class(typename), topic,
+                                                      self._callback(topic, conn), qos)
+
+    def unmatched(self, required: tuple[str, ...] = ()) -> list[str]:
+        """Recorded topics whose reader has matched no writer yet although one is due: the topic is in ``required`` or
+        the graph already shows a publisher of it. A volatile reader that matches after the episode started never
+        gets the messages sent before (on a loaded machine matching can lag discovery by seconds), so a graph is
+        started only once this is empty (avp_bringup.demo)."""
+        return [t for t, sub in self._subs.items()
+                if sub.get_publisher_count() == 0 and (t in required or self.count_publishers(t) > 0)]
 
     def _callback(self, topic, conn):
         from avp_common.msg_auth import ego_scope, scoped_key, verify

@@ -144,6 +144,23 @@ def _demo_nodes(args: argparse.Namespace) -> list:
     return nodes
 
 
+#: the recorder's topics the episode cannot be read back without (avp_bag.episode.read_episode): the demo starts the
+#: episode only once the recorder's readers have matched their writers
+RECORDED_FIRST = ("/clock", "/avp/lot_map", "/avp/debug/ground_truth", "/avp/episode_status")
+#: seconds the recorder's other readers get to match the writers the graph shows, once the graph is up
+LATE_MATCH_WAIT = 10.0
+
+
+def _check_bag(recorder, monitor) -> None:
+    """One warning when the bag holds fewer ground-truth messages than the episode had steps (one per step, step 0
+    included): what the recorder missed is named rather than found by the first reader of the bag."""
+    steps = int(monitor.status.metrics.steps) + 1
+    n = recorder.counts.get("/avp/debug/ground_truth", 0)
+    if n < steps and not recorder.error:
+        print(f"[avp demo] warning: the bag holds {n} of the episode's {steps} ground-truth messages (recorded: "
+              f"{dict(sorted(recorder.counts.items()))})", file=sys.stderr, flush=True)
+
+
 def _scenes_behind(recorder, monitor) -> bool:
     """One ego with a scene node (its scenes are being recorded): fewer scenes in the bag than the episode's steps."""
     n = recorder.counts.get("/avp/viz/scene", 0)
@@ -182,7 +199,7 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
               "Teleop panel on /avp/driver0/cmd_vel (--foxglove); it enters through the gate 3 s in", flush=True)
     try:
         n_subs = nodes[0].extra_params["min_subscribers"]
-        _start_episode(monitor, executor, graph, ResetEpisode, args, n_subs, log_dir)
+        _start_episode(monitor, recorder, executor, graph, ResetEpisode, args, n_subs, log_dir)
         while not monitor.finished:
             executor.spin_once(timeout_sec=0.2)
             dead = {n: rc for n, rc in graph.poll().items() if rc is not None}
@@ -205,6 +222,7 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
         if args.egos > 1:
             extra["egos"] = monitor.ego_states()
         metrics = monitor.write(lot, out, extra)
+        _check_bag(recorder, monitor)
     except RuntimeError as exc:
         print(f"[avp demo] {exc}", file=sys.stderr)
         return 1, ()
@@ -249,26 +267,35 @@ def latency_line(lat: dict) -> str:
             f"(target p95 <= 100 ms){late}")
 
 
-def _start_episode(monitor, executor, graph, srv_type, args, n_obs_subs: int, log_dir: Path,
+def _start_episode(monitor, recorder, executor, graph, srv_type, args, n_obs_subs: int, log_dir: Path,
                    timeout: float = 60.0) -> None:
     """Wait until every node is up (observation subscribers, the ego's cmd publisher, the reset service), the
-    monitor's own readers have matched their writers, and a second for discovery to settle, then start the episode
-    with reset_episode (RuntimeError when that fails)."""
+    monitor's own readers and the recorder's readers of the episode (:data:`RECORDED_FIRST`) have matched their
+    writers, and a second for discovery to settle, then start the episode with reset_episode (RuntimeError when
+    that fails). The recorder's other readers get up to :data:`LATE_MATCH_WAIT` s more; one that still has not
+    matched a writer the graph shows (a foreign publisher of incompatible QoS, say) is named in one warning."""
     from avp_common.services import call_once
 
     client = monitor.create_client(srv_type, "reset_episode")
     prefixes = [f"/avp/ego{i}" for i in range(args.egos)] if args.egos > 1 else ["/avp"]
     t0 = time.monotonic()
-    while not (client.service_is_ready() and monitor.inputs_matched()
+    while not (client.service_is_ready() and monitor.inputs_matched() and not recorder.unmatched(RECORDED_FIRST)
                and all(monitor.count_subscribers(f"{p}/observation") >= n_obs_subs
                        and monitor.count_publishers(f"{p}/cmd") >= 1 for p in prefixes)):
         executor.spin_once(timeout_sec=0.1)
         dead = {n: rc for n, rc in graph.poll().items() if rc is not None}
         if dead or time.monotonic() - t0 > timeout:
-            raise RuntimeError(f"graph not up ({dead or f'after {timeout} s'}); see {log_dir}/")
+            late = recorder.unmatched(RECORDED_FIRST)
+            raise RuntimeError(f"graph not up ({dead or f'after {timeout} s'}"
+                               f"{f'; the recorder matched no writer of {late}' if late else ''}); see {log_dir}/")
     t1 = time.monotonic()
-    while time.monotonic() - t1 < 1.0:  # matching completes both ways; the latched lot map reaches every node
+    # matching completes both ways; the latched lot map reaches every node; the recorder's other readers match
+    while time.monotonic() - t1 < 1.0 or (recorder.unmatched() and time.monotonic() - t1 < LATE_MATCH_WAIT):
         executor.spin_once(timeout_sec=0.05)
+    if late := recorder.unmatched():
+        print(f"[avp demo] warning: the recorder's readers of {', '.join(late)} matched no writer after "
+              f"{LATE_MATCH_WAIT:.0f} s although the graph shows one: the bag misses those topics' messages until "
+              "they match", file=sys.stderr, flush=True)
     seed, reactive = int(args.seed), not args.non_reactive
     try:  # sent once (a second reset would restart the running episode); its status also shows it happened
         res = call_once(client, srv_type.Request(seed=seed, reactive=reactive),
