@@ -75,17 +75,24 @@ def key_path() -> Path:
 
 
 def load_key(path: Path | None = None) -> bytes:
-    """The key, created (0600, in a 0700 directory) if there is none yet; OSError if unreadable or short."""
+    """The key, created (0600, in a 0700 directory) if there is none yet; OSError if unreadable or short.
+
+    Nodes started together race to create it: the key is written to a file of this process's own and then linked
+    to ``path`` (atomic, refused when ``path`` exists), so a node never reads a key file that another is still
+    writing, and every node ends up with the one key that was linked first."""
     p = path or key_path()
     if not p.exists():
         p.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+        tmp = p.with_name(f".{p.name}.{os.getpid()}.{os.urandom(4).hex()}")
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
         try:
-            fd = os.open(p, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-        except FileExistsError:  # another node created it meanwhile
-            pass
-        else:
             with os.fdopen(fd, "wb") as f:
                 f.write(os.urandom(KEY_BYTES))
+            os.link(tmp, p)
+        except FileExistsError:  # another node created it meanwhile: take that one
+            pass
+        finally:
+            tmp.unlink(missing_ok=True)
     key = p.read_bytes()
     if len(key) < 16:
         raise OSError(f"{p}: message key shorter than 16 bytes")
