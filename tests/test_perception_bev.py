@@ -391,3 +391,19 @@ def test_occupancy_grid_layout_against_shapely(lot_name, resolution):
     np.testing.assert_array_equal(layout.spot_row, expect)
     np.testing.assert_array_equal(layout.inside, shapely.contains_xy(Polygon(lot.boundary), c[..., 0], c[..., 1]))
     assert (layout.spot_row >= 0).sum() > lot.n_spots  # spots cover cells
+
+
+def test_the_visible_polygons_are_those_whose_box_meets_the_image():
+    """`BEVRenderer._visible` (corner by corner) against shapely: a polygon is drawn when its bounding box meets the
+    image square [-1, size] grown by the one-pixel margin, corners on the edge included."""
+    renderer = BEVRenderer(LOT)
+    size = renderer.size
+    rng = np.random.default_rng(5)
+    centres = rng.uniform(-40, size + 40, size=(400, 1, 2))
+    polys = centres + rng.uniform(-30, 30, size=(400, 4, 2))
+    polys[0] = [[-3, -3], [-1, -3], [-1, -1], [-3, -1]]  # touches the grown image at one corner
+    polys[1] = [[size + 0.5, 5], [size + 2, 5], [size + 2, 6], [size + 0.5, 6]]  # starts past the far edge
+    image = box(-1, -1, size, size)
+    expected = [box(*Polygon(p).bounds).intersects(image) for p in polys]
+    assert renderer._visible(polys).tolist() == expected
+    assert expected[0] and not expected[1] and 50 < sum(expected) < 390
