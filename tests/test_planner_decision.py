@@ -314,10 +314,10 @@ def test_idle_replan_steps(paper_lot):
     assert five.decide(make_obs(paper_lot, ego, vacant=[13], vehicles=walls, step=5)).mode == "park"
 
 
-def test_failed_searches_are_not_repeated(paper_lot, monkeypatch):
-    """The same search in the same scene from the same pose fails the same way: the planner remembers failed
-    searches (FAILED_SEARCH_CACHE; here spot 0 fails a 3-iteration budget) and does not run them again — the
-    decisions are unchanged; another scene (spot 5 vacant instead) is searched."""
+def test_searches_are_not_repeated(paper_lot, monkeypatch):
+    """The same search in the same scene from the same pose ends the same way: the planner remembers searches
+    (SEARCH_CACHE; here spot 0 fails a 3-iteration budget and the exploration points are reached) and does not run
+    them again — the decision is unchanged, pose for pose; another scene (spot 5 vacant instead) is searched."""
     from dataclasses import replace
 
     from avp_search.hybrid_astar import HybridAStar
@@ -331,8 +331,13 @@ def test_failed_searches_are_not_repeated(paper_lot, monkeypatch):
     monkeypatch.setattr(HybridAStar, "plan",
                         lambda self, goals, *a, **k: searched.append(goals.tobytes()) or real(self, goals, *a, **k))
     first = p.decide(make_obs(paper_lot, ego, vacant=[0], step=0))
-    assert searched.count(spot0) == 1 and len(p._failed_searches) == 1 and first.mode == "explore"
-    again = p.decide(make_obs(paper_lot, ego, vacant=[0], step=10))  # not where the plan expects: re-plans
-    assert searched.count(spot0) == 1 and again.mode == first.mode  # spot 0 not searched again
+    n_first = len(searched)
+    assert searched.count(spot0) == 1 and first.mode == "explore"
+    assert [r.success for r in p._searches.values()].count(False) == 1 and n_first >= 2  # spot 0, then exploring
+    kept = p.decide(make_obs(paper_lot, ego, vacant=[0], step=1))  # the ego did not move: within the tolerance
+    again = p.decide(make_obs(paper_lot, ego, vacant=[0], step=2))  # not where the plan expects: re-plans
+    assert (kept.reason, again.reason) == ("exploring", "new exploration plan")
+    assert len(searched) == n_first  # nothing searched again: spot 0's failure and the exploration path remembered
+    assert again.mode == first.mode and np.array_equal(again.poses, first.poses)
     p.decide(make_obs(paper_lot, ego, vacant=[5], step=20))
     assert p.spot_goals(paper_lot.spot_index(5)).tobytes() in searched

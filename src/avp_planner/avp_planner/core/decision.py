@@ -73,9 +73,9 @@ from avp_planner.core.planner_types import (
     CONTAINED_MARGIN,
     EXPLORE,
     EXPLORE_BACK_AFTER,
-    FAILED_SEARCH_CACHE,
     IDLE,
     PARK,
+    SEARCH_CACHE,
     STILL_SPEED,
     WORLD_CACHE_SIZE,
     Decision,
@@ -93,7 +93,7 @@ from avp_world.lot import LotMap
 from avp_world.types import Observation, PredictedTrajectory, priority_from_probabilities
 
 __all__ = ["EgoPlanner", "Decision", "priority_from_probabilities", "PARK", "EXPLORE", "IDLE", "STILL_SPEED",
-           "EXPLORE_BACK_AFTER", "WORLD_CACHE_SIZE", "FAILED_SEARCH_CACHE", "CONTAINED_MARGIN"]
+           "EXPLORE_BACK_AFTER", "WORLD_CACHE_SIZE", "SEARCH_CACHE", "CONTAINED_MARGIN"]
 
 
 class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWayMixin, EgoYieldMixin):
@@ -124,7 +124,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
         self._park_attempt_step = -(10**9)
         self._front_blocked_step: int | None = None  # since when the road ahead is blocked by agents only
         self._idle_until = -(10**9)  # idle_replan_steps: no new search before this step after an idle decision
-        self._failed_searches: dict[tuple, PlanResult] = {}  # see FAILED_SEARCH_CACHE
+        self._searches: dict[tuple, PlanResult] = {}  # see SEARCH_CACHE
         self._last_cause: dict = {"cause": "unknown"}  # why the last idle decision was idle (decision trace)
         self._stuck_steps = 0  # consecutive steps stood idle or waiting (creep steps keep the count)
         self._evidence = ReactionEvidence(self.settings.decision.yield_lookahead,

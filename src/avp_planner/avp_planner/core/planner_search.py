@@ -14,8 +14,8 @@ import numpy as np
 from avp_planner.core.control import Trajectory, track
 from avp_planner.core.planner_types import (
     EXPLORE,
-    FAILED_SEARCH_CACHE,
     PARK,
+    SEARCH_CACHE,
     _Candidate,
     _Plan,
 )
@@ -58,15 +58,15 @@ class SearchMixin:
             max_length = self.settings.decision.explore_max_length if mode == EXPLORE else None
             memo = (astar.world.key, astar.ego.tobytes(), np.asarray(goals, float).tobytes(), max_iterations,
                     max_length)
-            res: PlanResult | None = self._failed_searches.get(memo)
+            res: PlanResult | None = self._searches.get(memo)
             if res is None:
                 res = astar.plan(goals, max_iterations=max_iterations,
                                  time_cap=min(self.settings.search.time_cap, max(t_end - t0, 1e-3)),
                                  max_length=max_length)
-                if not res.success and not res.reason.startswith("time cap"):  # a repeatable failure
-                    self._failed_searches[memo] = res
-                    while len(self._failed_searches) > FAILED_SEARCH_CACHE:
-                        self._failed_searches.pop(next(iter(self._failed_searches)))
+                if res.success or not res.reason.startswith("time cap"):  # a repeatable outcome (SEARCH_CACHE)
+                    self._searches[memo] = res
+                    while len(self._searches) > SEARCH_CACHE:
+                        self._searches.pop(next(iter(self._searches)))
             dt_q = time.perf_counter() - t0
             timing["path_planning_time"] += dt_q
             stats.setdefault("queries", []).append({"mode": mode, "target": int(it) if mode == PARK else -1,

@@ -16,10 +16,11 @@ PARK, EXPLORE, IDLE = "park", "explore", "idle"
 STILL_SPEED = 0.3  # m/s: an agent slower than this counts as standing still (detour instead of waiting)
 EXPLORE_BACK_AFTER = 3.0  # s the road ahead must stay blocked by agents only before turning back (§V-D-2)
 WORLD_CACHE_SIZE = 8  # static worlds kept (see EgoPlanner._static_world)
-#: failed searches remembered by (static world, ego pose, goals, limits): the same search fails the same way, so a
-#: stand-still ego in an unchanged scene does not search again for seconds per step (iteration-limited failures
-#: only; one ended by the wall-clock cap is not repeatable)
-FAILED_SEARCH_CACHE = 512
+#: searches remembered by (static world, ego pose, goals, limits): the same search ends the same way, so an ego that
+#: stands in an unchanged scene (waiting for a plan that predicted agents block, or with no plan at all) does not
+#: search again every step. Every outcome but one ended by the wall-clock cap (not repeatable) is kept: a path found
+#: is the one the search finds whenever it runs to its end (lock-step lifts the cap: the same episode either way)
+SEARCH_CACHE = 512
 CONTAINED_MARGIN = 0.3  # m: a static vehicle this far inside an occupied spot is left out of the raster
 
 
