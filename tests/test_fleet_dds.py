@@ -316,6 +316,12 @@ def test_demo_of_two_egos_parks_both_and_records_both(ros_env, tmp_path, monkeyp
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["state"] == "success" and [e["state"] for e in metrics["egos"]] == ["success", "success"]
     assert (out / "episode.gif").stat().st_size > 10_000 and "ego 1: success" in r.stdout
+    import cv2
+    import numpy as np
+
+    from avp_viz.render import EGO_BGR
+    png = cv2.imread(str(out / "episode.png")).reshape(-1, 3)
+    assert all((png == np.array(c)).all(axis=1).sum() > 100 for c in EGO_BGR[:2])  # both egos drawn, each in its colour
     counts: dict[str, int] = {}
     tagged_ok = {0: 0, 1: 0}
     key = load_key()

@@ -31,7 +31,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from avp_viz.render import DYNAMIC, EGO, PARKED, RAY, ROAD, Canvas
+from avp_viz.render import DYNAMIC, EGO, EGO_BGR, PARKED, RAY, ROAD, Canvas, legend_band
 from avp_world.geometry import rect_corners
 from avp_world.lot import LotMap
 
@@ -66,10 +66,6 @@ class EpisodeRecording:
 
 TOPICS = ("/avp/lot_map", "/avp/observation", "/avp/debug/ground_truth", "/avp/beliefs", "/avp/intentions",
           "/avp/ego_intention", "/avp/predictions", "/avp/decision", "/avp/episode_status")
-#: ego i's colour (BGR) among several egos: avp_viz.scene.EGO_COLOURS
-EGO_BGR = [(int(255 * b), int(255 * g), int(255 * r)) for r, g, b in (
-    (0.9, 0.1, 0.1), (1.0, 0.55, 0.0), (0.6, 0.2, 0.9), (0.0, 0.8, 0.7), (0.95, 0.3, 0.7), (0.55, 0.8, 0.1),
-    (0.6, 0.4, 0.2), (0.1, 0.6, 1.0))]
 _VIEW = {"/avp/observation", "/avp/beliefs", "/avp/intentions", "/avp/ego_intention", "/avp/predictions",
          "/avp/decision"}  # ego 0's own topics
 
@@ -147,7 +143,7 @@ def render_frame(rec: EpisodeRecording, k: int, seen: np.ndarray, px_per_m: floa
     d = rec.decisions.get(k)
     _draw_plan_and_ego(c, rec.lot, d, obs, EGO_BGR[0] if rec.other_decisions else EGO)
     _draw_other_egos(c, rec, k, with_first=obs is None)
-    return np.vstack([_header(c, k, obs, d, title), c.img, _legend(c)])
+    return np.vstack([_header(c, k, obs, d, title), c.img, _legend(c, rec)])
 
 
 def _draw_beliefs_and_rays(c: Canvas, rec: EpisodeRecording, k: int, seen: np.ndarray, obs) -> None:
@@ -275,16 +271,14 @@ def _header(c: Canvas, k: int, obs, d, title: str) -> np.ndarray:
     return band
 
 
-def _legend(c: Canvas) -> np.ndarray:
-    legend = np.full((18, c.img.shape[1], 3), 30, dtype=np.uint8)
-    x = 6
-    for name, col in (("b=0", tuple(int(v) for v in FREE)), ("b=1", tuple(int(v) for v in TAKEN)),
-                      ("unseen", UNSEEN), ("ego", EGO), ("plan", PARK), ("explore", EXPLORE), ("seen car", DYNAMIC),
-                      ("parked", PARKED), ("pedestrian", PEDESTRIAN), ("not seen", GHOST), ("ego #rank", EGO_RANK)):
-        cv2.rectangle(legend, (x, 5), (x + 8, 13), col, -1)
-        cv2.putText(legend, name, (x + 11, 13), cv2.FONT_HERSHEY_SIMPLEX, 0.32, WHITE, 1, cv2.LINE_AA)
-        x += 16 + 6 * len(name)
-    return legend
+def _legend(c: Canvas, rec: EpisodeRecording) -> np.ndarray:
+    """The colours' names, wrapped to the picture's width; with several egos each ego's colour by its index."""
+    egos = [(f"ego {i}", EGO_BGR[i % len(EGO_BGR)]) for i in [0, *sorted(rec.other_decisions)]] \
+        if rec.other_decisions else [("ego", EGO)]
+    return legend_band(c.img.shape[1], [
+        ("b=0", FREE), ("b=1", TAKEN), ("unseen", UNSEEN), *egos, ("plan", PARK), ("explore", EXPLORE),
+        ("seen car", DYNAMIC), ("parked", PARKED), ("pedestrian", PEDESTRIAN), ("not seen", GHOST),
+        ("ego #rank", EGO_RANK)])
 
 
 def render_frames(rec: EpisodeRecording, stride: int = 1, px_per_m: float = 12.0, title: str = "") -> list[np.ndarray]:

@@ -14,6 +14,10 @@ from avp_world.lot import LotMap
 ROAD, BG, VACANT, OCCUPIED = (193, 193, 193), (40, 40, 40), (80, 200, 80), (90, 90, 200)
 PARKED, DYNAMIC, EGO, RAY, EGO_PATH, DYN_PATH = (200, 120, 60), (0, 220, 255), (40, 40, 230), (0, 165, 255), (
     60, 60, 255), (0, 200, 255)
+#: ego i's colour (BGR) among several egos: those of the live scene (avp_viz.scene.EGO_COLOURS, RGBA)
+EGO_BGR = [(int(255 * b), int(255 * g), int(255 * r)) for r, g, b in (
+    (0.9, 0.1, 0.1), (1.0, 0.55, 0.0), (0.6, 0.2, 0.9), (0.0, 0.8, 0.7), (0.95, 0.3, 0.7), (0.55, 0.8, 0.1),
+    (0.6, 0.4, 0.2), (0.1, 0.6, 1.0))]
 
 
 class Canvas:
@@ -58,12 +62,37 @@ def draw_lot(c: Canvas, occupied_ids: set[int]) -> None:
     c.poly(lot.boundary, (255, 255, 255), filled=False, thickness=2)
 
 
+def legend_band(width: int, entries, scale: float = 0.32, box: int = 8, row: int = 18, bg: int = 30) -> np.ndarray:
+    """A band of ``width`` px holding a coloured box and a name for each (name, BGR colour) of ``entries``, wrapped
+    onto as many rows as the width needs (a name is never cut at the picture's edge)."""
+    font = cv2.FONT_HERSHEY_SIMPLEX
+    items = [(name, col, box + 3 + cv2.getTextSize(name, font, scale, 1)[0][0]) for name, col in entries]
+    rows: list[list] = [[]]
+    x = 6
+    for item in items:
+        if rows[-1] and x + item[2] > width - 6:
+            rows.append([])
+            x = 6
+        rows[-1].append((x, *item))
+        x += item[2] + 10
+    band = np.full((row * len(rows), width, 3), bg, dtype=np.uint8)
+    for r, items_of_row in enumerate(rows):
+        y = r * row + row // 2 + box // 2
+        for x, name, col, _w in items_of_row:
+            cv2.rectangle(band, (x, y - box), (x + box, y), tuple(int(v) for v in col), -1)
+            cv2.putText(band, name, (x + box + 3, y), font, scale, (255, 255, 255), 1, cv2.LINE_AA)
+    return band
+
+
 def render_episode(lot: LotMap, ego_traj: np.ndarray, ego_dims: tuple[float, float], vehicles: dict,
-                   occupied_ids: set[int], rays: np.ndarray | None, title: str, path: str | Path) -> None:
+                   occupied_ids: set[int], rays: np.ndarray | None, title: str, path: str | Path,
+                   other_egos: dict | None = None) -> None:
     """Final frame with trajectories.
 
     vehicles: id -> dict(traj (T,3), dims (l, w), dynamic bool, target int).
     rays: (n_ray, 2) endpoints of the last observation's rays (drawn from the ego's final pose).
+    other_egos: several egos: ego i (>= 1) -> (traj (T,3), dims (l, w)), each drawn with its path in its colour
+    (:data:`EGO_BGR`; ego 0 then in ``EGO_BGR[0]``).
     """
     c = Canvas(lot)
     draw_lot(c, occupied_ids)
@@ -85,15 +114,20 @@ def render_episode(lot: LotMap, ego_traj: np.ndarray, ego_dims: tuple[float, flo
         c.poly(rect_corners(traj[-1], *v["dims"]), DYNAMIC if v["dynamic"] else PARKED)
         if v["dynamic"]:
             c.text(traj[-1][:2], str(vid), (0, 0, 0), 0.4)
-    c.line(np.asarray(ego_traj)[:, :2], EGO_PATH, 2)
-    c.poly(rect_corners(np.asarray(ego_traj)[-1], *ego_dims), EGO)
+    others = {i: e for i, e in (other_egos or {}).items() if len(e[0])}
+    ego_col, path_col = (EGO_BGR[0], EGO_BGR[0]) if others else (EGO, EGO_PATH)
+    for i, (traj, dims) in sorted(others.items()):
+        col = EGO_BGR[i % len(EGO_BGR)]
+        c.line(np.asarray(traj)[:, :2], col, 2)
+        c.poly(rect_corners(np.asarray(traj)[-1], *dims), col)
+        c.text(np.asarray(traj)[-1][:2], str(i), (0, 0, 0), 0.4)
+    if len(ego_traj):
+        c.line(np.asarray(ego_traj)[:, :2], path_col, 2)
+        c.poly(rect_corners(np.asarray(ego_traj)[-1], *ego_dims), ego_col)
     cv2.putText(c.img, title, (8, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
-    legend = [("ego", EGO), ("ego path", EGO_PATH), ("dynamic vehicle + path/target", DYNAMIC), ("parked", PARKED),
-              ("vacant spot", VACANT), ("occupied spot", OCCUPIED), ("sensed region / rays", RAY)]
-    x = 8
-    h = c.img.shape[0] - 8
-    for name, col in legend:
-        cv2.rectangle(c.img, (x, h - 10), (x + 10, h), col, -1)
-        cv2.putText(c.img, name, (x + 14, h), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
-        x += 22 + 7 * len(name)
+    egos = [(f"ego {i} + path", EGO_BGR[i % len(EGO_BGR)]) for i in [0, *sorted(others)]] if others else \
+        [("ego", EGO), ("ego path", EGO_PATH)]
+    legend = [*egos, ("dynamic vehicle + path/target", DYNAMIC), ("parked", PARKED), ("vacant spot", VACANT),
+              ("occupied spot", OCCUPIED), ("sensed region / rays", RAY)]
+    c.img = np.vstack([c.img, legend_band(c.img.shape[1], legend, scale=0.4, box=10, row=20)])
     c.save(path)
