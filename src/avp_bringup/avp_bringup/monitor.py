@@ -231,17 +231,16 @@ class EpisodeMonitor(Node):
         occupied = set(int(i) for i in last_gt.occupied_spot_ids) if last_gt else set()
         last_obs = self.last_obs
         rays = observation_from_msg(last_obs).ray_endpoints() if last_obs is not None else None
-        ego = next(a for a in last_gt.agents if a.kind == AgentState.KIND_EGO) if last_gt else None
-        title = (f"seed {metrics['seed']} {'reactive' if metrics['reactive'] else 'non-reactive'}: "
-                 f"{metrics['state']} at t={metrics['sim_time']:.1f}s")
+        dims = {int(a.id): (a.length, a.width) for a in last_gt.agents if a.kind == AgentState.KIND_EGO} \
+            if last_gt else {}
+        ego_dims = dims.get(0) or next(iter(dims.values()), (4.6, 1.85))
+        outcome = f"{metrics['state']} at t={metrics['sim_time']:.1f}s"
         others = {}
         if len(self.ego_status) > 1:  # several egos: each drawn in its colour; the title counts the parked ones
-            dims = {int(a.id): (a.length, a.width) for a in last_gt.agents if a.kind == AgentState.KIND_EGO} \
-                if last_gt else {}
             others = {i: (self.ego_trajectory(i), dims.get(i, (4.6, 1.85))) for i in sorted(self.ego_status) if i}
-            parked = sum(self.ego_status[i].metrics.success for i in self.ego_status)
-            title = (f"seed {metrics['seed']} {'reactive' if metrics['reactive'] else 'non-reactive'}: "
-                     f"{parked} of {len(self.ego_status)} egos parked, t={metrics['sim_time']:.1f}s")
-        render_episode(lot, self.ego_trajectory(), (ego.length, ego.width) if ego else (4.6, 1.85),
-                       self.vehicle_trajectories(), occupied, rays, title, out_dir / "episode.png", other_egos=others)
+            parked = sum(s.metrics.success for s in self.ego_status.values())
+            outcome = f"{parked} of {len(self.ego_status)} egos parked, t={metrics['sim_time']:.1f}s"
+        title = f"seed {metrics['seed']} {'reactive' if metrics['reactive'] else 'non-reactive'}: {outcome}"
+        render_episode(lot, self.ego_trajectory(), ego_dims, self.vehicle_trajectories(), occupied, rays, title,
+                       out_dir / "episode.png", other_egos=others)
         return metrics

@@ -7,6 +7,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from avp_viz.palette import EGO_RGB
 from avp_world.geometry import rect_corners
 from avp_world.lot import LotMap
 
@@ -14,10 +15,8 @@ from avp_world.lot import LotMap
 ROAD, BG, VACANT, OCCUPIED = (193, 193, 193), (40, 40, 40), (80, 200, 80), (90, 90, 200)
 PARKED, DYNAMIC, EGO, RAY, EGO_PATH, DYN_PATH = (200, 120, 60), (0, 220, 255), (40, 40, 230), (0, 165, 255), (
     60, 60, 255), (0, 200, 255)
-#: ego i's colour (BGR) among several egos: those of the live scene (avp_viz.scene.EGO_COLOURS, RGBA)
-EGO_BGR = [(int(255 * b), int(255 * g), int(255 * r)) for r, g, b in (
-    (0.9, 0.1, 0.1), (1.0, 0.55, 0.0), (0.6, 0.2, 0.9), (0.0, 0.8, 0.7), (0.95, 0.3, 0.7), (0.55, 0.8, 0.1),
-    (0.6, 0.4, 0.2), (0.1, 0.6, 1.0))]
+#: ego i's colour (BGR) among several egos: the live scene's (avp_viz.palette)
+EGO_BGR = [(int(255 * b), int(255 * g), int(255 * r)) for r, g, b in EGO_RGB]
 
 
 class Canvas:
@@ -121,9 +120,8 @@ def render_episode(lot: LotMap, ego_traj: np.ndarray, ego_dims: tuple[float, flo
         c.line(np.asarray(traj)[:, :2], col, 2)
         c.poly(rect_corners(np.asarray(traj)[-1], *dims), col)
         c.text(np.asarray(traj)[-1][:2], str(i), (0, 0, 0), 0.4)
-    if len(ego_traj):
-        c.line(np.asarray(ego_traj)[:, :2], path_col, 2)
-        c.poly(rect_corners(np.asarray(ego_traj)[-1], *ego_dims), ego_col)
+    c.line(np.asarray(ego_traj)[:, :2], path_col, 2)
+    c.poly(rect_corners(np.asarray(ego_traj)[-1], *ego_dims), ego_col)
     cv2.putText(c.img, title, (8, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
     egos = [(f"ego {i} + path", EGO_BGR[i % len(EGO_BGR)]) for i in [0, *sorted(others)]] if others else \
         [("ego", EGO), ("ego path", EGO_PATH)]

@@ -29,14 +29,14 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from avp_common.markers import box_marker, marker, quat_z
+from avp_viz.palette import EGO_RGB
 
 MAP, ODOM, BASE = "map", "odom", "base_link"
 #: marker namespaces, one per layer (a viewer can toggle each)
 LAYERS = ("lot", "spots", "vehicles", "pedestrians", "predictions", "plan", "chosen_spot", "ego")
 UNSEEN = (0.55, 0.55, 0.55, 0.35)
 #: ego i's colour among several egos (ego, plan, chosen spot); one ego keeps the red ego and green/blue plan
-EGO_COLOURS = ((0.9, 0.1, 0.1, 1.0), (1.0, 0.55, 0.0, 1.0), (0.6, 0.2, 0.9, 1.0), (0.0, 0.8, 0.7, 1.0),
-               (0.95, 0.3, 0.7, 1.0), (0.55, 0.8, 0.1, 1.0), (0.6, 0.4, 0.2, 1.0), (0.1, 0.6, 1.0, 1.0))
+EGO_COLOURS = tuple((*rgb, 1.0) for rgb in EGO_RGB)  # RGBA (avp_viz.palette)
 
 
 def agent_frame(agent_id: int) -> str:
