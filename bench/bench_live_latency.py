@@ -11,7 +11,7 @@ Per node (the monitor's stage times): observation k -> beliefs k (belief node), 
 node), predictions k -> command k (planner), each with one DDS hop.
 
 Usage: python bench/bench_live_latency.py [--methods bezier] [--seeds 1] [--t-final 100] [--out out/bench_latency]
-                                          [--lot FILE] [--scenario paper|busy] [--egos K]
+                                          [--lot FILE] [--scenario paper|busy] [--egos K] [--processes ego|node]
 
 With ``--egos K`` (``avp demo --egos K``: one simulator, K pipelines) the step time is each ego's (its observation k to
 its command stamped t_k), over every ego's steps, with one line per ego.
@@ -30,7 +30,8 @@ import time
 from pathlib import Path
 
 
-def run(method: str, seed: int, t_final: float, out: Path, lot: str = "", scenario: str = "", egos: int = 1) -> dict:
+def run(method: str, seed: int, t_final: float, out: Path, lot: str = "", scenario: str = "", egos: int = 1,
+        processes: str = "ego") -> dict:
     env = dict(os.environ)
     env.setdefault("ROS_DOMAIN_ID", str(random.randint(110, 200)))
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -44,7 +45,7 @@ def run(method: str, seed: int, t_final: float, out: Path, lot: str = "", scenar
            "--t-final", str(t_final), "--out", str(d), "--bag", str(bag), "--no-gif", "--timeout", str(t_final + 120)]
     cmd += ["--lot", lot] if lot else []
     cmd += ["--scenario", scenario] if scenario else []
-    cmd += ["--egos", str(egos)] if egos > 1 else []
+    cmd += ["--egos", str(egos), "--processes", processes] if egos > 1 else []
     r = subprocess.run(cmd, env=env, capture_output=True, text=True)
     if r.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{r.stdout}\n{r.stderr}")
@@ -66,6 +67,8 @@ def main() -> int:
     ap.add_argument("--scenario", default="", choices=("", "paper", "busy"), help="scenario family (default paper)")
     ap.add_argument("--egos", type=int, default=1, help="K egos of the method, each a pipeline of its own (`avp demo "
                     "--egos K`); the figures cover every ego's steps, and a line per ego follows")
+    ap.add_argument("--processes", choices=("ego", "node"), default="ego", help="with --egos: one process per ego "
+                    "pipeline (default) or per node (`avp demo --processes`)")
     ap.add_argument("--target-ms", type=float, default=100.0, help="the p95 target the last line checks [100; "
                     "docs/benchmarks.md gives 150 for the busy lot and for K = 2]")
     args = ap.parse_args()
@@ -80,7 +83,7 @@ def main() -> int:
     for method in [m.strip() for m in args.methods.split(",") if m.strip()]:
         for seed in [int(s) for s in args.seeds.split(",") if s.strip()]:
             t0 = time.monotonic()
-            m = run(method, seed, args.t_final, out, args.lot, args.scenario, args.egos)
+            m = run(method, seed, args.t_final, out, args.lot, args.scenario, args.egos, args.processes)
             lat = m["closed_loop_step_time"]
             p95s.append(lat.get("p95_ms", float("nan")))
             outcome = m["state"] + (f" {m['parking_time']:.1f} s" if m.get("parking_time") is not None else "")

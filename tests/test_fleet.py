@@ -305,7 +305,7 @@ def test_the_live_graph_of_k_egos_its_topics_and_its_frames():
     from avp_bringup.graph import Graph, fleet_graph
     from avp_viz import scene
 
-    nodes = fleet_graph(["bezier", "blind", "bezier"], scene=True)
+    nodes = fleet_graph(["bezier", "blind", "bezier"], scene=True, processes="node")  # one process each
     assert nodes[0].extra_params["egos.count"] == 3 and nodes[0].extra_params["min_subscribers"] == 5
     assert nodes[-1].key == "avp_v2v"  # 3 nodes, the scene and the V2V node read each ego's observation
     assert [n.key for n in nodes[1:5]] == ["ego0.avp_belief", "ego0.avp_prediction", "ego0.avp_planner",

@@ -65,6 +65,8 @@ def _inprocess_fleet(lot, cfg, methods):
 
 
 def test_two_egos_over_dds_match_inprocess(paper_lot, ros_env, tmp_path, monkeypatch):
+    """K = 2 over DDS, each ego's pipeline in one process (the default layout): every ego's trajectory bit for bit
+    the in-process fleet's."""
     from avp_bringup.graph import Graph, fleet_graph
     from avp_bringup.monitor import EpisodeMonitor
     from avp_experiment.run_config import RunConfig, run_profile, sim_values
@@ -81,8 +83,9 @@ def test_two_egos_over_dds_match_inprocess(paper_lot, ros_env, tmp_path, monkeyp
     nodes = fleet_graph([run_profile("bezier", cfg)] * 2, deterministic=True, sim_extra={
         "t_final": T_FINAL, "seed": SEED, "reactive": True, "publish_markers": False, "min_debug_subscribers": 1,
         "egos.entry_interval": sim_p["egos.entry_interval"]})
-    assert [n.key for n in nodes] == ["avp_sim", "ego0.avp_belief", "ego0.avp_prediction", "ego0.avp_planner",
-                                      "ego1.avp_belief", "ego1.avp_prediction", "ego1.avp_planner", "avp_v2v"]
+    # each ego's belief, prediction and planner nodes in one component container (avp_bringup.compose)
+    assert [n.key for n in nodes] == ["avp_sim", "ego0.pipeline", "ego1.pipeline", "avp_v2v"]
+    assert nodes[2].member_keys == ["ego1.avp_belief", "ego1.avp_prediction", "ego1.avp_planner"]
     rclpy.init()
     monitor = EpisodeMonitor()
     graph = Graph(nodes, tmp_path / "logs", env=ros_env)
@@ -234,9 +237,10 @@ def test_lockstep_waits_for_every_ego_and_names_the_late_one(ros_env, tmp_path, 
 
 
 def test_swap_one_egos_planner_in_realtime_while_the_other_drives(ros_env, tmp_path, monkeypatch):
-    """Real time, two egos, ego 1 a `reserve` ego: `avp swap-planner cautious --ego 1` replaces ego 1's planner by a
-    new process in /avp/ego1 that reads, as the one it replaced, the reservation node's observation (the held spots
-    occupied), not the simulator's; ego 0's planner stays active and the lot keeps stepping."""
+    """Real time, two egos, ego 1 a `reserve` ego: `avp swap-planner cautious --ego 1` replaces ego 1's planner (one
+    node of its pipeline's component container) by a new process in /avp/ego1 that reads, as the one it replaced, the
+    reservation node's observation (the held spots occupied), not the simulator's; ego 0's planner stays active, the
+    lot keeps stepping, and the container lives on without the old planner."""
     import subprocess
     import sys
 
@@ -278,6 +282,18 @@ def test_swap_one_egos_planner_in_realtime_while_the_other_drives(ros_env, tmp_p
         while max(monitor.gt) < k_swapped + 20 and time.monotonic() - t1 < 60:
             rclpy.spin_once(monitor, timeout_sec=0.05)
         assert max(monitor.gt) >= k_swapped + 20, "the lot stopped stepping after the swap"
+        # ego 1's old planner was unloaded from its pipeline's container; the container, its belief and
+        # prediction nodes (the new planner's inputs) and ego 0's run on
+        def ego1_nodes():
+            return {n for n, ns in monitor.get_node_names_and_namespaces() if ns == "/avp/ego1"}
+
+        t2 = time.monotonic()
+        while "avp_planner" in ego1_nodes() and time.monotonic() - t2 < 30:
+            rclpy.spin_once(monitor, timeout_sec=0.1)
+        assert {"avp_belief", "avp_prediction", "avp_planner_cautious"} <= ego1_nodes(), ego1_nodes()
+        assert "avp_planner" not in ego1_nodes(), ego1_nodes()
+        assert graph.poll() == {"avp_sim": None, "ego0.pipeline": None, "ego1.pipeline": None, "avp_v2v": None,
+                                "avp_reservation": None}, graph.poll()
     finally:
         if swap is not None and swap.poll() is None:
             swap.kill()

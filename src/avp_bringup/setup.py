@@ -20,5 +20,6 @@ setup(
     maintainer_email="maintainers@avp-stack.org",
     description="The avp command, the node graph and its launch file, the lifecycle client, demo and monitor.",
     license="Apache-2.0",
-    entry_points={"console_scripts": [], "avp.experiment_transports": ["ros = avp_bringup.ros_transport:run_ros"]},
+    entry_points={"console_scripts": ["component_container = avp_bringup.container:main"],
+                  "avp.experiment_transports": ["ros = avp_bringup.ros_transport:run_ros"]},
 )

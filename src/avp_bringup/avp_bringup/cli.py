@@ -53,7 +53,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
     try:
         fleet = _fleet_methods(args)
         if fleet:
-            nodes = fleet_graph(fleet, scene=not args.no_scene)
+            nodes = fleet_graph(fleet, scene=not args.no_scene, processes=args.processes)
         else:
             nodes = ego_graph(args.method, args.ego)
             if not args.no_scene:
@@ -228,6 +228,7 @@ def main(argv: list[str] | None = None) -> int:
 def build_parser() -> argparse.ArgumentParser:
     """The ``avp`` argument parser: one sub-command per tool (see the module docstring)."""
     from avp_bringup import cli_bag, demo, teleop
+    from avp_bringup.compose import add_processes_argument
     from avp_common.version import __version__
     from avp_viz import foxglove_cli
 
@@ -247,6 +248,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--drivers", type=int, default=0, help="cars a person drives (avp teleop, Foxglove's Teleop panel) "
                    "on /avp/driver<j>/cmd_vel; the simulator then runs in real time (docs/teleop.md)")
     p.add_argument("--no-scene", action="store_true", help="leave out the scene node (/tf, /tf_static, viz/scene)")
+    add_processes_argument(p)
     foxglove_cli.add_arguments(p)
     p.set_defaults(func=cmd_launch)
     p = sub.add_parser("demo", help="run one seeded episode through the live graph")

@@ -12,6 +12,7 @@ import sys
 import time
 from pathlib import Path
 
+from avp_bringup.compose import add_processes_argument
 from avp_bringup.graph import EGO_NODES, avp_root
 from avp_viz import foxglove_cli
 
@@ -42,6 +43,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     foxglove_cli.add_arguments(p)
     p.add_argument("--no-scene", action="store_true",
                    help="leave out the scene node: the bag then has no /tf, /tf_static, viz/scene for viewers")
+    add_processes_argument(p)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -117,7 +119,7 @@ def _demo_nodes(args: argparse.Namespace) -> list:
         if args.ego != "planner":
             raise ValueError("--egos and --ego scripted exclude each other")
         nodes = fleet_graph([args.method] * args.egos, deterministic=not args.realtime,
-                            scene=not getattr(args, "no_scene", False))
+                            scene=not getattr(args, "no_scene", False), processes=getattr(args, "processes", "ego"))
     else:
         # lock-step: the wall-clock caps lifted, so the episode is the same whatever the machine's load
         nodes = ego_graph(args.method, args.ego, deterministic=not args.realtime)

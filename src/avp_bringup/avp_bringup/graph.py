@@ -26,6 +26,7 @@ class NodeSpec:
     extra_params: dict = field(default_factory=dict)
     namespace: str = NAMESPACE
     remaps: tuple[tuple[str, str], ...] = ()  # (from, to) name remappings
+    component: str = ""  # its node class, ``module:Class``, for a component container (avp_bringup.compose)
 
     @property
     def key(self) -> str:
@@ -45,14 +46,17 @@ class NodeSpec:
 
 
 EGO_NODES = {
-    "planner": NodeSpec("avp_planner", "avp_planner", "planner", "config/planner.param.yaml"),
+    "planner": NodeSpec("avp_planner", "avp_planner", "planner", "config/planner.param.yaml",
+                        component="avp_planner.planner_node:PlannerNode"),
     "scripted": NodeSpec("scripted_driver", "avp_planner", "scripted_driver", "config/scripted_driver.param.yaml"),
 }
 
 
 PERCEPTION_NODES = [
-    NodeSpec("avp_belief", "avp_perception", "belief_node", "config/belief.param.yaml"),
-    NodeSpec("avp_prediction", "avp_perception", "prediction_node", "config/prediction.param.yaml"),
+    NodeSpec("avp_belief", "avp_perception", "belief_node", "config/belief.param.yaml",
+             component="avp_perception.belief_node:BeliefNode"),
+    NodeSpec("avp_prediction", "avp_perception", "prediction_node", "config/prediction.param.yaml",
+             component="avp_perception.prediction_node:PredictionNode"),
 ]
 #: what the planner is told in the full graph: wait for the perception nodes' beliefs and predictions
 PLANNER_WITH_PERCEPTION = {"use_beliefs": True, "use_predictions": True}
@@ -68,8 +72,7 @@ def default_graph(ego: str = "planner") -> list[NodeSpec]:
     """
     if ego == "planner":
         ego_spec = EGO_NODES["planner"]
-        nodes = [*PERCEPTION_NODES, NodeSpec(ego_spec.name, ego_spec.package, ego_spec.executable,
-                                             ego_spec.param_file, dict(PLANNER_WITH_PERCEPTION))]
+        nodes = [*PERCEPTION_NODES, with_params(ego_spec, **PLANNER_WITH_PERCEPTION)]
     else:
         nodes = [EGO_NODES[ego]]
     sim = NodeSpec("avp_sim", "avp_sim", "sim_node", "config/sim.param.yaml", {"min_subscribers": len(nodes)})
@@ -77,7 +80,8 @@ def default_graph(ego: str = "planner") -> list[NodeSpec]:
 
 
 #: the viewers' node: /tf, /tf_static and viz/scene from the pipeline's messages; a sink, never an input
-SCENE_NODE = NodeSpec("avp_scene", "avp_viz", "scene_node", "config/scene.param.yaml")
+SCENE_NODE = NodeSpec("avp_scene", "avp_viz", "scene_node", "config/scene.param.yaml",
+                      component="avp_viz.scene_node:SceneNode")
 #: the spot-reservation book of a fleet with `reserve` egos (docs/world.md, "The spot-reservation reference")
 RESERVATION_NODE = NodeSpec("avp_reservation", "avp_planner", "reservation", "config/reservation.param.yaml")
 #: the radio between a fleet's egos: each planner hears the beacons of the egos before it (decision.ego_yield)
@@ -107,8 +111,8 @@ EGO_REMAPS = (("lot_map", f"{NAMESPACE}/lot_map"),)
 
 
 def fleet_graph(methods: list, *, deterministic: bool = False, sim_extra: dict | None = None,
-                scene: bool = False, intent_weights: str | None = None, intent_seed: int | None = None
-                ) -> list[NodeSpec]:
+                scene: bool = False, intent_weights: str | None = None, intent_seed: int | None = None,
+                processes: str = "ego") -> list:
     """The live graph of K = len(methods) egos (docs/world.md, "Several egos"): one simulator (``egos.count`` K)
     and, per ego i, the belief node, prediction node and planner of its method (:func:`method_graph`) in
     :func:`ego_namespace` (i), reading the lot's ``lot_map``, and the V2V node (:data:`V2V_NODE`) that gives each
@@ -116,7 +120,12 @@ def fleet_graph(methods: list, *, deterministic: bool = False, sim_extra: dict |
     observation subscribers (the reservation node's one for a ``reserve`` ego), the V2V node and its cmd publisher.
     ``scene``: a scene node per ego too (its frames
     ``ego<i>/`` on the one /tf, its colour; avp_viz.scene). One method gives the one-ego graph of
-    :func:`method_graph`. ``intent_weights``, ``intent_seed``: as :func:`method_graph`'s, for every ego."""
+    :func:`method_graph`. ``intent_weights``, ``intent_seed``: as :func:`method_graph`'s, for every ego.
+    ``processes``: ``"ego"`` (default) runs each ego's pipeline (and scene node) in one component container,
+    ``"node"`` every node in a process of its own (avp_bringup.compose)."""
+    from avp_bringup.compose import layout
+
+    layout([], processes)  # an unknown layout: ValueError before anything is built
     intent = {"intent_weights": intent_weights, "intent_seed": intent_seed}
     if len(methods) == 1:
         return method_graph(methods[0], deterministic=deterministic, sim_extra=sim_extra, **intent)
@@ -146,7 +155,7 @@ def fleet_graph(methods: list, *, deterministic: bool = False, sim_extra: dict |
     if reserve:  # the spot-reservation book (avp_planner.reservation_node); it waits for their pipelines itself
         nodes.append(with_params(RESERVATION_NODE, egos=",".join(map(str, reserve)), min_subscribers=n_subs,
                                  lockstep=lockstep))
-    return [sim, *nodes]
+    return layout([sim, *nodes], processes)
 
 
 def _coordination(method) -> str:
@@ -230,9 +239,17 @@ class Graph:
         self.env.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(FASTDDS_PROFILES))
         self.procs: dict[str, subprocess.Popen] = {}
 
-    def command(self, spec: NodeSpec) -> list[str]:
-        cmd = [str(spec.executable_path()), "--ros-args", "-r", f"__ns:={spec.namespace}", "-r",
-               f"__node:={spec.name}"]
+    def command(self, spec) -> list[str]:
+        """The command line of ``spec``: a node's executable with its ROS arguments (:meth:`ros_args`), or a
+        component container (:class:`avp_bringup.compose.ContainerSpec`) with those of each of its nodes."""
+        if hasattr(spec, "members"):
+            return spec.command(self.ros_args)
+        return [str(spec.executable_path()), "--ros-args", *self.ros_args(spec)]
+
+    def ros_args(self, spec: NodeSpec) -> list[str]:
+        """What follows ``--ros-args`` for ``spec``: its namespace, name, remappings, the package's parameter file,
+        the user's (``--params``) and its extra parameters, in that order (the later wins)."""
+        cmd = ["-r", f"__ns:={spec.namespace}", "-r", f"__node:={spec.name}"]
         for src, dst in spec.remaps:
             cmd += ["-r", f"{src}:={dst}"]
         cmd += ["--params-file", str(spec.default_params())]

@@ -29,10 +29,11 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.serialization import deserialize_message
 
 from avp_bringup.step_timer import StepTimer, summary_ms
-from avp_common.conversions import observation_from_msg, time_to_ns
+from avp_common.conversions import observation_from_msg
 from avp_common.drain import draining_subscription
 from avp_common.msg_auth import ego_scope, load_key, scoped_key, verify
 from avp_common.qos import STATUS
+from avp_common.received import stamp_ns
 from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation, PredictedTrajectoryArray, SpotBeliefs
 
 #: reader side of the metric streams: a whole episode (t_f = 100 s at dt = 0.1 s, 1000 steps) may queue while the
@@ -54,7 +55,7 @@ class EpisodeMonitor(Node):
                                      lambda m, i=i: self.ego_status.__setitem__(i, m), STATUS)
         self.gt: dict[int, GroundTruth] = {}
         self.status: EpisodeStatus | None = None
-        self.last_obs: Observation | None = None  # ego 0's
+        self._last_obs_raw: bytes | None = None  # ego 0's newest observation, deserialised when read (last_obs)
         #: each ego's step times (one ego: ``observation``/``cmd``; several: ``ego<i>/observation``/``ego<i>/cmd``)
         self.ego_timers = [StepTimer() for _ in range(max(1, egos))]
         # every step matters (metrics, step times, the DDS tests): deep reader queues ride out a busy CPU
@@ -68,17 +69,15 @@ class EpisodeMonitor(Node):
             key = scoped_key(self.key, ego_scope(prefix))  # what only ego i's own nodes can send
             self._must_match += [
                 draining_subscription(self, Observation, f"{prefix}observation",
-                                      self._tagged(Observation, self._obs_cb(i, timer), key), GROUND_TRUTH_QOS,
-                                      with_info=True),
+                                      self._tagged(self._obs_cb(i, timer), key), GROUND_TRUTH_QOS, with_info=True),
                 draining_subscription(self, TwistStamped, f"{prefix}cmd",
-                                      self._tagged(TwistStamped, self._cmd_cb(timer), key), GROUND_TRUTH_QOS,
-                                      with_info=True)]
+                                      self._tagged(self._cmd_cb(timer), key), GROUND_TRUTH_QOS, with_info=True)]
         # per-node stage times of ego 0: when each node's output of step k left it (DDS source timestamps)
         self.stage_sent: dict[str, dict[int, int]] = {"beliefs": {}, "predictions": {}}
         prefix = "ego0/" if egos > 1 else ""
         for name, msg_type in (("beliefs", SpotBeliefs), ("predictions", PredictedTrajectoryArray)):
             draining_subscription(self, msg_type, f"{prefix}{name}",
-                                  self._tagged(msg_type, self._stage_cb(name), scoped_key(self.key, ego_scope(prefix))),
+                                  self._tagged(self._stage_cb(name), scoped_key(self.key, ego_scope(prefix))),
                                   GROUND_TRUTH_QOS, with_info=True)
 
     @property
@@ -100,29 +99,38 @@ class EpisodeMonitor(Node):
         on a loaded machine matching can take seconds after discovery (a demo then measured 0 step times)."""
         return all(s.get_publisher_count() >= 1 for s in self._must_match)
 
+    @property
+    def last_obs(self) -> Observation | None:
+        """Ego 0's newest observation (the rays of the picture)."""
+        raw = self._last_obs_raw
+        return deserialize_message(raw, Observation) if raw is not None else None
+
     def _stage_cb(self, name: str):
-        def cb(msg, info) -> None:
-            self.stage_sent[name].setdefault(time_to_ns(msg.header.stamp), int(info["source_timestamp"]))
+        def cb(stamp: int, raw: bytes, info) -> None:
+            self.stage_sent[name].setdefault(stamp, int(info["source_timestamp"]))
         return cb
 
-    def _tagged(self, msg_type, callback, key: bytes):
+    @staticmethod
+    def _tagged(callback, key: bytes):
+        """``callback(stamp_ns, raw, info)`` for what the graph's own nodes sent (anything else is a foreign
+        publisher's). The step times need only ``header.stamp``: read from the bytes, never a whole message built
+        (an observation of the busy lot holds hundreds of poses; avp_common.received)."""
         def cb(raw: bytes, info) -> None:
-            if verify(key, raw):  # what the graph's own nodes sent (anything else is a foreign publisher's)
-                callback(deserialize_message(raw, msg_type), info)
+            if verify(key, raw):
+                callback(stamp_ns(raw), raw, info)
         return cb
 
     @staticmethod
     def _cmd_cb(timer: StepTimer):
-        return lambda msg, info: timer.on_cmd(time_to_ns(msg.header.stamp), int(info["received_timestamp"]))
+        return lambda stamp, raw, info: timer.on_cmd(stamp, int(info["received_timestamp"]))
 
     def _obs_cb(self, i: int, timer: StepTimer):
-        def cb(msg: Observation, info) -> None:
-            stamp = time_to_ns(msg.header.stamp)
+        def cb(stamp: int, raw: bytes, info) -> None:
             if i == 0 and timer.restarts(stamp):
                 for d in self.stage_sent.values():
                     d.clear()
             if timer.on_obs(stamp, int(info["source_timestamp"])) and i == 0:
-                self.last_obs = msg
+                self._last_obs_raw = raw
         return cb
 
     def _on_gt(self, msg: GroundTruth) -> None:

@@ -41,9 +41,10 @@ import time
 from pathlib import Path
 from typing import Any
 
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import serialize_message
 
 from avp_common.drain import draining_subscription
+from avp_common.received import deserialize
 
 KEY_ENV = "AVP_CMD_KEY_FILE"
 KEY_BYTES = 32
@@ -213,7 +214,7 @@ class Authenticator:
             if self.check_inputs and not verify(holder["key"], data):
                 self._report(holder["sub"].topic_name)
                 return
-            msg = deserialize_message(data, msg_type)
+            msg = deserialize(data, msg_type)  # one message per payload in a component container (avp_common.received)
             callback(msg, info) if with_info else callback(msg)
 
         # bursts taken in one executor round: a flood costs a wait-set rebuild per batch, not per message

@@ -47,6 +47,13 @@ def stopping() -> bool:
     return bool(_stopping["signal"])
 
 
+def install_stop_handlers() -> None:
+    """SIGINT/SIGTERM mark the process as stopping (:func:`stopping`) and raise KeyboardInterrupt; call before
+    ``rclpy.init``, whose C handler chains to these."""
+    signal.signal(signal.SIGINT, _mark_stopping)
+    signal.signal(signal.SIGTERM, _mark_stopping)
+
+
 def run_node(factory: Callable[[], object], label: str, args=None) -> int:
     """Build the node with ``factory`` and spin it. A bad parameter/map at start-up prints one line
     (``[label] start-up failed: ...``) and returns 2; Ctrl-C / external shutdown return 0 (also when rclpy raises
@@ -54,8 +61,7 @@ def run_node(factory: Callable[[], object], label: str, args=None) -> int:
     # installed before rclpy.init, whose C handler (context shut down, executors woken) chains to this one: a take
     # or wait that fails in the window before the KeyboardInterrupt lands (a pybind11 RuntimeError from
     # take_message under a flood, docs/bad_input.md row 53) is then known to be part of the stop, not a fault
-    signal.signal(signal.SIGINT, _mark_stopping)
-    signal.signal(signal.SIGTERM, _mark_stopping)
+    install_stop_handlers()
     rclpy.init(args=args)
     node = None
     hook, sys.unraisablehook = sys.unraisablehook, ctrl_c_in_finaliser_hook

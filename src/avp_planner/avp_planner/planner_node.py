@@ -11,7 +11,8 @@ have arrived. Publishes cmd
 A lifecycle (managed) node, so that planners can be swapped while the simulator runs (`avp swap-planner`,
 docs/custom_planner.md): *configure* builds the planner core for the lot, *activate* starts answering
 observations (the newest one buffered while inactive first), *deactivate* stops it (no command is
-published while inactive: the simulator holds the ego still), *shutdown* ends the process. With
+published while inactive: the simulator holds the ego still), *shutdown* ends the process (in a component
+container, avp_bringup.container: unloads the node, :attr:`PlannerNode.end_hook`). With
 ``autostart`` (default) it configures and activates itself at start-up. An observation of a later episode
 (the episode id in its tag) starts a new episode (the core is reset); one of an earlier episode, or of a
 step older than the newest seen (step 0 included), is dropped with a warning; commands carry the episode id.
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -94,8 +96,14 @@ def ego_priority_from_msg(msg: IntentionArray, lot) -> np.ndarray:
 
 
 class PlannerNode(LifecycleNode):
-    def __init__(self) -> None:
-        super().__init__("avp_planner")
+    #: what *shutdown* ends: the process (rclpy.try_shutdown); a component container (avp_bringup.container) sets
+    #: its own, which unloads this node and keeps the others of the process running
+    end_hook: Callable[[], object] = staticmethod(rclpy.try_shutdown)
+
+    def __init__(self, **node_options) -> None:
+        """``node_options``: rclpy Node keywords (``cli_args``, ``use_global_arguments``), as a component container
+        (avp_bringup.container) gives them."""
+        super().__init__("avp_planner", **node_options)
         guard_lifecycle_services(self)
         p = declare_and_validate(self, PLANNER_PARAMS)
         self.use_beliefs, self.use_predictions = p["use_beliefs"], p["use_predictions"]
@@ -189,7 +197,7 @@ class PlannerNode(LifecycleNode):
     def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
         self.active = False
         self.get_logger().info("shut down: exiting")
-        self._exit_timer = self.create_timer(0.2, lambda: rclpy.try_shutdown())  # after the service reply
+        self._exit_timer = self.create_timer(0.2, lambda: self.end_hook())  # after the service reply
         return TransitionCallbackReturn.SUCCESS
 
     def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:

@@ -49,8 +49,10 @@ KEEP_STEPS = 20  # steps of inputs kept while waiting for their decision (bounde
 
 
 class SceneNode(Node):
-    def __init__(self) -> None:
-        super().__init__("avp_scene")
+    def __init__(self, **node_options) -> None:
+        """``node_options``: rclpy Node keywords (``cli_args``, ``use_global_arguments``), as a component container
+        (avp_bringup.container) gives them."""
+        super().__init__("avp_scene", **node_options)
         p = declare_and_validate(self, SCENE_PARAMS)
         self.publish_tf = p["publish_tf"]
         i = p["ego_index"]
