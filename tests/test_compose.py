@@ -52,6 +52,17 @@ def test_a_fleet_runs_one_container_per_ego_and_every_node_keeps_its_arguments()
         assert graph.command(next(n for n in per_ego if n.key == key)) == graph.command(by_key[key])
 
 
+def test_a_string_parameter_that_reads_as_a_number_stays_a_string():
+    """The reservation book of one `reserve` ego (ego 1) gets ``egos:='1'``: unquoted, ROS reads ``1`` as an integer
+    and the node refuses to start ("parameter 'egos': expected a string")."""
+    nodes = fleet_graph(["bezier", "reserve"])
+    book = next(n for n in nodes if n.key == "avp_reservation")
+    cmd = Graph(nodes, Path("/tmp")).command(book)
+    assert "egos:='1'" in cmd and "lockstep:=true" in cmd
+    v2v = Graph(nodes, Path("/tmp")).command(next(n for n in nodes if n.key == "avp_v2v"))
+    assert "egos:=0,1" in v2v
+
+
 def test_one_ego_and_the_node_layout_are_left_as_they_are():
     one = fleet_graph(["bezier"])
     assert [n.key for n in one] == ["avp_sim", "avp_belief", "avp_prediction", "avp_planner"]
@@ -91,3 +102,50 @@ def test_the_container_refuses_what_it_cannot_load_in_one_line(components, match
     assert container_main(["--components", components]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("[component_container] start-up failed:") and match in err[0], err
+
+
+def test_a_planners_shutdown_unloads_it_and_its_container_lives_on(ros_env, tmp_path, monkeypatch):
+    """Over DDS: ego 0's container (belief, prediction, planner) puts its three nodes in /avp/ego0; the planner's
+    lifecycle shutdown (what `avp swap-planner` sends the old planner) takes it out of the ROS graph while the process
+    and the two other nodes stay; SIGINT then ends the container with 0."""
+    import signal
+    import time
+
+    import rclpy
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState
+
+    for k, v in ros_env.items():
+        monkeypatch.setenv(k, v)
+    box = fleet_graph(["bezier", "bezier"])[1]
+    graph = Graph([box], tmp_path / "logs", env=ros_env)
+    rclpy.init()
+    probe = rclpy.create_node("probe")
+
+    def names() -> set[str]:
+        return {n for n, ns in probe.get_node_names_and_namespaces() if ns == "/avp/ego0"}
+
+    graph.start()
+    try:
+        t0 = time.monotonic()
+        while names() != {"avp_belief", "avp_prediction", "avp_planner"} and time.monotonic() - t0 < 120:
+            rclpy.spin_once(probe, timeout_sec=0.2)
+        assert names() == {"avp_belief", "avp_prediction", "avp_planner"}, graph.log_tail("ego0.pipeline")
+        client = probe.create_client(ChangeState, "/avp/ego0/avp_planner/change_state")
+        assert client.wait_for_service(timeout_sec=60)
+        future = client.call_async(ChangeState.Request(transition=Transition(id=Transition.TRANSITION_ACTIVE_SHUTDOWN)))
+        rclpy.spin_until_future_complete(probe, future, timeout_sec=60)
+        assert future.result() is not None and future.result().success
+        t0 = time.monotonic()
+        while "avp_planner" in names() and time.monotonic() - t0 < 60:
+            rclpy.spin_once(probe, timeout_sec=0.2)
+        assert names() == {"avp_belief", "avp_prediction"}, names()
+        assert graph.poll() == {"ego0.pipeline": None}
+        assert "unloaded from its component container" in graph.log_tail("ego0.pipeline")
+        graph.kill_node("ego0.pipeline", signal.SIGINT)
+        assert graph.procs["ego0.pipeline"].wait(60) == 0, graph.log_tail("ego0.pipeline")
+        assert "Traceback" not in (tmp_path / "logs" / "ego0.pipeline.log").read_text()
+    finally:
+        graph.stop()
+        probe.destroy_node()
+        rclpy.try_shutdown()

@@ -63,6 +63,17 @@ def parse_components(text: str) -> list[Component]:
     return out
 
 
+def _unload(node) -> None:
+    """Destroy ``node`` so that it leaves the ROS graph while the process lives on. rclpy's LifecycleNode has no
+    ``destroy_node`` of its own: its state machine keeps the node's handle, and with it the node in the graph, until
+    the state machine is destroyed too."""
+    node.get_logger().info("unloaded from its component container")
+    node.destroy_node()
+    state_machine = getattr(node, "_state_machine", None)
+    if state_machine is not None:
+        state_machine.destroy_when_not_in_use()
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="component_container", description=__doc__.split("\n\n")[0])
     ap.add_argument("--components", required=True, help="JSON list of {component, args}")
@@ -96,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
             for node in [n for n in nodes if id(n) in ending]:
                 executor.remove_node(node)
                 nodes.remove(node)
-                node.destroy_node()
+                _unload(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:

@@ -208,10 +208,19 @@ def default_log_dir(arg: str | None = None) -> Path:
 
 
 def _ros_value(v) -> str:
+    """``v`` as the value of ``-p name:=value``, which ROS reads as YAML: a string that YAML would read as something
+    else (``1``, ``true``, ``1.5``, empty) is quoted, so a string parameter such as the reservation book's ``egos`` of
+    one ego (``"1"``) stays a string."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, str):
-        return v if v else "''"
+        import yaml
+
+        try:
+            plain = isinstance(yaml.safe_load(v), str)
+        except yaml.YAMLError:
+            plain = False
+        return v if v and plain else "'" + v.replace("'", "''") + "'"
     return repr(v)
 
 
