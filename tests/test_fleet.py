@@ -264,7 +264,7 @@ def test_reserve_needs_several_egos_and_the_fleet_graph_gives_it_the_reservation
     assert [p.name for p in run] == ["bezier", "reserve"] and not skipped
     from avp_bringup.graph import fleet_graph
 
-    nodes = {n.key: n for n in fleet_graph(["bezier", "reserve", "reserve"])}
+    nodes = {n.key: n for n in fleet_graph(["bezier", "reserve", "reserve"], processes="node")}
     book, radio = nodes["avp_reservation"], nodes["avp_v2v"]
     assert book.extra_params["egos"] == "1,2" and book.extra_params["lockstep"] is True
     assert radio.extra_params["egos"] == "0,1,2" and radio.extra_params["lockstep"] is True

@@ -12,11 +12,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from avp_bringup.graph import NAMESPACE, NodeSpec
+#: an ego's namespace (avp_bringup.graph.ego_namespace: ``/avp/ego<i>``)
+_EGO_NAMESPACE = re.compile(r"/ego\d+$")
 
 #: how the graph's nodes are spread over processes (``--processes``)
 PROCESS_LAYOUTS = ("ego", "node")
@@ -24,23 +27,24 @@ PROCESS_LAYOUTS = ("ego", "node")
 
 @dataclass(frozen=True)
 class ContainerSpec:
-    """A component container holding ``members`` (each with its ``component`` class), named ``<namespace>/<name>``
-    in :attr:`avp_bringup.graph.Graph.procs` and the log directory (``ego0.pipeline``)."""
+    """A component container holding ``members`` (:class:`avp_bringup.graph.NodeSpec` each, with its ``component``
+    class), named like its nodes with ``name`` for theirs in :attr:`avp_bringup.graph.Graph.procs` and the log
+    directory (``ego0.pipeline`` for ``ego0.avp_belief``, ...)."""
 
     name: str
     namespace: str
-    members: tuple[NodeSpec, ...]
+    members: tuple[Any, ...]
 
     @property
     def key(self) -> str:
-        sub = self.namespace[len(NAMESPACE):].strip("/")
-        return f"{sub.replace('/', '.')}.{self.name}" if sub else self.name
+        head, _, _ = self.members[0].key.rpartition(".")
+        return f"{head}.{self.name}" if head else self.name
 
     @property
     def member_keys(self) -> list[str]:
         return [m.key for m in self.members]
 
-    def command(self, ros_args: Callable[[NodeSpec], list[str]]) -> list[str]:
+    def command(self, ros_args: Callable[[Any], list[str]]) -> list[str]:
         from ament_index_python.packages import get_package_prefix
 
         exe = Path(get_package_prefix("avp_bringup")) / "lib" / "avp_bringup" / "component_container"
@@ -48,12 +52,12 @@ class ContainerSpec:
         return [str(exe), "--components", json.dumps(components)]
 
 
-def one_process_per_ego(nodes: list[NodeSpec]) -> list:
+def one_process_per_ego(nodes: list) -> list:
     """``nodes`` with the nodes of each ego namespace (``/avp/ego<i>``) that have a ``component`` gathered into one
     :class:`ContainerSpec` (``ego<i>.pipeline``), placed where its first node was; every other node as it was."""
-    groups: dict[str, list[NodeSpec]] = {}
+    groups: dict[str, list] = {}
     for n in nodes:
-        if n.component and n.namespace.startswith(f"{NAMESPACE}/ego"):
+        if n.component and _EGO_NAMESPACE.search(n.namespace):
             groups.setdefault(n.namespace, []).append(n)
     out: list = []
     for n in nodes:
@@ -65,7 +69,7 @@ def one_process_per_ego(nodes: list[NodeSpec]) -> list:
     return out
 
 
-def layout(nodes: list[NodeSpec], processes: str) -> list:
+def layout(nodes: list, processes: str) -> list:
     """``nodes`` laid out over processes: ``"node"`` one each, ``"ego"`` :func:`one_process_per_ego`. ValueError
     for another word."""
     if processes not in PROCESS_LAYOUTS:
