@@ -32,8 +32,11 @@ class ContainerSpec:
     directory (``ego0.pipeline`` for ``ego0.avp_belief``, ...)."""
 
     name: str
-    namespace: str
     members: tuple[Any, ...]
+
+    @property
+    def namespace(self) -> str:
+        return self.members[0].namespace
 
     @property
     def key(self) -> str:
@@ -65,7 +68,7 @@ def one_process_per_ego(nodes: list) -> list:
         if not members:
             out.append(n)
         elif n is members[0]:
-            out.append(ContainerSpec("pipeline", n.namespace, tuple(members)))
+            out.append(ContainerSpec("pipeline", tuple(members)))
     return out
 
 
