@@ -71,3 +71,44 @@ def test_the_bag_writers_yaml_is_pyyamls():
         "custom_data": None, "ros_distro": "rosbags", "compression_format": ""}}
     for sort_keys in (True, False):
         assert _yaml(data, sort_keys) == yaml.safe_dump(data, default_flow_style=False, sort_keys=sort_keys)
+
+
+@pytest.mark.parametrize("frame_len", range(0, 20))
+def test_the_observation_head_read_from_the_bytes_is_the_deserialised_one(frame_len):
+    """Every frame length moves the 8-byte fields after it to another alignment: each must read what
+    rclpy's own deserialiser (the oracle) builds, on little- and big-endian CDR alike."""
+    from rclpy.serialization import deserialize_message
+
+    msg = Observation(step=2**40 + 3 * frame_len, dt=0.1 * (frame_len + 1))
+    msg.header.stamp = Time(sec=frame_len, nanosec=123_456_789)
+    msg.header.frame_id = "m" * frame_len
+    msg.ego_pose = Pose2D(x=-1.5 * frame_len, y=2.25, theta=-3.0)
+    msg.vehicles = [ObservedVehicle(id=i, history=[Pose2D(x=float(i), y=1.0, theta=0.5)] * 4) for i in range(3)]
+    raw = serialize_message(msg)
+    want = deserialize_message(raw, Observation)
+    head = received.observation_head(raw)
+    assert head.header == want.header and head.ego_pose == want.ego_pose
+    assert (head.step, head.dt) == (want.step, want.dt)
+    big = _big_endian_head(raw, frame_len)
+    assert received.observation_head(big) == head
+
+
+def _big_endian_head(raw: bytes, frame_len: int) -> bytes:
+    """The head of ``raw`` (little-endian CDR) written big-endian: every number of it byte-swapped in place."""
+    import struct
+
+    body = bytearray(raw[4:])
+    for fmt, pos in (("i", 0), ("I", 4), ("I", 8)):
+        body[pos:pos + 4] = struct.pack(">" + fmt, struct.unpack_from("<" + fmt, body, pos)[0])
+    pos = (12 + frame_len + 1 + 7) // 8 * 8
+    for j, fmt in enumerate("Qdddd"):
+        at = pos + 8 * j
+        body[at:at + 8] = struct.pack(">" + fmt, struct.unpack_from("<" + fmt, body, at)[0])
+    return b"\x00\x00\x00\x00" + bytes(body)
+
+
+@pytest.mark.parametrize("data", [b"", b"\x00\x01\x00\x00", b"\x00\x05\x00\x00" + b"\x00" * 60,
+                                  b"\x00\x01\x00\x00" + b"\x00" * 8 + b"\xff\xff\x00\x00" + b"\x00" * 40])
+def test_bytes_that_hold_no_observation_head_are_refused(data):
+    with pytest.raises(ValueError):
+        received.observation_head(data)

@@ -38,6 +38,7 @@ import hmac
 import os
 import re
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -202,9 +203,12 @@ class Authenticator:
         """The key an input on the (resolved) ``topic`` must carry: its ego's under /ego<i>/, else the key itself."""
         return scoped_key(self.master, ego_scope(topic))
 
-    def subscription(self, msg_type, topic: str, callback, qos, *, with_info: bool = False):
+    def subscription(self, msg_type, topic: str, callback, qos, *, with_info: bool = False,
+                     read: Callable[[bytes], Any] | None = None):
         """A subscription that checks the tag on the received bytes, then deserialises and calls ``callback``
-        (``callback(msg, info)`` with ``with_info``: the DDS message info, e.g. its source timestamp)."""
+        (``callback(msg, info)`` with ``with_info``: the DDS message info, e.g. its source timestamp). ``read``: what
+        makes the callback's argument of the checked bytes instead (a reader of a few fields,
+        :func:`avp_common.received.observation_head`); ``msg_type`` stays the topic's type."""
         holder: dict = {}
 
         def checked(data: bytes, info=None) -> None:
@@ -214,7 +218,8 @@ class Authenticator:
             if self.check_inputs and not verify(holder["key"], data):
                 self._report(holder["sub"].topic_name)
                 return
-            msg = deserialize(data, msg_type)  # one message per payload in a component container (avp_common.received)
+            # one message per payload in a component container (avp_common.received)
+            msg = deserialize(data, msg_type) if read is None else read(data)
             callback(msg, info) if with_info else callback(msg)
 
         # bursts taken in one executor round: a flood costs a wait-set rebuild per batch, not per message

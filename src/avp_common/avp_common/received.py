@@ -9,15 +9,21 @@ convert it, :mod:`avp_common.conversions`). It is off unless a container turns i
 own gets a message of its own, as before.
 
 :func:`stamp_ns` reads ``header.stamp`` straight from the serialised bytes (a reader that needs only the step time,
-avp_bringup.monitor).
+avp_bringup.monitor); :func:`observation_head` reads an observation's fields before its first sequence (a reader that
+needs only the step and the ego's pose, avp_planner.v2v_node).
 """
 
 from __future__ import annotations
 
+import struct
 from collections import OrderedDict
+from dataclasses import dataclass
 from typing import Any
 
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Pose2D
 from rclpy.serialization import deserialize_message
+from std_msgs.msg import Header
 
 _shared: OrderedDict | None = None  # (type, payload) -> message, the newest last; None: every call deserialises
 _SHARED_SIZE = 16  # payloads remembered: a step's inputs of one ego pipeline, with room
@@ -54,3 +60,41 @@ def stamp_ns(data: bytes) -> int:
     order = "little" if data[1] & 1 else "big"  # CDR_LE / CDR_BE encapsulation
     sec = int.from_bytes(data[4:8], order, signed=True)
     return sec * 1_000_000_000 + int.from_bytes(data[8:12], order)
+
+
+#: CDR encapsulation kinds (the 2nd byte of a payload): byte order and the largest alignment of a primitive
+_ENCAPSULATIONS = {0x00: (">", 8), 0x01: ("<", 8), 0x06: (">", 4), 0x07: ("<", 4)}  # CDR / PLAIN_CDR2, BE / LE
+
+
+@dataclass(frozen=True)
+class ObservationHead:
+    """The fields of an ``avp_msgs/Observation`` that come before its arrays, under the same names."""
+
+    header: Header
+    step: int
+    dt: float
+    ego_pose: Pose2D
+
+
+def observation_head(data: bytes) -> ObservationHead:
+    """:class:`ObservationHead` of a serialised ``avp_msgs/Observation``: ``header``, ``step``, ``dt``, ``ego_pose``
+    read from the bytes, the rest (on the busy lot hundreds of poses) left unread. CDR (XCDR1 or 2): a 4-byte
+    encapsulation header, then each field aligned to its size (at most :data:`_ENCAPSULATIONS`' bound) counted from
+    the end of that header; a string is a uint32 length that counts its NUL. ValueError for bytes that hold no such
+    head."""
+    if len(data) < 4 or data[0] != 0 or data[1] not in _ENCAPSULATIONS:
+        raise ValueError(f"not a CDR payload (encapsulation {bytes(data[:2]).hex() or 'missing'})")
+    order, max_align = _ENCAPSULATIONS[data[1]]
+    body = memoryview(data)[4:]
+    try:
+        sec, nanosec, n = struct.unpack_from(order + "iII", body, 0)
+        if n > len(body) - 12:
+            raise ValueError(f"frame_id of {n} bytes in a {len(body)}-byte body")
+        frame = bytes(body[12:12 + max(n - 1, 0)]).decode()
+        align = max_align
+        pos = (12 + n + align - 1) // align * align
+        step, dt, x, y, theta = struct.unpack_from(order + "Qdddd", body, pos)
+    except (struct.error, UnicodeDecodeError) as exc:
+        raise ValueError(f"a {len(data)}-byte payload holds no observation head: {exc}") from None
+    return ObservationHead(Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id=frame), int(step), float(dt),
+                           Pose2D(x=x, y=y, theta=theta))

@@ -55,6 +55,9 @@ class LockstepRelay(Node):
     output = "relayed/observation"
     output_type = Observation  # what transform() returns
     needs_status = False  # lock-step also waits for each ego's status of the step (a hold ends with its episode)
+    #: what makes the relay's input of an observation's checked bytes; None: the whole Observation (a relay that
+    #: reads only the step and the ego's pose takes :func:`avp_common.received.observation_head`)
+    read_input = None
 
     def __init__(self, name: str, params: list[ParamSpec]) -> None:
         """``params``: the node's parameters, :data:`RELAY_PARAMS`' names among them."""
@@ -69,7 +72,8 @@ class LockstepRelay(Node):
         self.pub = {i: self.auth.publisher(self.output_type, f"ego{i}/{self.output}", STEP, ego=i)
                     for i in self.egos}
         for i in self.egos:
-            self.auth.subscription(Observation, self.source(i), lambda m, i=i: self._on_obs(i, m), STEP)
+            self.auth.subscription(Observation, self.source(i), lambda m, i=i: self._on_obs(i, m), STEP,
+                                   read=self.read_input)
             self.auth.subscription(PlannerDecision, f"ego{i}/decision", lambda m, i=i: self._on_decision(i, m), STEP)
             self.create_subscription(EpisodeStatus, f"ego{i}/episode_status", lambda m, i=i: self._on_status(i, m),
                                      STATUS)
@@ -98,7 +102,7 @@ class LockstepRelay(Node):
 
     def _new_episode(self, episode: int) -> None:
         self.episode = episode
-        self.pending: dict[int, Observation] = {}  # ego -> observation not forwarded yet
+        self.pending: dict[int, Observation] = {}  # ego -> observation (or what read_input made of it) not forwarded
         self.sent: dict[int, tuple[int, object]] = {}  # ego -> (step, what it was sent): a re-send repeats it
         self.decided: dict[int, dict[int, PlannerDecision]] = {}  # step -> {ego: its decision}
         self.status: dict[int, tuple[int, int]] = {}  # ego -> (step, state) of its newest status

@@ -4,7 +4,8 @@ Every ego of a fleet announces, each step, a beacon (avp_msgs/EgoBeacon, :mod:`a
 pose, whether it stands waiting, and the path it wants to drive — its planner's decision carries ``waiting`` and
 ``announced``. This node is the channel: a message between the egos, not something an ego observes.
 
-  subscribes  ego<i>/observation (the simulator's: the step and pose it was sent), ego<i>/decision,
+  subscribes  ego<i>/observation (the simulator's: the step and pose it was sent, read from the message's head
+              without building the rest, avp_common.received.observation_head), ego<i>/decision,
               ego<i>/episode_status, for each ego i of parameter ``egos``
   publishes   ego<i>/v2v/beacons (avp_msgs/EgoBeaconArray) for each observation k of ego i: the beacons of the egos
               that entered before it (:func:`~avp_planner.core.ego_yield.heard_by`) as they decided step k-1, at
@@ -26,7 +27,8 @@ from geometry_msgs.msg import Pose2D
 from avp_common.msg_auth import episode_of, with_episode
 from avp_common.node_main import run_node
 from avp_common.params import ParamSpec
-from avp_msgs.msg import EgoBeacon, EgoBeaconArray, Observation, PlannerDecision
+from avp_common.received import ObservationHead, observation_head
+from avp_msgs.msg import EgoBeacon, EgoBeaconArray, PlannerDecision
 from avp_planner.core.ego_yield import MAX_BEACON_POSES
 from avp_planner.lockstep_relay import RELAY_PARAMS, LockstepRelay
 
@@ -41,6 +43,8 @@ V2V_PARAMS = [
 class V2VNode(LockstepRelay):
     output = "v2v/beacons"
     output_type = EgoBeaconArray
+    #: the step, stamp, episode and ego pose are all it reads of an observation: never the whole message built
+    read_input = staticmethod(observation_head)
 
     def __init__(self) -> None:
         super().__init__("avp_v2v", V2V_PARAMS)
@@ -60,8 +64,9 @@ class V2VNode(LockstepRelay):
                                      path=list(m.announced[:MAX_BEACON_POSES])))
         self.beacons = beacons
 
-    def transform(self, i: int, msg: Observation) -> EgoBeaconArray:
-        """What ego i hears for observation ``msg``: the beacons of the egos before it (ego_yield.heard_by)."""
+    def transform(self, i: int, msg: ObservationHead) -> EgoBeaconArray:
+        """What ego i hears for observation ``msg`` (its head): the beacons of the egos before it
+        (ego_yield.heard_by)."""
         self.poses[i] = (int(msg.step), msg.ego_pose)
         out = EgoBeaconArray(step=msg.step, beacons=[b for b in self.beacons if b.ego < i])
         out.header.stamp = msg.header.stamp

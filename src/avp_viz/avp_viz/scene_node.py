@@ -7,11 +7,12 @@ Topics (relative names in namespace /avp, except the two TF topics, which are gl
              viz/spots (latched, when a spot's colour changes), viz/scene (every step)
 
 A sink: nothing in the ego's pipeline reads what it publishes, so it never changes an episode. It publishes the
-transforms of step k when observation k first arrives (a re-sent one sends none), and the scene of step k
-(with the spot fill, if a colour
-changed) once observation, beliefs, predictions and decision k have all arrived (in any order), or else when
-observation k + 1 does, with what came (a graph without perception or planner); each stamped with the step's
-simulated time. lot_map, observation, beliefs and
+transforms and the scene of step k (with the spot fill, if a colour changed) once observation, beliefs,
+predictions and decision k have all arrived (in any order), or else when observation k + 1 does, with what came (a
+graph without perception or planner); once per step (a re-sent observation sends nothing new), each stamped with the
+step's simulated time. Until then it only keeps what came: the observation is read when its step is drawn, after
+the planner answered it, so that in a component container (avp_bringup.container), where this node shares the
+pipeline's thread, the scene never runs between an observation and its command. lot_map, observation, beliefs and
 predictions are taken only when tagged with the user's key (``auth_inputs``); the decision only draws the plan,
 so it is taken unchecked, from any publisher (a forged one changes the picture, never the
 ego). Bad messages are dropped with one
@@ -59,13 +60,12 @@ class SceneNode(Node):
         self.prefix = "" if i < 0 else f"ego{i}/"
         self.ego_rgba = None if i < 0 else scene.EGO_COLOURS[i]
         self.lot = None
-        self.obs: dict[int, object] = {}  # step -> (core Observation, stamp)
+        self.obs: dict[int, Observation] = {}  # step -> its observation, as it came
         self.beliefs: dict[int, np.ndarray] = {}
         self.decisions: dict[int, PlannerDecision] = {}
         self.seen: np.ndarray | None = None  # spots the ego has observed this episode (unseen ones are drawn grey)
         self.preds: dict[int, PredictedTrajectoryArray] = {}
         self.published = -1  # the last step whose scene went out
-        self.tf_step = -1  # the last step whose transforms went out (a re-sent observation sends none)
         self.reject = RateLimitedLog(self.get_logger().error)
         self.auth = Authenticator(self, p["auth_inputs"])
         self.pub_scene = self.create_publisher(MarkerArray, "viz/scene", DEBUG)
@@ -98,23 +98,11 @@ class SceneNode(Node):
 
     def _on_obs(self, msg: Observation) -> None:
         k = int(msg.step)
-        try:
-            obs = observation_from_msg(msg)
-        except MessageError as exc:
-            self.reject(f"observation step {k}: {exc}; dropped")
-            return
         if k < self.published:  # a new episode
             self._forget()
-        self.obs[k] = (obs, msg.header.stamp)
-        if self.lot is not None:
-            if self.seen is None:
-                self.seen = np.zeros(self.lot.n_spots, dtype=bool)
-            for sid in (*obs.vacant_spot_ids, *obs.occupied_spot_ids):
-                if self.lot.has_spot(int(sid)):
-                    self.seen[self.lot.spot_index(int(sid))] = True
-        if self.publish_tf and k != self.tf_step:  # one transform per step (lock-step re-sends a late observation)
-            self.pub_tf.publish(scene.transforms(obs, msg.header.stamp, self.prefix))
-            self.tf_step = k
+        # kept as it came; read when step k is drawn, after the pipeline answered it (in a component container this
+        # node shares the pipeline's thread: nothing of the scene's runs between the observation and the command)
+        self.obs[k] = msg
         if k - 1 in self.obs and k - 1 > self.published:  # step k - 1 is over: draw it with what came
             self._publish(k - 1, self.decisions.get(k - 1))
         self._trim()
@@ -143,9 +131,23 @@ class SceneNode(Node):
             self._publish(k, self.decisions[k])
 
     def _publish(self, k: int, decision: PlannerDecision | None) -> None:
+        """Step k's transforms and scene (once per step: a re-sent observation sends none)."""
+        msg = self.obs[k]
+        self.published, stamp = k, msg.header.stamp
+        try:
+            obs = observation_from_msg(msg)
+        except MessageError as exc:
+            self.reject(f"observation step {k}: {exc}; dropped")
+            return
+        if self.publish_tf:
+            self.pub_tf.publish(scene.transforms(obs, stamp, self.prefix))
         if self.lot is None:
             return
-        obs, stamp = self.obs[k]
+        if self.seen is None:
+            self.seen = np.zeros(self.lot.n_spots, dtype=bool)
+        for sid in (*obs.vacant_spot_ids, *obs.occupied_spot_ids):
+            if self.lot.has_spot(int(sid)):
+                self.seen[self.lot.spot_index(int(sid))] = True
         beliefs = self.beliefs.get(k)
         if beliefs is not None and self.seen is not None:
             beliefs = np.where(self.seen, beliefs, np.nan)
@@ -155,12 +157,11 @@ class SceneNode(Node):
             self.levels = levels
         self.pub_scene.publish(scene.scene_markers(self.lot, obs, self.preds.get(k), decision, stamp,
                                                    self.traces.get(k), self.ego_rgba))
-        self.published = k
 
     def _forget(self) -> None:
         for d in (self.obs, self.beliefs, self.preds, self.decisions, self.traces):
             d.clear()
-        self.published, self.seen, self.levels, self.tf_step = -1, None, None, -1
+        self.published, self.seen, self.levels = -1, None, None
 
     def _trim(self) -> None:
         for d in (self.obs, self.beliefs, self.preds, self.decisions, self.traces):
