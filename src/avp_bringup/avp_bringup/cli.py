@@ -52,8 +52,9 @@ def cmd_launch(args: argparse.Namespace) -> int:
     log_dir = default_log_dir(args.log_dir)
     try:
         fleet = _fleet_methods(args)
-        if fleet:
-            nodes = fleet_graph(fleet, scene=not args.no_scene, processes=args.processes)
+        if fleet:  # a person at the wheel: real time, for the relays of the fleet too
+            nodes = fleet_graph(fleet, scene=not args.no_scene, processes=args.processes,
+                                sim_extra={"mode": "realtime"} if args.drivers else None)
         else:
             nodes = ego_graph(args.method, args.ego)
             if not args.no_scene:

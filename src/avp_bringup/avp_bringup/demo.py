@@ -118,7 +118,8 @@ def _demo_nodes(args: argparse.Namespace) -> list:
     if args.egos > 1:
         if args.ego != "planner":
             raise ValueError("--egos and --ego scripted exclude each other")
-        nodes = fleet_graph([args.method] * args.egos, deterministic=not args.realtime,
+        # the mode reaches the V2V node (and a reservation book) too: in real time they never wait for a decision
+        nodes = fleet_graph([args.method] * args.egos, deterministic=not args.realtime, sim_extra={"mode": _mode(args)},
                             scene=not getattr(args, "no_scene", False), processes=getattr(args, "processes", "ego"))
     else:
         # lock-step: the wall-clock caps lifted, so the episode is the same whatever the machine's load

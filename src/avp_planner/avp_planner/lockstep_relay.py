@@ -9,8 +9,11 @@ changed, or another message of that step), tagged with ego i's key.
 Each ego plans step k with what the relay made of step k-1 (:meth:`LockstepRelay.settle`): in lock-step it forwards
 observation k once it has every step k-1 decision of the egos it forwarded step k-1 to (and, where
 :attr:`LockstepRelay.needs_status`, their statuses of step k); the same seed then gives the in-process fleet's
-episode. In real time it forwards at once. A re-sent observation (lock-step) gets the same answer again; an
-ego's first observation waits until ``min_subscribers`` read its output (its pipeline is up).
+episode. In real time it forwards at once: when ``lockstep`` is false, and whenever the simulator's episode status
+says it steps in real time (``lock_step`` false), whatever the parameter says — a real-time planner skips the steps
+it falls behind on, so a decision waited for may never come, and one ego's slow step must not hold another's. A
+re-sent observation (lock-step) gets the same answer again; an ego's first observation waits until
+``min_subscribers`` read its output (its pipeline is up).
 """
 
 from __future__ import annotations
@@ -32,8 +35,8 @@ RELAY_PARAMS = [
               default="0,1"),
     ParamSpec("min_subscribers", int, "Forward an ego's first observation once its output topic has this many "
               "subscribers (its pipeline's belief, prediction and planner nodes).", min=0, default=3),
-    ParamSpec("lockstep", bool, "Wait for the step before's decisions before forwarding an observation (the "
-              "simulator's mode lockstep); false: forward at once.", default=True),
+    ParamSpec("lockstep", bool, "Wait for the step before's decisions before forwarding an observation while the "
+              "simulator steps in lock-step (its episode status says so); false: forward at once.", default=True),
 ]
 
 
@@ -67,6 +70,7 @@ class LockstepRelay(Node):
         if not self.egos:
             raise ValueError(f"parameter 'egos': {p['egos']!r}: comma-separated indices of egos 0..7")
         self.min_subscribers, self.lockstep = int(p["min_subscribers"]), bool(p["lockstep"])
+        self.sim_lockstep = True  # what the simulator's newest episode status says (lock_step)
         self.auth = Authenticator(self)
         self.waiting = RateLimitedLog(self.get_logger().warning, period=5.0)  # what a held observation waits for
         self.pub = {i: self.auth.publisher(self.output_type, f"ego{i}/{self.output}", STEP, ego=i)
@@ -130,11 +134,12 @@ class LockstepRelay(Node):
 
     def _on_status(self, i: int, msg: EpisodeStatus) -> None:
         self.status[i] = (int(msg.step), int(msg.state))
+        self.sim_lockstep = bool(msg.lock_step)
         self._forward()
 
     def _ready(self, step: int) -> bool:
         """Lock-step: every ego sent step - 1 has decided it (and its status of ``step`` has come)."""
-        if not self.lockstep or step - 1 <= self.settled:  # settled: step - 1 is already taken in
+        if not (self.lockstep and self.sim_lockstep) or step - 1 <= self.settled:  # settled: step - 1 taken in
             return True
         prev = [i for i, (s, _) in self.sent.items() if s == step - 1]
         missing = [f"ego {i}'s {'decision' if i not in self.decided.get(step - 1, {}) else 'status'}" for i in prev
