@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
-from avp_common.node_main import ctrl_c_in_finaliser_hook, install_stop_handlers, stopping
+from avp_common.node_main import ctrl_c_in_finaliser_hook, freeze_start_up_heap, install_stop_handlers, stopping
 from avp_common.params import ParameterError
 from avp_common.received import share_received
 
@@ -102,6 +102,7 @@ def main(argv: list[str] | None = None) -> int:
                 node.end_hook = lambda n=node: ending.add(id(n))
             nodes.append(node)
             executor.add_node(node)
+        freeze_start_up_heap()  # what the nodes built is no work for the garbage collector (avp_common.node_main)
         while nodes and rclpy.ok():
             executor.spin_once(timeout_sec=0.1)
             for node in [n for n in nodes if id(n) in ending]:

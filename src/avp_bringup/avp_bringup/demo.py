@@ -178,6 +178,7 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
 
     from avp_bringup.graph import Graph
     from avp_bringup.monitor import EpisodeMonitor
+    from avp_common.node_main import freeze_start_up_heap
     from avp_experiment.metrics import lot_record
     from avp_msgs.srv import ResetEpisode
 
@@ -202,6 +203,7 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
               "Teleop panel on /avp/driver0/cmd_vel (--foxglove); it enters through the gate 3 s in", flush=True)
     try:
         n_subs = nodes[0].extra_params["min_subscribers"]
+        freeze_start_up_heap()  # the monitor and recorder read each step on time (avp_common.node_main)
         _start_episode(monitor, recorder, executor, graph, ResetEpisode, args, n_subs, log_dir)
         while not monitor.finished:
             executor.spin_once(timeout_sec=0.2)
