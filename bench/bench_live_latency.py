@@ -15,6 +15,11 @@ Usage: python bench/bench_live_latency.py [--methods bezier] [--seeds 1] [--t-fi
 
 With ``--egos K`` (``avp demo --egos K``: one simulator, K pipelines) the step time is each ego's (its observation k to
 its command stamped t_k), over every ego's steps, with one line per ego.
+
+``CPU s``: what the episode's processes used (the demo's and every node's, start-up included: user + system time of
+the children it reaped, ``RUSAGE_CHILDREN``); less noisy than a p95 when two builds are compared, though a real-time
+episode runs differently from run to run. The first line gives the machine's speed at the time (``probe``: the best
+of three runs of a fixed pure-Python loop), so that sittings and machines can be told apart.
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ import json
 import os
 import platform
 import random
+import resource
 import subprocess
 import sys
 import time
@@ -52,6 +58,22 @@ def run(method: str, seed: int, t_final: float, out: Path, lot: str = "", scenar
     return json.loads((d / "metrics.json").read_text())
 
 
+def _children_cpu() -> float:
+    """User + system seconds of the reaped children (and theirs) so far."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def _probe() -> float:
+    """Seconds of a fixed pure-Python loop, the best of three: the machine's speed at the time."""
+    best = float("inf")
+    for _ in range(3):
+        t0 = time.perf_counter()
+        sum(i * i for i in range(2_000_000))
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
 def _stages(lat: dict) -> str:
     return ", ".join(f"{k} {v['median_ms']:.1f} / {v['p95_ms']:.1f}" for k, v in lat.get("stages_ms", {}).items())
 
@@ -75,25 +97,26 @@ def main() -> int:
     out = Path(args.out)
     load0 = os.getloadavg()
     print(f"# {platform.node()} {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, load average "
-          f"{load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f} before")
-    print("| method | seed | outcome | steps | median ms | p95 ms | max ms | late steps | wall s "
+          f"{load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f} before; probe {_probe():.3f} s")
+    print("| method | seed | outcome | steps | median ms | p95 ms | max ms | late steps | wall s | CPU s "
           "| per node: median / p95 ms |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     p95s = []
     for method in [m.strip() for m in args.methods.split(",") if m.strip()]:
         for seed in [int(s) for s in args.seeds.split(",") if s.strip()]:
-            t0 = time.monotonic()
+            t0, cpu0 = time.monotonic(), _children_cpu()
             m = run(method, seed, args.t_final, out, args.lot, args.scenario, args.egos, args.processes)
             lat = m["closed_loop_step_time"]
             p95s.append(lat.get("p95_ms", float("nan")))
             outcome = m["state"] + (f" {m['parking_time']:.1f} s" if m.get("parking_time") is not None else "")
             print(f"| {method} | {seed} | {outcome} | {lat['steps']} | {lat.get('median_ms', float('nan')):.1f} | "
                   f"{lat.get('p95_ms', float('nan')):.1f} | {lat.get('max_ms', float('nan')):.1f} | "
-                  f"{lat.get('late_steps', 0)} | {time.monotonic() - t0:.0f} | {_stages(lat)} |", flush=True)
+                  f"{lat.get('late_steps', 0)} | {time.monotonic() - t0:.0f} | {_children_cpu() - cpu0:.1f} | "
+                  f"{_stages(lat)} |", flush=True)
             for e, st in zip(lat.get("per_ego", []), m.get("egos", []), strict=False):
                 print(f"| {method} ego {e['ego']} | {seed} | {st['state']} | {e['steps']} | "
                       f"{e.get('median_ms', float('nan')):.1f} | {e.get('p95_ms', float('nan')):.1f} | "
-                      f"{e.get('max_ms', float('nan')):.1f} | {e.get('late_steps', 0)} | | |", flush=True)
+                      f"{e.get('max_ms', float('nan')):.1f} | {e.get('late_steps', 0)} | | | |", flush=True)
     load1 = os.getloadavg()
     print(f"# load average {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f} after; target p95 <= {args.target_ms:g} ms: "
           f"{'met' if p95s and max(p95s) <= args.target_ms else 'NOT met'} (worst episode p95 {max(p95s):.1f} ms)")
