@@ -52,8 +52,9 @@ def freeze_start_up_heap() -> None:
     """Keep Python's cyclic garbage collector off what exists once a node process has started: collect the start-up's
     garbage, then :func:`gc.freeze` the rest (torch, the lot, the Reeds-Shepp table, the node: long-lived objects that
     a full collection would traverse every time). Objects made afterwards are collected as before. Measured on the busy
-    lot, two live egos (docs/benchmarks.md, "Garbage collection"): an ego pipeline's full (generation 2) collections
-    took up to 232 ms each, 11 a minute, about 2 s in all, one pipeline held still each time; frozen, at most 43 ms."""
+    lot, two live egos (docs/benchmarks.md, "The live fleet's relays in real time, garbage collection"): an ego
+    pipeline's full (generation 2) collections took up to 232 ms each, 11 a minute, about 2 s in all, one pipeline held
+    still each time; frozen, at most 43 ms."""
     gc.collect()
     gc.freeze()
 

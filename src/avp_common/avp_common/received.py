@@ -91,8 +91,7 @@ def observation_head(data: bytes) -> ObservationHead:
         if n > len(body) - 12:
             raise ValueError(f"frame_id of {n} bytes in a {len(body)}-byte body")
         frame = bytes(body[12:12 + max(n - 1, 0)]).decode()
-        align = max_align
-        pos = (12 + n + align - 1) // align * align
+        pos = (12 + n + max_align - 1) // max_align * max_align
         step, dt, x, y, theta = struct.unpack_from(order + "Qdddd", body, pos)
     except (struct.error, UnicodeDecodeError) as exc:
         raise ValueError(f"a {len(data)}-byte payload holds no observation head: {exc}") from None

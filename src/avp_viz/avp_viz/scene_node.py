@@ -149,7 +149,7 @@ class SceneNode(Node):
             if self.lot.has_spot(int(sid)):
                 self.seen[self.lot.spot_index(int(sid))] = True
         beliefs = self.beliefs.get(k)
-        if beliefs is not None and self.seen is not None:
+        if beliefs is not None:
             beliefs = np.where(self.seen, beliefs, np.nan)
         levels = scene.belief_levels(beliefs, self.lot.n_spots)
         if self.levels is None or not np.array_equal(levels, self.levels):
