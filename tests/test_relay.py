@@ -74,13 +74,14 @@ def _drive(lock_step: bool):
     spin(10.0, lambda: all(0 in heard[i] for i in (0, 1)))
     assert all(heard[i].get(0) == [] for i in (0, 1)), heard  # step 0: nobody has decided anything yet
     decide(0, 0)  # ego 0 decides step 0; ego 1 falls behind and skips it
-    spin(0.5)
+    spin(20.0, lambda: 0 in v2v.decided.get(0, {}))  # the decision is in before observation 1 goes out
     observe(1)
-    spin(1.0, lambda: all(1 in heard[i] for i in (0, 1)))
+    # real time: answered at once (waited for generously); lock-step: a second in which it must not come
+    spin(1.0 if lock_step else 20.0, lambda: all(1 in heard[i] for i in (0, 1)))
 
     def late_decision() -> dict:
         decide(1, 0)
-        spin(1.0, lambda: all(1 in heard[i] for i in (0, 1)))
+        spin(20.0, lambda: all(1 in heard[i] for i in (0, 1)))
         return heard
 
     return heard, late_decision, (v2v, sim)
