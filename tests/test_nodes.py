@@ -321,3 +321,85 @@ def test_half_built_rclpy_task_after_a_stop_prints_nothing(monkeypatch, capsys):
     gc.collect()
     err = capsys.readouterr().err
     assert "Traceback" in err and "not rclpy" in err
+
+
+
+#: the graph's nodes: class, package, parameter file, extra ROS arguments; components take them as ``cli_args``, the
+#: others (one process each) from ``rclpy.init``
+_GRAPH_NODES = [
+    ("avp_sim.sim_node:SimNode", "avp_sim", "sim.param.yaml", ["-p", "egos.count:=2", "-p", "drivers.count:=1",
+                                                                 "-p", "mode:=realtime"]),
+    ("avp_perception.belief_node:BeliefNode", "avp_perception", "belief.param.yaml", []),
+    ("avp_perception.prediction_node:PredictionNode", "avp_perception", "prediction.param.yaml", []),
+    ("avp_planner.planner_node:PlannerNode", "avp_planner", "planner.param.yaml",
+     ["-p", "use_beliefs:=true", "-p", "use_predictions:=true", "-p", "use_beacons:=true"]),
+    ("avp_viz.scene_node:SceneNode", "avp_viz", "scene.param.yaml", []),
+    ("avp_planner.v2v_node:V2VNode", "avp_planner", "v2v.param.yaml", ["-p", "egos:=0,1"]),
+    ("avp_planner.reservation_node:ReservationNode", "avp_planner", "reservation.param.yaml", ["-p", "egos:=0,1"]),
+]
+
+#: builds one node of its own process (its ROS arguments global) and prints its endpoints and QoS event handlers
+_COUNT_SCRIPT = """
+import importlib, sys, rclpy
+from rclpy.event_handler import EventHandler
+module, _, cls = sys.argv[1].partition(":")
+rclpy.init(args=sys.argv[2:])
+node = getattr(importlib.import_module(module), cls)()
+endpoints = len(list(node.subscriptions)) + len(list(node.publishers))
+print(endpoints, sum(isinstance(w, EventHandler) for w in node.waitables))
+"""
+
+
+def _counts(node) -> tuple[int, int]:
+    """(readers + writers, QoS event handlers) of ``node``."""
+    from rclpy.event_handler import EventHandler
+
+    return (len(list(node.subscriptions)) + len(list(node.publishers)),
+            sum(isinstance(w, EventHandler) for w in node.waitables))
+
+
+def test_the_graphs_endpoints_have_no_qos_event_handlers(ros, tmp_path):
+    """Every reader and writer of the graph's nodes and observers is made without rclpy's default QoS event handlers
+    (avp_common.qos.QUIET_READER / QUIET_WRITER): each is a waitable the executor walks for every message taken. Only
+    rclpy's own writer of /parameter_events, which every node has, keeps its two."""
+    import importlib
+    import inspect
+
+    from avp_bag.recorder import BagRecorder, fleet_topics
+    from avp_bringup.monitor import EpisodeMonitor
+    from avp_common.share import package_share
+    from avp_experiment.ros_fleet_collector import FleetCollector
+
+    _, env = ros
+    bare = rclpy.create_node("bare")
+    _, base = _counts(bare)
+    bare.destroy_node()
+    assert base == 2  # rclpy's own /parameter_events writer: what every node below has
+    counts: dict[str, tuple[int, int]] = {}
+    nodes = []
+    try:
+        for component, package, params, extra in _GRAPH_NODES:
+            module, _, cls = component.partition(":")
+            ns = "/avp/ego0" if module.split(".")[1] in ("belief_node", "prediction_node", "planner_node",
+                                                         "scene_node") else "/avp"
+            args = ["--ros-args", "-r", f"__ns:={ns}", "--params-file", str(package_share(package) / "config" / params),
+                    *extra]
+            node_cls = getattr(importlib.import_module(module), cls)
+            if any(a.kind is a.VAR_KEYWORD for a in inspect.signature(node_cls).parameters.values()):  # a component
+                nodes.append(node_cls(cli_args=args, use_global_arguments=False))
+                counts[cls] = _counts(nodes[-1])
+            else:
+                r = subprocess.run([sys.executable, "-c", _COUNT_SCRIPT, component, *args], env=env,
+                                   capture_output=True, text=True, timeout=120)
+                assert r.returncode == 0, r.stderr
+                counts[cls] = tuple(int(x) for x in r.stdout.split()[-2:])
+        nodes += [EpisodeMonitor(egos=2), BagRecorder(tmp_path / "bag", fleet_topics(2)), FleetCollector(2, None, {})]
+        counts.update({type(n).__name__: _counts(n) for n in nodes[-3:]})
+    finally:
+        for node in nodes:
+            if isinstance(node, BagRecorder):
+                node.close()
+            node.destroy_node()
+    assert len(counts) == len(_GRAPH_NODES) + 3
+    for name, (endpoints, handlers) in counts.items():
+        assert endpoints > 2 and handlers == base, f"{name}: {endpoints} readers/writers, {handlers} event handlers"

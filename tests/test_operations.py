@@ -200,11 +200,15 @@ while rclpy.ok():
 def test_the_recorder_names_its_readers_that_matched_no_writer(ros, tmp_path):
     """`BagRecorder.unmatched` (what `avp demo` waits on before it starts the episode): a required topic is named
     until its reader matched a writer of another process; a topic the graph shows a writer of is named while that
-    writer cannot match (best-effort against the recorder's reliable reader); a topic nobody writes is not."""
+    writer cannot match (best-effort against the recorder's reliable reader); a topic nobody writes is not. Such a
+    reader is named in the recorder's warning once ``warn_unmatched_after`` has passed (its readers have no QoS event
+    handlers to warn of it)."""
     from avp_bag.recorder import GRAPH_TOPICS, BagRecorder
 
     topics = {t: GRAPH_TOPICS[t] for t in ("/clock", "/avp/debug/ground_truth", "/avp/episode_status")}
-    rec = BagRecorder(tmp_path / "bag", topics)
+    rec = BagRecorder(tmp_path / "bag", topics, warn_unmatched_after=1.0)
+    assert not any(type(w).__name__ == "EventHandler" and w.event_type.name.startswith("RCL_SUBSCRIPTION")
+                   for w in rec.waitables)
     writers = None
     try:
         assert rec.unmatched(("/clock",)) == ["/clock"] and rec.unmatched() == []
@@ -220,6 +224,10 @@ def test_the_recorder_names_its_readers_that_matched_no_writer(ros, tmp_path):
         while time.monotonic() - t0 < 1.0:
             rclpy.spin_once(rec, timeout_sec=0.05)
         assert rec.unmatched() == ["/avp/debug/ground_truth"]  # a QoS mismatch does not resolve by waiting
+        t0 = time.monotonic()
+        while not rec.warned_unmatched and time.monotonic() - t0 < 30:
+            rclpy.spin_once(rec, timeout_sec=0.05)
+        assert rec.warned_unmatched == {"/avp/debug/ground_truth"}  # named once
     finally:
         if writers is not None:
             writers.terminate()

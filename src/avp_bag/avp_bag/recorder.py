@@ -11,6 +11,7 @@ recorder with one error (``BagRecorder.error``); the bag stays readable and the 
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 from rclpy.node import Node
@@ -91,10 +92,16 @@ class BagRecorder(Node):
     ``foreign``: also record messages on :data:`TAGGED_TOPICS` that do not carry the graph's tag. Off by default:
     the bag is the episode the graph ran, and a flood from another process (docs/bad_input.md row 48) is counted in one
     log line a second instead of being written at its rate (which cost this process more CPU than the flooder).
+
+    ``warn_unmatched_after``: a reader that has matched no writer for this many seconds while the graph shows a writer
+    of its topic (incompatible QoS, most often) is named in one warning: its messages are not recorded. The readers
+    have no QoS event handlers (``avp_common.qos.QUIET_READER``: with about 45 readers they cost most of the process's
+    CPU), so this check is what tells of such a writer.
     """
 
     def __init__(self, out: Path, topics: dict[str, tuple[str, bool]] | None = None, storage: str = "mcap",
-                 node_name: str = "avp_recorder", split_period: float = 1.0, foreign: bool = False) -> None:
+                 node_name: str = "avp_recorder", split_period: float = 1.0, foreign: bool = False,
+                 warn_unmatched_after: float = 10.0) -> None:
         from avp_common.msg_auth import load_key
         from avp_common.ratelog import RateLimitedLog
 
@@ -109,6 +116,10 @@ class BagRecorder(Node):
         self.writer.open()
         # finish the open split also when no message arrives (e.g. after the episode ended)
         self._rotate_timer = self.create_timer(min(0.25, split_period / 2), self._rotate)
+        self.warn_unmatched_after = float(warn_unmatched_after)
+        self._unmatched_since: dict[str, float] = {}
+        self.warned_unmatched: set[str] = set()  # topics named in the warning (each once)
+        self._match_timer = self.create_timer(1.0, self._watch_matches)
         self.closed = False
         self.error: str | None = None  # set when the file system failed and recording stopped
         self.clock_ns = 0
@@ -130,6 +141,19 @@ class BagRecorder(Node):
         started only once this is empty (avp_bringup.demo)."""
         return [t for t, sub in self._subs.items()
                 if sub.get_publisher_count() == 0 and (t in required or self.count_publishers(t) > 0)]
+
+    def _watch_matches(self, now: float | None = None) -> None:
+        """Name each reader that has matched no writer for :attr:`warn_unmatched_after` s while the graph shows one."""
+        now = time.monotonic() if now is None else now
+        late = set(self.unmatched())
+        self._unmatched_since = {t: self._unmatched_since.get(t, now) for t in late}
+        due = sorted(t for t, t0 in self._unmatched_since.items()
+                     if now - t0 >= self.warn_unmatched_after and t not in self.warned_unmatched)
+        if due:
+            self.warned_unmatched.update(due)
+            self.get_logger().warning(
+                f"no writer of {', '.join(due)} has matched this recorder's reader in {self.warn_unmatched_after:g} s "
+                "although the graph shows one (incompatible QoS?): its messages are not recorded")
 
     def _callback(self, topic, conn):
         from avp_common.msg_auth import ego_scope, scoped_key, verify

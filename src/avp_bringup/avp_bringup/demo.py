@@ -278,7 +278,8 @@ def _start_episode(monitor, recorder, executor, graph, srv_type, args, n_obs_sub
     monitor's own readers and the recorder's readers of the episode (:data:`RECORDED_FIRST`) have matched their
     writers, and a second for discovery to settle, then start the episode with reset_episode (RuntimeError when
     that fails). The recorder's other readers get up to :data:`LATE_MATCH_WAIT` s more; one that still has not
-    matched a writer the graph shows (a foreign publisher of incompatible QoS, say) is named in one warning."""
+    matched a writer the graph shows (a foreign publisher of incompatible QoS, say) is named in the recorder's warning
+    (:attr:`avp_bag.recorder.BagRecorder.warn_unmatched_after`, the same time)."""
     from avp_common.services import call_once
 
     client = monitor.create_client(srv_type, "reset_episode")
@@ -297,10 +298,6 @@ def _start_episode(monitor, recorder, executor, graph, srv_type, args, n_obs_sub
     # matching completes both ways; the latched lot map reaches every node; the recorder's other readers match
     while time.monotonic() - t1 < 1.0 or (recorder.unmatched() and time.monotonic() - t1 < LATE_MATCH_WAIT):
         executor.spin_once(timeout_sec=0.05)
-    if late := recorder.unmatched():
-        print(f"[avp demo] warning: the recorder's readers of {', '.join(late)} matched no writer after "
-              f"{LATE_MATCH_WAIT:.0f} s although the graph shows one: the bag misses those topics' messages until "
-              "they match", file=sys.stderr, flush=True)
     seed, reactive = int(args.seed), not args.non_reactive
     try:  # sent once (a second reset would restart the running episode); its status also shows it happened
         res = call_once(client, srv_type.Request(seed=seed, reactive=reactive),

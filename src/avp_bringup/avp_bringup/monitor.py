@@ -32,7 +32,7 @@ from avp_bringup.step_timer import StepTimer, summary_ms
 from avp_common.conversions import observation_from_msg
 from avp_common.drain import draining_subscription
 from avp_common.msg_auth import ego_scope, load_key, scoped_key, verify
-from avp_common.qos import STATUS
+from avp_common.qos import QUIET_READER, STATUS
 from avp_common.received import stamp_ns
 from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation, PredictedTrajectoryArray, SpotBeliefs
 
@@ -52,15 +52,17 @@ class EpisodeMonitor(Node):
         self.ego_status: dict[int, EpisodeStatus] = {}  # several egos: ego i's own status (ego<i>/episode_status)
         for i in range(egos if egos > 1 else 0):
             self.create_subscription(EpisodeStatus, f"ego{i}/episode_status",
-                                     lambda m, i=i: self.ego_status.__setitem__(i, m), STATUS)
+                                     lambda m, i=i: self.ego_status.__setitem__(i, m), STATUS,
+                                     event_callbacks=QUIET_READER)
         self.gt: dict[int, GroundTruth] = {}
         self.status: EpisodeStatus | None = None
         self._last_obs_raw: bytes | None = None  # ego 0's newest observation, deserialised when read (last_obs)
         #: each ego's step times (one ego: ``observation``/``cmd``; several: ``ego<i>/observation``/``ego<i>/cmd``)
         self.ego_timers = [StepTimer() for _ in range(max(1, egos))]
         # every step matters (metrics, step times, the DDS tests): deep reader queues ride out a busy CPU
-        gt = self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, GROUND_TRUTH_QOS)
-        self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
+        gt = self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, GROUND_TRUTH_QOS,
+                                      event_callbacks=QUIET_READER)
+        self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS, event_callbacks=QUIET_READER)
         self.key = load_key()
         #: the readers whose every message counts (the step times read each ego's observation and cmd)
         self._must_match = [gt]

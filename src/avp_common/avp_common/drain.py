@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from avp_common.qos import QUIET_READER
+
 #: messages one subscription takes in one executor round
 MAX_BATCH = 256
 
@@ -19,7 +21,8 @@ MAX_BATCH = 256
 def draining_subscription(node, msg_type, topic: str, callback: Callable, qos, *, with_info: bool = False,
                           max_batch: int = MAX_BATCH):
     """A raw (CDR bytes) subscription calling ``callback(data)`` — or ``callback(data, info)`` with
-    ``with_info`` — for every message, taking bursts in one round; returns the rclpy subscription."""
+    ``with_info`` — for every message, taking bursts in one round; returns the rclpy subscription. It has no QoS
+    event handlers (:data:`avp_common.qos.QUIET_READER`)."""
     holder: dict = {}
 
     def first(data, info=None) -> None:
@@ -36,7 +39,9 @@ def draining_subscription(node, msg_type, topic: str, callback: Callable, qos, *
             callback(taken[0], taken[1]) if with_info else callback(taken[0])
 
     if with_info:
-        holder["sub"] = node.create_subscription(msg_type, topic, lambda d, i: first(d, i), qos, raw=True)
+        holder["sub"] = node.create_subscription(msg_type, topic, lambda d, i: first(d, i), qos, raw=True,
+                                                 event_callbacks=QUIET_READER)
     else:
-        holder["sub"] = node.create_subscription(msg_type, topic, lambda d: first(d), qos, raw=True)
+        holder["sub"] = node.create_subscription(msg_type, topic, lambda d: first(d), qos, raw=True,
+                                                 event_callbacks=QUIET_READER)
     return holder["sub"]

@@ -45,6 +45,7 @@ from typing import Any
 from rclpy.serialization import serialize_message
 
 from avp_common.drain import draining_subscription
+from avp_common.qos import QUIET_WRITER
 from avp_common.received import deserialize
 
 KEY_ENV = "AVP_CMD_KEY_FILE"
@@ -197,7 +198,7 @@ class Authenticator:
     def publisher(self, msg_type, topic: str, qos, *, ego: int | None = None):
         """A publisher that tags with this node's key, or with ego ``ego``'s (the simulator's per-ego outputs)."""
         key = self.key if ego is None else scoped_key(self.master, f"ego{int(ego)}")
-        return _SigningPublisher(self.node.create_publisher(msg_type, topic, qos), key)
+        return _SigningPublisher(self.node.create_publisher(msg_type, topic, qos, event_callbacks=QUIET_WRITER), key)
 
     def key_for(self, topic: str) -> bytes:
         """The key an input on the (resolved) ``topic`` must carry: its ego's under /ego<i>/, else the key itself."""

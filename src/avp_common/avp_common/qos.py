@@ -1,5 +1,6 @@
 """QoS profiles of the AVP graph (REP-2003 and the lock-step design in docs/architecture.md)."""
 
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 
@@ -34,3 +35,16 @@ def reader_qos(latched: bool, depth: int) -> QoSProfile:
     """A sink's reader of a graph topic (recorder, viewers): :data:`LATCHED` for a latched topic, else reliable,
     volatile, keep-last ``depth``."""
     return LATCHED if latched else _reliable(depth, DurabilityPolicy.VOLATILE)
+
+
+#: QoS event handlers of the graph's own readers and writers: none (``event_callbacks=QUIET_READER`` /
+#: ``QUIET_WRITER``). rclpy gives every endpoint two by default (incompatible QoS, incompatible type: each logs a
+#: warning), and its executor walks each of them in Python, and Fast DDS attaches each to its wait set, for every
+#: message a process takes: with the demo's recorder and monitor (about 45 readers) that was two thirds of the
+#: process's CPU, in a live fleet more than a fifth of all the CPU the graph used (docs/benchmarks.md, "QoS event
+#: handlers"). What the warnings told is still told: the graph's endpoints agree by construction (these profiles);
+#: a foreign endpoint of incompatible QoS gets rclpy's warning on its own side, a foreign publisher's messages are
+#: not taken anyway (avp_common.msg_auth), and ``avp demo``/``avp launch`` name a reader that has not matched a
+#: writer the graph shows (avp_bag.recorder.BagRecorder.unmatched).
+QUIET_READER = SubscriptionEventCallbacks(use_default_callbacks=False)
+QUIET_WRITER = PublisherEventCallbacks(use_default_callbacks=False)

@@ -10,7 +10,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from avp_common.conversions import predictions_from_msg
-from avp_common.qos import STATUS
+from avp_common.qos import QUIET_READER, STATUS
 from avp_experiment.metrics import episode_record, prediction_errors
 from avp_msgs.msg import (
     AgentState,
@@ -60,13 +60,15 @@ class EpisodeCollector(Node):
         self.lot = lot  # the lot record of every episode (metrics.lot_record)
         self.begin(-1, False)
         deep = deep_qos()
-        self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, deep)
-        self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
-        self.create_subscription(PredictedTrajectoryArray, "predictions", self._on_preds, deep)
-        self.create_subscription(PlannerDecision, "decision", self._on_decision, deep)
-        self.create_subscription(Observation, "observation", self._on_obs, deep)
+        self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, deep, event_callbacks=QUIET_READER)
+        self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS, event_callbacks=QUIET_READER)
+        self.create_subscription(PredictedTrajectoryArray, "predictions", self._on_preds, deep,
+                                 event_callbacks=QUIET_READER)
+        self.create_subscription(PlannerDecision, "decision", self._on_decision, deep, event_callbacks=QUIET_READER)
+        self.create_subscription(Observation, "observation", self._on_obs, deep, event_callbacks=QUIET_READER)
         # the planner's decision trace, when it publishes one (a user's planner may not)
-        self.create_subscription(DecisionTrace, "avp_planner/debug/decision", self._on_trace, deep)
+        self.create_subscription(DecisionTrace, "avp_planner/debug/decision", self._on_trace, deep,
+                                 event_callbacks=QUIET_READER)
         self.kind_vehicle = AgentState.KIND_VEHICLE
         self.terminal = (EpisodeStatus.STATE_SUCCESS, EpisodeStatus.STATE_COLLISION,
                          EpisodeStatus.STATE_TIMEOUT)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from rclpy.node import Node
 
-from avp_common.qos import STATUS
+from avp_common.qos import QUIET_READER, STATUS
 from avp_experiment.ros_collector import NAMESPACE, STATE_NAMES, deep_qos, status_metrics, with_perception
 from avp_msgs.msg import (
     AgentState,
@@ -39,24 +39,26 @@ class FleetCollector(Node):
         self.k, self.lot, self.lot_rec = int(k), lot, lot_rec
         self.begin(-1, False)
         deep = deep_qos(4000)
-        self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, deep)
-        self.create_subscription(BrakingFor, "debug/braking_for", self._on_braking, deep)
-        self.create_subscription(EpisodeStatus, "episode_status", self._on_lot_status, STATUS)
+        self.create_subscription(GroundTruth, "debug/ground_truth", self._on_gt, deep, event_callbacks=QUIET_READER)
+        self.create_subscription(BrakingFor, "debug/braking_for", self._on_braking, deep, event_callbacks=QUIET_READER)
+        self.create_subscription(EpisodeStatus, "episode_status", self._on_lot_status, STATUS,
+                                 event_callbacks=QUIET_READER)
         for i in range(self.k):
             ns = f"{NAMESPACE}/ego{i}"
             self.create_subscription(EpisodeStatus, f"{ns}/episode_status",
-                                     lambda m, i=i: self._on_status(i, m), STATUS)
-            self.create_subscription(PlannerDecision, f"{ns}/decision", lambda m, i=i: self._on_decision(i, m), deep)
+                                     lambda m, i=i: self._on_status(i, m), STATUS, event_callbacks=QUIET_READER)
+            self.create_subscription(PlannerDecision, f"{ns}/decision", lambda m, i=i: self._on_decision(i, m), deep,
+                                     event_callbacks=QUIET_READER)
             self.create_subscription(DecisionTrace, f"{ns}/avp_planner/debug/decision",
-                                     lambda m, i=i: self._on_trace(i, m), deep)
+                                     lambda m, i=i: self._on_trace(i, m), deep, event_callbacks=QUIET_READER)
             self.create_subscription(Observation, f"{ns}/observation",
                                      lambda m, info, i=i: self.t_obs[i].setdefault(int(m.step),
                                                                                    int(info["source_timestamp"])),
-                                     deep)
+                                     deep, event_callbacks=QUIET_READER)
             self.create_subscription(PredictedTrajectoryArray, f"{ns}/predictions",
                                      lambda m, info, i=i: self.t_preds[i].setdefault(int(m.step),
                                                                                      int(info["source_timestamp"])),
-                                     deep)
+                                     deep, event_callbacks=QUIET_READER)
 
     def begin(self, seed: int, reactive: bool) -> None:
         """Forget the last episode; collect the episode (``seed``, ``reactive``)."""

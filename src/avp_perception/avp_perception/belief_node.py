@@ -46,7 +46,7 @@ from avp_common.conversions import (
 from avp_common.msg_auth import Authenticator, episode_of, with_episode
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
-from avp_common.qos import DEBUG, LATCHED, STEP, STEP_INPUT
+from avp_common.qos import DEBUG, LATCHED, QUIET_WRITER, STEP, STEP_INPUT
 from avp_common.ratelog import RateLimitedLog
 from avp_common.step_answers import StepAnswers
 from avp_msgs.msg import IntentionArray, LotMap, Observation, SpotBeliefs
@@ -97,8 +97,9 @@ class BeliefNode(Node):
         self.pub_beliefs = self.auth.publisher(SpotBeliefs, "beliefs", STEP)
         self.pub_intentions = self.auth.publisher(IntentionArray, "intentions", STEP)
         self.pub_ego = self.auth.publisher(IntentionArray, "ego_intention", STEP) if self.ego_intent else None
-        self.pub_bev = self.create_publisher(Image, "debug/bev", DEBUG)
-        self.pub_occupancy = self.create_publisher(OccupancyGrid, "debug/occupancy", DEBUG)
+        self.pub_bev = self.create_publisher(Image, "debug/bev", DEBUG, event_callbacks=QUIET_WRITER)
+        self.pub_occupancy = self.create_publisher(OccupancyGrid, "debug/occupancy", DEBUG,
+                                                   event_callbacks=QUIET_WRITER)
         self.auth.subscription(LotMap, "lot_map", self._on_lot, LATCHED)
         self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP_INPUT)
         self.get_logger().info(f"belief source '{self.source}'" + (", ego intention on ego_intention"

@@ -25,7 +25,7 @@ from rclpy.node import Node
 from avp_common.conversions import time_to_ns
 from avp_common.msg_auth import Authenticator, episode_of
 from avp_common.params import ParamSpec, declare_and_validate
-from avp_common.qos import STATUS, STEP
+from avp_common.qos import QUIET_READER, STATUS, STEP
 from avp_common.ratelog import RateLimitedLog
 from avp_msgs.msg import EpisodeStatus, Observation, PlannerDecision
 
@@ -80,7 +80,7 @@ class LockstepRelay(Node):
                                    read=self.read_input)
             self.auth.subscription(PlannerDecision, f"ego{i}/decision", lambda m, i=i: self._on_decision(i, m), STEP)
             self.create_subscription(EpisodeStatus, f"ego{i}/episode_status", lambda m, i=i: self._on_status(i, m),
-                                     STATUS)
+                                     STATUS, event_callbacks=QUIET_READER)
         self._new_episode(-1)
         self.create_timer(0.05, self._forward)  # an observation held for its pipeline's subscribers goes out later
 

@@ -51,7 +51,7 @@ from avp_common.params import (
     dataclass_from_values,
     declare_and_validate,
 )
-from avp_common.qos import LATCHED, RESEND_ANSWER_INTERVAL, STATUS, STEP, STEP_INPUT
+from avp_common.qos import LATCHED, QUIET_READER, QUIET_WRITER, RESEND_ANSWER_INTERVAL, STATUS, STEP, STEP_INPUT
 from avp_common.ratelog import RateLimitedLog
 from avp_msgs.msg import (
     DecisionTrace,
@@ -148,13 +148,13 @@ class PlannerNode(LifecycleNode):
         self.skipped = 0
         self.auth = Authenticator(self, p["auth_inputs"])  # inputs from holders of the key only, cmd tagged
         self.pub_cmd = self.auth.publisher(TwistStamped, "cmd", STEP)
-        self.pub_plan = self.create_publisher(Path, "plan", STEP)
+        self.pub_plan = self.create_publisher(Path, "plan", STEP, event_callbacks=QUIET_WRITER)
         # tagged: the spot-reservation book of several egos reads it (avp_planner.reservation_node)
         self.pub_decision = self.auth.publisher(PlannerDecision, "decision", STEP)
         # why the ego does what it does, every step (the decision trace): mode, idle cause, blocking agent
-        self.pub_trace = self.create_publisher(DecisionTrace, "~/debug/decision", STEP)
+        self.pub_trace = self.create_publisher(DecisionTrace, "~/debug/decision", STEP, event_callbacks=QUIET_WRITER)
         self.trace = DecisionTrace_(0.1)
-        self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", STEP)
+        self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", STEP, event_callbacks=QUIET_WRITER)
         self.auth.subscription(LotMap, "lot_map", self._on_lot, LATCHED)
         self.sub_obs = self.auth.subscription(Observation, "observation", self._on_obs, STEP_INPUT, with_info=True)
         if self.use_beliefs:
@@ -165,7 +165,7 @@ class PlannerNode(LifecycleNode):
             self.auth.subscription(IntentionArray, "ego_intention", self._on_ego_intention, STEP_INPUT)
         if self.use_beacons:  # a fleet's V2V channel (decision.ego_yield)
             self.auth.subscription(EgoBeaconArray, "v2v/beacons", lambda m: self._on_input(self.heard, m), STEP_INPUT)
-        self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS)
+        self.create_subscription(EpisodeStatus, "episode_status", self._on_status, STATUS, event_callbacks=QUIET_READER)
         self.create_timer(0.05, self._check_stale)
         if p["autostart"]:
             self.trigger_configure()

@@ -15,7 +15,7 @@ from typing import Any
 
 from geometry_msgs.msg import TwistStamped
 
-from avp_common.qos import STATUS, STEP, STEP_INPUT
+from avp_common.qos import QUIET_READER, QUIET_WRITER, STATUS, STEP, STEP_INPUT
 from avp_msgs.msg import EpisodeStatus, Observation
 
 #: the most egos one simulator drives (egos.count)
@@ -83,9 +83,11 @@ def make_drivers(node, count: int, n_egos: int, stamped: bool,
 
     out = []
     for j in range(count):
-        sub = node.create_subscription(TwistStamped if stamped else Twist, f"driver{j}/cmd_vel", callback(j), qos)
+        sub = node.create_subscription(TwistStamped if stamped else Twist, f"driver{j}/cmd_vel", callback(j), qos,
+                                       event_callbacks=QUIET_READER)
         out.append(DriverChannel(j, n_egos + j, sub,
-                                 node.create_publisher(EpisodeStatus, f"driver{j}/episode_status", STATUS)))
+                                 node.create_publisher(EpisodeStatus, f"driver{j}/episode_status", STATUS,
+                                                       event_callbacks=QUIET_WRITER)))
     return out
 
 
@@ -101,6 +103,7 @@ def make_channels(node, auth, count: int, on_cmd: Callable[[int, TwistStamped], 
             index=i,
             pub_obs=auth.publisher(Observation, pre + "observation", STEP, ego=ego),
             sub_cmd=auth.subscription(TwistStamped, pre + "cmd", (lambda m, i=i: on_cmd(i, m)), STEP_INPUT),
-            pub_status=node.create_publisher(EpisodeStatus, pre + "episode_status", STATUS) if count > 1 else None,
+            pub_status=node.create_publisher(EpisodeStatus, pre + "episode_status", STATUS,
+                                             event_callbacks=QUIET_WRITER) if count > 1 else None,
         ))
     return channels

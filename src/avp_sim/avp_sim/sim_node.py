@@ -37,7 +37,7 @@ from avp_common.conversions import lot_to_msg, observation_to_msg, step_to_ns, s
 from avp_common.msg_auth import Authenticator, episode_of, with_episode
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
-from avp_common.qos import DEBUG, GROUND_TRUTH, LATCHED, STATUS
+from avp_common.qos import DEBUG, GROUND_TRUTH, LATCHED, QUIET_WRITER, STATUS
 from avp_common.ratelog import RateLimitedLog
 from avp_msgs.msg import AgentState, BrakingFor, EpisodeStatus, GroundTruth
 from avp_msgs.srv import ResetEpisode
@@ -87,14 +87,16 @@ class SimNode(Node):
                              "(lock-step never waits for a person)")
         self.drivers = make_drivers(self, self.p["drivers.count"], len(self.egos), self.p["drivers.stamped"],
                                     self._on_driver)
-        self.pub_status = self.create_publisher(EpisodeStatus, "episode_status", STATUS)
-        self.pub_gt = self.create_publisher(GroundTruth, "debug/ground_truth", GROUND_TRUTH)
+        self.pub_status = self.create_publisher(EpisodeStatus, "episode_status", STATUS, event_callbacks=QUIET_WRITER)
+        self.pub_gt = self.create_publisher(GroundTruth, "debug/ground_truth", GROUND_TRUTH,
+                                            event_callbacks=QUIET_WRITER)
         # several egos: which ego each braking agent brakes for (the gridlock metric; ground truth names ego 0 only)
-        self.pub_braking_for = (self.create_publisher(BrakingFor, "debug/braking_for", GROUND_TRUTH)
+        self.pub_braking_for = (self.create_publisher(BrakingFor, "debug/braking_for", GROUND_TRUTH,
+                                                      event_callbacks=QUIET_WRITER)
                                 if self.p["egos.count"] > 1 else None)
-        self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", DEBUG)
-        self.pub_scan = self.create_publisher(LaserScan, "debug/scan", DEBUG)
-        self.pub_clock = self.create_publisher(Clock, "/clock", 10)
+        self.pub_markers = self.create_publisher(MarkerArray, "debug/markers", DEBUG, event_callbacks=QUIET_WRITER)
+        self.pub_scan = self.create_publisher(LaserScan, "debug/scan", DEBUG, event_callbacks=QUIET_WRITER)
+        self.pub_clock = self.create_publisher(Clock, "/clock", 10, event_callbacks=QUIET_WRITER)
         self.srv = self.create_service(ResetEpisode, "reset_episode", self._on_reset)
         self.pub_lot.publish(lot_to_msg(self.lot))
         self.world: World | None = None

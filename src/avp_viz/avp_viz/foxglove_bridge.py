@@ -19,7 +19,7 @@ from rclpy.node import Node
 
 from avp_bag.recorder import GRAPH_TOPICS
 from avp_bag.typestore import make_typestore, message_class
-from avp_common.qos import reader_qos
+from avp_common.qos import QUIET_READER, reader_qos
 
 #: topic -> (type, latched): what the 3-D panel and the plots need (types and latching as the bags record them)
 VIEW_TOPICS: dict[str, tuple[str, bool]] = {t: GRAPH_TOPICS[t] for t in (
@@ -73,8 +73,10 @@ class FoxgloveBridge(Node):
             schema = foxglove.Schema(name=typename, encoding="ros2msg", data=msgdef.encode())
             self.channels[topic] = foxglove.Channel(topic, schema=schema, message_encoding="cdr")
             qos = reader_qos(latched, 10)
-            self.create_subscription(message_class(typename), topic, self._forward(topic, latched), qos, raw=True)
-        self.create_subscription(message_class("rosgraph_msgs/msg/Clock"), "/clock", self._on_clock, 10)
+            self.create_subscription(message_class(typename), topic, self._forward(topic, latched), qos, raw=True,
+                                     event_callbacks=QUIET_READER)
+        self.create_subscription(message_class("rosgraph_msgs/msg/Clock"), "/clock", self._on_clock, 10,
+                                 event_callbacks=QUIET_READER)
         self._resend = self.create_timer(LATCH_RESEND, self._resend_latched)
 
     def _on_clock(self, msg) -> None:

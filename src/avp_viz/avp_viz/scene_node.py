@@ -30,7 +30,7 @@ from avp_common.conversions import MessageError, beliefs_from_msg, lot_from_msg_
 from avp_common.msg_auth import Authenticator
 from avp_common.node_main import run_node
 from avp_common.params import ParamSpec, declare_and_validate
-from avp_common.qos import DEBUG, LATCHED, STEP_INPUT, reader_qos
+from avp_common.qos import DEBUG, LATCHED, QUIET_READER, QUIET_WRITER, STEP_INPUT, reader_qos
 from avp_common.ratelog import RateLimitedLog
 from avp_msgs.msg import DecisionTrace, LotMap, Observation, PlannerDecision, PredictedTrajectoryArray, SpotBeliefs
 from avp_viz import scene
@@ -68,22 +68,24 @@ class SceneNode(Node):
         self.published = -1  # the last step whose scene went out
         self.reject = RateLimitedLog(self.get_logger().error)
         self.auth = Authenticator(self, p["auth_inputs"])
-        self.pub_scene = self.create_publisher(MarkerArray, "viz/scene", DEBUG)
-        self.pub_lot = self.create_publisher(MarkerArray, "viz/lot", LATCHED)
-        self.pub_spots = self.create_publisher(MarkerArray, "viz/spots", LATCHED)
+        self.pub_scene = self.create_publisher(MarkerArray, "viz/scene", DEBUG, event_callbacks=QUIET_WRITER)
+        self.pub_lot = self.create_publisher(MarkerArray, "viz/lot", LATCHED, event_callbacks=QUIET_WRITER)
+        self.pub_spots = self.create_publisher(MarkerArray, "viz/spots", LATCHED, event_callbacks=QUIET_WRITER)
         self.fill: scene.SpotFill | None = None
         self.levels: np.ndarray | None = None  # the spot colour levels last published
         if self.publish_tf:
-            self.pub_tf = self.create_publisher(TFMessage, "/tf", TF)
-            self.pub_tf_static = self.create_publisher(TFMessage, "/tf_static", LATCHED)
+            self.pub_tf = self.create_publisher(TFMessage, "/tf", TF, event_callbacks=QUIET_WRITER)
+            self.pub_tf_static = self.create_publisher(TFMessage, "/tf_static", LATCHED, event_callbacks=QUIET_WRITER)
         self.auth.subscription(LotMap, "lot_map", self._on_lot, LATCHED)
         self.auth.subscription(Observation, "observation", self._on_obs, STEP_INPUT)
         self.auth.subscription(SpotBeliefs, "beliefs", self._on_beliefs, STEP_INPUT)
         self.auth.subscription(PredictedTrajectoryArray, "predictions", self._on_preds, STEP_INPUT)
-        self.create_subscription(PlannerDecision, "decision", self._on_decision, STEP_INPUT)
+        self.create_subscription(PlannerDecision, "decision", self._on_decision, STEP_INPUT,
+                                 event_callbacks=QUIET_READER)
         self.traces: dict[int, DecisionTrace] = {}  # the planner's decision trace: drawn when it is there
         self.create_subscription(DecisionTrace, "avp_planner/debug/decision",
-                                 lambda m: self.traces.__setitem__(int(m.step), m), STEP_INPUT)
+                                 lambda m: self.traces.__setitem__(int(m.step), m), STEP_INPUT,
+                                 event_callbacks=QUIET_READER)
 
     def _on_lot(self, msg: LotMap) -> None:
         lot = lot_from_msg_or_log(msg, self.get_logger())
