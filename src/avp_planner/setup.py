@@ -6,7 +6,7 @@ package_name = "avp_planner"
 
 setup(
     name=package_name,
-    version="0.16.0",
+    version="0.17.0",
     packages=find_packages(exclude=["test"]),
     package_data={package_name: ["maps/*.yaml", "models/*"]},
     data_files=[

@@ -1,3 +1,3 @@
 """The release of the stack (CHANGELOG.md; every package.xml and setup.py say the same, tests/test_versions.py)."""
 
-__version__ = "0.16.0"
+__version__ = "0.17.0"
