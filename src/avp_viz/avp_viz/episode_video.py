@@ -31,6 +31,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from avp_viz.palette import mark_seen
 from avp_viz.render import DYNAMIC, EGO, EGO_BGR, PARKED, RAY, ROAD, Canvas, legend_band
 from avp_world.geometry import rect_corners
 from avp_world.lot import LotMap
@@ -295,8 +296,7 @@ def render_frames(rec: EpisodeRecording, stride: int = 1, px_per_m: float = 12.0
     for k in steps:
         o = rec.observations.get(k)
         if o is not None:
-            for sid in (*np.asarray(o.vacant_spot_ids).tolist(), *np.asarray(o.occupied_spot_ids).tolist()):
-                seen[rec.lot.spot_index(int(sid))] = True
+            mark_seen(seen, rec.lot, o)
         if k in want:
             frames.append(render_frame(rec, k, seen, px_per_m, title))
     return frames

@@ -34,6 +34,7 @@ from avp_common.qos import DEBUG, LATCHED, QUIET_READER, QUIET_WRITER, STEP_INPU
 from avp_common.ratelog import RateLimitedLog
 from avp_msgs.msg import DecisionTrace, LotMap, Observation, PlannerDecision, PredictedTrajectoryArray, SpotBeliefs
 from avp_viz import scene
+from avp_viz.palette import mark_seen
 
 SCENE_PARAMS = [
     ParamSpec("auth_inputs", bool, "Take lot_map, observation, beliefs and predictions only when tagged with the "
@@ -147,9 +148,7 @@ class SceneNode(Node):
             return
         if self.seen is None:
             self.seen = np.zeros(self.lot.n_spots, dtype=bool)
-        for sid in (*obs.vacant_spot_ids, *obs.occupied_spot_ids):
-            if self.lot.has_spot(int(sid)):
-                self.seen[self.lot.spot_index(int(sid))] = True
+        mark_seen(self.seen, self.lot, obs)
         beliefs = self.beliefs.get(k)
         if beliefs is not None:
             beliefs = np.where(self.seen, beliefs, np.nan)
