@@ -158,7 +158,7 @@ def test_planner_node_reads_the_ego_intention_message(paper_lot):
     from avp_common.conversions import MessageError
     from avp_msgs.msg import Intention as IntentionMsg
     from avp_msgs.msg import IntentionArray
-    from avp_planner.planner_node import ego_priority_from_msg
+    from avp_planner.decision_msg import ego_priority_from_msg
 
     def msg(*its):
         m = IntentionArray()

@@ -25,26 +25,21 @@ import time
 from collections.abc import Callable
 from dataclasses import replace
 
-import numpy as np
 import rclpy
-from geometry_msgs.msg import PoseStamped, TwistStamped
+from geometry_msgs.msg import TwistStamped
 from nav_msgs.msg import Path
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
-from std_msgs.msg import ColorRGBA, Header
-from visualization_msgs.msg import Marker, MarkerArray
+from visualization_msgs.msg import MarkerArray
 
 from avp_common.conversions import (
     MessageError,
     beacons_from_msg,
     beliefs_from_msg,
-    check_probabilities,
     lot_from_msg_or_log,
     observation_from_msg,
-    poses_to_msg,
     predictions_from_msg,
 )
 from avp_common.lifecycle import guard_lifecycle_services
-from avp_common.markers import quat_z
 from avp_common.msg_auth import Authenticator, episode_of, with_episode
 from avp_common.node_main import run_node
 from avp_common.params import (
@@ -64,35 +59,15 @@ from avp_msgs.msg import (
     PredictedTrajectoryArray,
     SpotBeliefs,
 )
-from avp_planner.core.ego_yield import announcement
 from avp_planner.core.settings import DEFAULT_SETTINGS
 from avp_planner.core.spot_selection import spot_selector_class
 from avp_planner.core.trace import DecisionTrace as DecisionTrace_
+from avp_planner.decision_msg import decision_msg, ego_priority_from_msg, plan_markers, plan_msg
 from avp_planner.params import PLANNER_PARAMS
 from avp_planner.trace_msg import trace_to_msg
 
 MIN_REALTIME_BUDGET = 0.01  # s of searching a real-time decision always gets (realtime_decision_deadline)
 MAX_PENDING = 100  # observations kept while their other inputs are awaited (10 s of steps)
-MODES = {"idle": PlannerDecision.MODE_IDLE, "park": PlannerDecision.MODE_PARK, "explore": PlannerDecision.MODE_EXPLORE}
-
-
-def ego_priority_from_msg(msg: IntentionArray, lot) -> np.ndarray:
-    """The spot order of the "Implicit" method from an ego_intention message (one Intention: spot ids and
-    float32 eta_0,i): decreasing probability, ties smaller id first. MessageError for anything but exactly one
-    intention, sizes that differ, NaN/inf or probabilities outside [0, 1], unknown spot ids."""
-    from avp_world.types import priority_from_probabilities
-
-    if len(msg.intentions) != 1:
-        raise MessageError(f"expected exactly one intention (the ego's), got {len(msg.intentions)}")
-    m = msg.intentions[0]
-    if len(m.spot_ids) != len(m.spot_probabilities):
-        raise MessageError(f"{len(m.spot_ids)} spot ids but {len(m.spot_probabilities)} probabilities")
-    ids = np.asarray(m.spot_ids, dtype=np.int64)
-    unknown = [int(i) for i in ids if not lot.has_spot(int(i))]
-    if unknown:
-        raise MessageError(f"unknown spot id {unknown[0]}")
-    p = check_probabilities(m.spot_probabilities, "spot_probabilities")
-    return priority_from_probabilities(ids, p)
 
 
 class PlannerNode(LifecycleNode):
@@ -382,59 +357,13 @@ class PlannerNode(LifecycleNode):
         self.pub_cmd.publish(cmd)  # tagged (avp_common.msg_auth)
 
     def _publish_decision(self, obs_msg: Observation, d, total: float) -> None:
-        path = Path()
-        path.header.stamp = obs_msg.header.stamp
-        path.header.frame_id = "map"
-        poses = np.asarray(getattr(d, "poses", np.zeros((0, 3))))
-        for q in poses[:: max(1, len(poses) // 200)] if len(poses) else []:
-            ps = PoseStamped()
-            ps.header = path.header
-            ps.pose.position.x, ps.pose.position.y = float(q[0]), float(q[1])
-            ps.pose.orientation.z, ps.pose.orientation.w = quat_z(float(q[2]))
-            path.poses.append(ps)
+        path = plan_msg(obs_msg.header.stamp, getattr(d, "poses", None))
         self.pub_plan.publish(path)
-        msg = PlannerDecision()
-        msg.header = Header(stamp=path.header.stamp, frame_id=with_episode("map", self.episode))  # tagged (own copy)
-        msg.step = obs_msg.step
-        msg.mode = MODES.get(d.mode, PlannerDecision.MODE_IDLE)
-        msg.spot_id = int(d.spot_id)
-        goal = getattr(d, "goal", None)
-        if goal is not None and len(goal) == 3:
-            msg.goal.x, msg.goal.y, msg.goal.theta = (float(x) for x in goal)
-        msg.plan = path
-        msg.n_candidates = int(getattr(d, "n_candidates", 0))
-        timings = getattr(d, "timings", {}) or {}
-        msg.spot_selection_time = float(timings.get("spot_selection_time", 0.0))
-        msg.path_planning_time = float(timings.get("path_planning_time", total))
-        msg.reason = str(getattr(d, "reason", ""))
-        waiting, announced = announcement(d)  # what a fleet's channel (v2v_node) turns into this ego's beacon
-        msg.waiting, msg.announced = waiting, poses_to_msg(announced)
-        self.pub_decision.publish(msg)
+        msg = decision_msg(d, path, int(obs_msg.step), self.episode, total)
+        self.pub_decision.publish(msg)  # tagged (avp_common.msg_auth)
         self.pub_trace.publish(trace_to_msg(path.header, int(obs_msg.step), d,
                                             self.trace.add(int(obs_msg.step), d)))
-        self.pub_markers.publish(self._markers(path, msg))
-
-    def _markers(self, path: Path, d: PlannerDecision) -> MarkerArray:
-        """The plan (line strip, green when parking, blue when exploring) and its goal (arrow)."""
-        arr = MarkerArray()
-        clear = Marker()
-        clear.action = Marker.DELETEALL
-        arr.markers.append(clear)
-        color = ColorRGBA(r=0.1, g=0.8, b=0.2, a=0.9) if d.mode == PlannerDecision.MODE_PARK else ColorRGBA(
-            r=0.2, g=0.4, b=1.0, a=0.9)
-        line = Marker(ns="plan", id=0, type=Marker.LINE_STRIP, action=Marker.ADD, color=color)
-        line.header = path.header
-        line.scale.x = 0.15
-        line.points = [ps.pose.position for ps in path.poses]
-        arr.markers.append(line)
-        if d.mode != PlannerDecision.MODE_IDLE:
-            goal = Marker(ns="goal", id=0, type=Marker.ARROW, action=Marker.ADD, color=color)
-            goal.header = path.header
-            goal.pose.position.x, goal.pose.position.y = d.goal.x, d.goal.y
-            goal.pose.orientation.z, goal.pose.orientation.w = quat_z(d.goal.theta)
-            goal.scale.x, goal.scale.y, goal.scale.z = 2.0, 0.4, 0.4
-            arr.markers.append(goal)
-        return arr
+        self.pub_markers.publish(plan_markers(path, msg))
 
 
 def main(args=None) -> int:
