@@ -44,7 +44,8 @@ def reader_qos(latched: bool, depth: int) -> QoSProfile:
 #: process's CPU, in a live fleet more than a fifth of all the CPU the graph used (docs/benchmarks.md, "QoS event
 #: handlers"). What the warnings told is still told: the graph's endpoints agree by construction (these profiles);
 #: a foreign endpoint of incompatible QoS gets rclpy's warning on its own side, a foreign publisher's messages are
-#: not taken anyway (avp_common.msg_auth), and ``avp demo``/``avp launch`` name a reader that has not matched a
-#: writer the graph shows (avp_bag.recorder.BagRecorder.unmatched).
+#: not taken anyway (avp_common.msg_auth), and the recorder (``avp record``, ``avp demo``) names a reader that has
+#: matched no writer the graph shows for 10 s (avp_bag.recorder.BagRecorder.warn_unmatched_after). A driven car's
+#: channel, where a person's tools connect (avp_sim.ego_channels.make_drivers), keeps rclpy's handlers.
 QUIET_READER = SubscriptionEventCallbacks(use_default_callbacks=False)
 QUIET_WRITER = PublisherEventCallbacks(use_default_callbacks=False)
