@@ -361,8 +361,7 @@ def _counts(node) -> tuple[int, int]:
 def test_the_graphs_endpoints_have_no_qos_event_handlers(ros, tmp_path):
     """Every reader and writer of the graph's nodes and observers is made without rclpy's default QoS event handlers
     (avp_common.qos.QUIET_READER / QUIET_WRITER): each is a waitable the executor walks for every message taken. Only
-    rclpy's own writer of /parameter_events, which every node has, keeps its two, and a driven car's channel in the
-    simulator (its cmd_vel reader and episode_status writer, a person's tools' side: avp_sim.ego_channels) its four."""
+    rclpy's own writer of /parameter_events, which every node has, keeps its two."""
     import importlib
     import inspect
 
@@ -402,7 +401,5 @@ def test_the_graphs_endpoints_have_no_qos_event_handlers(ros, tmp_path):
                 node.close()
             node.destroy_node()
     assert len(counts) == len(_GRAPH_NODES) + 3
-    kept = {"SimNode": 4}  # one driven car's channel (drivers.count:=1)
     for name, (endpoints, handlers) in counts.items():
-        assert endpoints > 2 and handlers == base + kept.get(name, 0), \
-            f"{name}: {endpoints} readers/writers, {handlers} event handlers"
+        assert endpoints > 2 and handlers == base, f"{name}: {endpoints} readers/writers, {handlers} event handlers"

@@ -15,7 +15,7 @@ from typing import Any
 
 from geometry_msgs.msg import TwistStamped
 
-from avp_common.qos import QUIET_WRITER, STATUS, STEP, STEP_INPUT
+from avp_common.qos import QUIET_READER, QUIET_WRITER, STATUS, STEP, STEP_INPUT
 from avp_msgs.msg import EpisodeStatus, Observation
 
 #: the most egos one simulator drives (egos.count)
@@ -69,9 +69,7 @@ class DriverChannel:
 def make_drivers(node, count: int, n_egos: int, stamped: bool,
                  on_cmd: Callable[[int, float, float], None]) -> list[DriverChannel]:
     """The ``count`` driven cars' subscriptions: best effort, so that reliable and best-effort publishers (a
-    teleop node, Foxglove's bridge) both match; untagged (a person's keyboard or viewer, not the pipeline). Unlike the
-    graph's own endpoints they keep rclpy's QoS event handlers: a person's tool is where a wrong type (``Twist``
-    against ``drivers.stamped``) or QoS happens, and a few messages a second cost them nothing."""
+    teleop node, Foxglove's bridge) both match; untagged (a person's keyboard or viewer, not the pipeline)."""
     from geometry_msgs.msg import Twist
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -85,9 +83,11 @@ def make_drivers(node, count: int, n_egos: int, stamped: bool,
 
     out = []
     for j in range(count):
-        sub = node.create_subscription(TwistStamped if stamped else Twist, f"driver{j}/cmd_vel", callback(j), qos)
+        sub = node.create_subscription(TwistStamped if stamped else Twist, f"driver{j}/cmd_vel", callback(j), qos,
+                                       event_callbacks=QUIET_READER)
         out.append(DriverChannel(j, n_egos + j, sub,
-                                 node.create_publisher(EpisodeStatus, f"driver{j}/episode_status", STATUS)))
+                                 node.create_publisher(EpisodeStatus, f"driver{j}/episode_status", STATUS,
+                                                       event_callbacks=QUIET_WRITER)))
     return out
 
 
