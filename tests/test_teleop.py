@@ -433,3 +433,36 @@ def test_demo_drive_records_the_driven_car_and_metrics_recompute_it(ros_env, tmp
     car = ego_metrics_from_bag(bag, 0, driver=True)  # `avp metrics BAG --driver 0`: the driven car's own record
     assert car["driver"] == 0 and car["entered_step"] is not None and car["steps_in_the_lot"] > 0, car
     assert car["interrupted_steps"] >= 0 and car["collision"] == (car["collision_with"] != "")
+
+
+def test_a_driver_of_the_other_message_type_is_named(ros_env, tmp_path, monkeypatch):
+    """A person's tool sending ``Twist`` where the simulator reads ``TwistStamped`` (``drivers.stamped: true``)
+    matches no reader and DDS tells neither side: the simulator names that publisher, its node and type, in one
+    warning (avp_sim.ego_channels.DriverTypeCheck), and the car does not move."""
+    import rclpy
+    from geometry_msgs.msg import Twist, Vector3
+
+    for k, v in ros_env.items():
+        monkeypatch.setenv(k, v)
+    rclpy.init()
+    node = rclpy.create_node("wrong_type_driver", namespace="/avp")
+    pub = node.create_publisher(Twist, "driver0/cmd_vel", 10)
+    driven = _Driven(node)
+    graph = _sim(tmp_path, **{"drivers.stamped": True})
+    graph.start()
+    log = tmp_path / "logs" / "avp_sim.log"
+    wanted = "/avp/driver0/cmd_vel: /avp/wrong_type_driver publishes geometry_msgs/msg/Twist, but the simulator reads "
+    try:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 60 and not (len(driven.poses) >= 10 and log.exists()
+                                                  and wanted in log.read_text()):
+            pub.publish(Twist(linear=Vector3(x=1.0)))
+            _spin_for(node, 0.1)
+    finally:
+        graph.stop()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    text = log.read_text()
+    assert wanted + "geometry_msgs/msg/TwistStamped (drivers.stamped: true): its commands never arrive" in text, text
+    assert text.count(wanted) == 1  # once, though it kept publishing
+    assert driven.poses and all(v == 0.0 for _, v, _ in driven.moves())

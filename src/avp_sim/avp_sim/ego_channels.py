@@ -91,6 +91,32 @@ def make_drivers(node, count: int, n_egos: int, stamped: bool,
     return out
 
 
+class DriverTypeCheck:
+    """Names, once each, a publisher on a driven car's ``cmd_vel`` of the other message type (``Twist`` where
+    ``drivers.stamped: true`` reads ``TwistStamped``, or the reverse): such a writer matches no reader, and neither
+    side is told (Fast DDS fires no incompatible-type event, rclpy's default handlers or not), so the car would just
+    stand. Checked every ``period`` s on the node's graph (a timer of ``node``); :attr:`warned` holds what was named."""
+
+    def __init__(self, node, drivers: list[DriverChannel], stamped: bool, period: float = 1.0) -> None:
+        self.node, self.drivers = node, drivers
+        self.want = "geometry_msgs/msg/TwistStamped" if stamped else "geometry_msgs/msg/Twist"
+        self.stamped = bool(stamped)
+        self.warned: set[tuple[str, str, str]] = set()  # (topic, publisher node, its type)
+        self.timer = node.create_timer(period, self.check)
+
+    def check(self) -> None:
+        for d in self.drivers:
+            topic = d.sub.topic_name
+            for info in self.node.get_publishers_info_by_topic(topic):
+                who = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                key = (topic, who, info.topic_type)
+                if info.topic_type != self.want and key not in self.warned:
+                    self.warned.add(key)
+                    self.node.get_logger().warning(
+                        f"{topic}: {who} publishes {info.topic_type}, but the simulator reads {self.want} "
+                        f"(drivers.stamped: {str(self.stamped).lower()}): its commands never arrive")
+
+
 def make_channels(node, auth, count: int, on_cmd: Callable[[int, TwistStamped], None]) -> list[EgoChannel]:
     """The ``count`` egos' channels of the simulator ``node`` (with its Authenticator ``auth``)."""
     if not 1 <= count <= MAX_EGOS:

@@ -44,7 +44,7 @@ from avp_msgs.srv import ResetEpisode
 from avp_sim.core.factory import load_lot_param, make_world, world_config
 from avp_sim.core.scenario_source import requested_scenario, served_dirs
 from avp_sim.core.world import COLLISION, RUNNING, SUCCESS, TIMEOUT, World
-from avp_sim.ego_channels import EgoChannel, make_channels, make_drivers
+from avp_sim.ego_channels import DriverTypeCheck, EgoChannel, make_channels, make_drivers
 from avp_sim.markers import world_markers
 from avp_sim.params import SIM_PARAMS
 
@@ -87,6 +87,7 @@ class SimNode(Node):
                              "(lock-step never waits for a person)")
         self.drivers = make_drivers(self, self.p["drivers.count"], len(self.egos), self.p["drivers.stamped"],
                                     self._on_driver)
+        self.driver_types = DriverTypeCheck(self, self.drivers, self.p["drivers.stamped"]) if self.drivers else None
         self.pub_status = self.create_publisher(EpisodeStatus, "episode_status", STATUS, event_callbacks=QUIET_WRITER)
         self.pub_gt = self.create_publisher(GroundTruth, "debug/ground_truth", GROUND_TRUTH,
                                             event_callbacks=QUIET_WRITER)
