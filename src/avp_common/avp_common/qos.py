@@ -47,6 +47,7 @@ def reader_qos(latched: bool, depth: int) -> QoSProfile:
 #: not taken anyway (avp_common.msg_auth), and the recorder (``avp record``, ``avp demo``) names a reader that has
 #: matched no writer the graph shows for 10 s (avp_bag.recorder.BagRecorder.warn_unmatched_after). A writer of
 #: another type on a topic (a ``Twist`` where a ``TwistStamped`` is read) matches nothing and gets no warning from
-#: Fast DDS even with the handlers (tried: neither side logs one).
+#: Fast DDS even with the handlers (tried: neither side logs one); where a person's tool connects, a driven car's
+#: ``cmd_vel``, the simulator names such a writer itself (avp_sim.ego_channels.DriverTypeCheck).
 QUIET_READER = SubscriptionEventCallbacks(use_default_callbacks=False)
 QUIET_WRITER = PublisherEventCallbacks(use_default_callbacks=False)
