@@ -142,9 +142,9 @@ class BagRecorder(Node):
         return [t for t, sub in self._subs.items()
                 if sub.get_publisher_count() == 0 and (t in required or self.count_publishers(t) > 0)]
 
-    def _watch_matches(self, now: float | None = None) -> None:
+    def _watch_matches(self) -> None:
         """Name each reader that has matched no writer for :attr:`warn_unmatched_after` s while the graph shows one."""
-        now = time.monotonic() if now is None else now
+        now = time.monotonic()
         late = set(self.unmatched())
         self._unmatched_since = {t: self._unmatched_since.get(t, now) for t in late}
         due = sorted(t for t, t0 in self._unmatched_since.items()

@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
         if getattr(args, "drive", False):  # what the person sent
             topics["/avp/driver0/cmd_vel"] = ("geometry_msgs/msg/Twist", False)
             topics["/avp/driver0/episode_status"] = ("avp_msgs/msg/EpisodeStatus", True)
-        recorder = BagRecorder(bag, topics)
+        recorder = BagRecorder(bag, topics, warn_unmatched_after=LATE_MATCH_WAIT)  # its warning ends the wait
     except BagWriteError as exc:
         print(f"[avp demo] {exc}", file=sys.stderr)
         rclpy.try_shutdown()
@@ -279,7 +279,7 @@ def _start_episode(monitor, recorder, executor, graph, srv_type, args, n_obs_sub
     writers, and a second for discovery to settle, then start the episode with reset_episode (RuntimeError when
     that fails). The recorder's other readers get up to :data:`LATE_MATCH_WAIT` s more; one that still has not
     matched a writer the graph shows (a foreign publisher of incompatible QoS, say) is named in the recorder's warning
-    (:attr:`avp_bag.recorder.BagRecorder.warn_unmatched_after`, the same time)."""
+    (:attr:`avp_bag.recorder.BagRecorder.warn_unmatched_after`, set to the same time)."""
     from avp_common.services import call_once
 
     client = monitor.create_client(srv_type, "reset_episode")
