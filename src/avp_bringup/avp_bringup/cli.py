@@ -34,7 +34,6 @@
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import time
 from pathlib import Path
@@ -48,6 +47,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
 
 def cmd_launch(args: argparse.Namespace) -> int:
     from avp_bringup.graph import Graph, default_log_dir, ego_graph, fleet_graph, with_params, with_scene
+    from avp_common.lifetime import hang_up_as_terminate
 
     log_dir = default_log_dir(args.log_dir)
     try:
@@ -79,7 +79,9 @@ def cmd_launch(args: argparse.Namespace) -> int:
         print(f"[avp]   {name}: pid {p.pid}  log {log_dir / (name + '.log')}")
     print("[avp] Ctrl-C stops the graph")
     stop = {"flag": False}
-    signal.signal(signal.SIGTERM, lambda *_: stop.update(flag=True))
+    # SIGTERM and SIGHUP (its terminal closed) stop the graph as Ctrl-C does; SIGKILL cannot be caught, and the
+    # nodes end then by themselves (avp_common.lifetime)
+    hang_up_as_terminate(lambda *_: stop.update(flag=True))
     viewer = _foxglove(args, drive=args.drivers > 0, egos=len(fleet) or 1)  # (bridge, executor) or None
     if args.drivers:
         print(f"[avp] {args.drivers} driven car(s): `avp teleop --driver J` in another terminal, or Foxglove's Teleop "

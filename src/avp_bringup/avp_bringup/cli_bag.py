@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import time
 from pathlib import Path
@@ -46,7 +45,9 @@ def cmd_record(args: argparse.Namespace) -> int:
         return 2
     print(f"[avp record] recording {len(topics)} topics to {args.out} ({args.storage}); Ctrl-C stops")
     stop = {"flag": False}
-    signal.signal(signal.SIGTERM, lambda *_: stop.update(flag=True))
+    from avp_common.lifetime import hang_up_as_terminate
+
+    hang_up_as_terminate(lambda *_: stop.update(flag=True))  # SIGTERM, SIGHUP: the bag closed cleanly
     t0 = time.monotonic()
     try:
         while not stop["flag"] and (args.duration is None or time.monotonic() - t0 < args.duration):

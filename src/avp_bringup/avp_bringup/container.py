@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
+from avp_common.lifetime import end_with_starter
 from avp_common.node_main import ctrl_c_in_finaliser_hook, freeze_start_up_heap, install_stop_handlers, stopping
 from avp_common.params import ParameterError
 from avp_common.received import share_received
@@ -85,6 +86,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"[component_container] start-up failed: {exc}", file=sys.stderr)
         return 2
     install_stop_handlers()
+    end_with_starter()  # SIGTERM when the graph's launcher ends, however it ended (avp_common.lifetime)
     share_received()  # the nodes of one process share what they receive (avp_common.received)
     rclpy.init(args=[])
     hook, sys.unraisablehook = sys.unraisablehook, ctrl_c_in_finaliser_hook

@@ -80,7 +80,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"[avp demo] {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
-    rc, result = _run_episode(args, nodes, recorder, lot)
+    from avp_common.lifetime import interrupt_on_terminate
+
+    interrupt_on_terminate()  # SIGTERM, SIGHUP: the graph stopped and the bag closed, as after Ctrl-C
+    try:
+        rc, result = _run_episode(args, nodes, recorder, lot)
+    except KeyboardInterrupt:
+        print(f"[avp demo] stopped before the episode's end; the bag so far: {bag}", file=sys.stderr)
+        return 130
     if rc:
         return rc
     if recorder.error:

@@ -269,13 +269,23 @@ class Graph:
         return cmd
 
     def start(self) -> None:
+        """Start every node; this process is recorded as the domain's launcher (avp_bringup.launcher_file), which
+        a planner swapped in later ends with."""
+        from avp_bringup.launcher_file import write_launcher
+
         self.log_dir.mkdir(parents=True, exist_ok=True)
+        write_launcher(self.env)
         for spec in self.nodes:
             self.start_node(spec)
 
     def start_node(self, spec: NodeSpec) -> subprocess.Popen:
+        """Start ``spec``'s process in a session of its own (a Ctrl-C in the launcher's terminal reaches the
+        launcher alone, which stops the graph in order), tied to this process: it ends when this one ends, however
+        this one ends (avp_common.lifetime; docs/architecture.md, "Processes")."""
+        from avp_common.lifetime import tie_env
+
         log = open(self.log_dir / f"{spec.key}.log", "ab")  # noqa: SIM115 - owned by the process
-        proc = subprocess.Popen(self.command(spec), stdout=log, stderr=subprocess.STDOUT, env=self.env,
+        proc = subprocess.Popen(self.command(spec), stdout=log, stderr=subprocess.STDOUT, env=tie_env(self.env),
                                 start_new_session=True)
         self.procs[spec.key] = proc
         return proc
@@ -294,6 +304,9 @@ class Graph:
         self.procs[name].send_signal(sig)
 
     def stop(self, timeout: float = 5.0) -> None:
+        from avp_bringup.launcher_file import remove_launcher
+
+        remove_launcher(self.env)
         for p in self.procs.values():
             if p.poll() is None:
                 p.send_signal(signal.SIGINT)

@@ -4,7 +4,8 @@ A *planner* is any node publishing on ``<namespace>/cmd``; to be swappable it mu
 (managed) node (lifecycle_msgs services ``<node>/get_state`` and ``<node>/change_state``). A swap
 
 1. (for a profile) starts ``avp_planner/planner`` as a new process with the profile's parameter file and
-   ``autostart:=false``, detached, and waits for its lifecycle services; it inherits the running planner's
+   ``autostart:=false``, detached from the swap command and tied to the graph's launcher (it ends when the
+   launcher ends, :func:`graph_lifetime_env`), and waits for its lifecycle services; it inherits the running planner's
    inputs (``use_beliefs``, ``use_predictions``, ``use_ego_intention``, ``use_beacons``: e.g. the spot order of
    ``avp launch --method implicit``) and the topic it reads its observation from (a ``reserve`` ego's planner reads
    the reservation node's ``reserved/observation``, the held spots shown as occupied), so that the swap keeps the
@@ -127,8 +128,20 @@ def start_planner_process(name: str, profile: Path, namespace: str, log_dir: Pat
     log_dir.mkdir(parents=True, exist_ok=True)
     log = log_dir / f"{spec.key}.log"
     with open(log, "ab") as f:
-        proc = subprocess.Popen(cmd, stdout=f, stderr=subprocess.STDOUT, env=env, start_new_session=True)
+        proc = subprocess.Popen(cmd, stdout=f, stderr=subprocess.STDOUT, env=graph_lifetime_env(env),
+                                start_new_session=True)
     return proc, log
+
+
+def graph_lifetime_env(env: dict | None = None) -> dict:
+    """The environment of a swapped-in planner: it ends with the launcher of the graph it joins (the domain's
+    launcher file, avp_bringup.launcher_file), never with the swap command; with no launcher recorded (a graph
+    started by other means) it lives on until it is shut down, as a detached process."""
+    from avp_bringup.launcher_file import read_launcher
+    from avp_common.lifetime import tie_env, untie_env
+
+    launcher = read_launcher(env)
+    return tie_env(env, pid=launcher) if launcher is not None else untie_env(env)
 
 
 def unique_name(client: LifecycleClient, namespace: str, base: str) -> str:

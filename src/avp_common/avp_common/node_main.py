@@ -10,6 +10,7 @@ from collections.abc import Callable
 import rclpy
 from rclpy.executors import ExternalShutdownException
 
+from avp_common.lifetime import end_with_starter
 from avp_common.params import ParameterError
 
 _stopping = {"signal": 0}  # the signal (SIGINT / SIGTERM) that asked this process to stop, 0 before one came
@@ -74,6 +75,7 @@ def run_node(factory: Callable[[], object], label: str, args=None) -> int:
     # or wait that fails in the window before the KeyboardInterrupt lands (a pybind11 RuntimeError from
     # take_message under a flood, docs/bad_input.md row 53) is then known to be part of the stop, not a fault
     install_stop_handlers()
+    end_with_starter()  # SIGTERM when the graph's launcher ends, however it ended (avp_common.lifetime)
     rclpy.init(args=args)
     node = None
     hook, sys.unraisablehook = sys.unraisablehook, ctrl_c_in_finaliser_hook

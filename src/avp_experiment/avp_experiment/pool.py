@@ -29,28 +29,24 @@ def worker_signals() -> None:
 
 
 def end_with_parent() -> None:
-    """Linux: this process gets SIGTERM when the process that started it ends (``PR_SET_PDEATHSIG``), so that a
-    killed ``avp experiment`` (SIGKILL, the OOM killer) leaves no workers behind holding a torch model each. The
-    pools start their workers from the main thread, which lives as long as the process. Elsewhere: nothing."""
+    """This process ends when the process that started it ends (avp_common.lifetime: ``PR_SET_PDEATHSIG`` on Linux, a
+    watcher of the parent's pid elsewhere), so that a killed ``avp experiment`` (SIGKILL, the OOM killer) leaves no
+    workers behind holding a torch model each."""
     import multiprocessing
-    import os
-    import signal
+
+    from avp_common.lifetime import end_with_process, start_time
 
     parent = multiprocessing.parent_process()
-    if not sys.platform.startswith("linux") or parent is None:
+    if parent is None or parent.pid is None:
         return
-    import ctypes
-
-    libc = ctypes.CDLL(None, use_errno=True)
-    libc.prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG
-    if os.getppid() != parent.pid:  # the parent ended before the line above
-        os._exit(0)
+    end_with_process(parent.pid, start_time(parent.pid), pdeathsig=True)
 
 
 @contextlib.contextmanager
 def end_workers_on_sigterm(message: str) -> Iterator[None]:
-    """While inside (main thread only, where signal handlers live), SIGTERM prints ``message`` and exits with status
-    143: with pool workers, it ends them and exits at once; without, it raises ``SystemExit(143)``. A scheduler's
+    """While inside (main thread only, where signal handlers live), SIGTERM (and SIGHUP, a closed terminal) prints
+    ``message`` and exits with status 143: with pool workers, it ends them and exits at once; without, it raises
+    ``SystemExit(143)``. A scheduler's
     SIGTERM (Slurm, systemd) leaves seconds before its SIGKILL, not the minutes a running episode may take; the
     records already written stay (each line is fsync'ed, :class:`~.results.ResultsWriter`), and the same command
     runs the rest."""
@@ -76,10 +72,15 @@ def end_workers_on_sigterm(message: str) -> Iterator[None]:
         os._exit(143)
 
     before = signal.signal(signal.SIGTERM, terminated)
+    before_hup = signal.getsignal(signal.SIGHUP)
+    from avp_common.lifetime import hang_up_as_terminate
+
+    hang_up_as_terminate()  # SIGHUP (the terminal closed) as SIGTERM
     try:
         yield
     finally:
         signal.signal(signal.SIGTERM, before)
+        signal.signal(signal.SIGHUP, before_hup)
 
 
 def make_pool(workers: int, initializer: Callable | None = None, initargs: tuple = ()) -> ProcessPoolExecutor:
