@@ -154,7 +154,10 @@ def _exit_after_grace() -> None:
 def hang_up_as_terminate(handler: Callable | None = None) -> None:
     """SIGHUP (the terminal closed, ssh dropped) does what SIGTERM does in this process (main thread only), and
     what it would print to the gone terminal goes to /dev/null instead of failing; ``handler``: install this on
-    both signals first."""
+    both signals first. Ctrl-C (SIGINT) raises KeyboardInterrupt even where the process was started with SIGINT
+    ignored (a background job of a script), as ros2 launch handles it whatever it inherited."""
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     if handler is not None:
         signal.signal(signal.SIGTERM, handler)
     term = signal.getsignal(signal.SIGTERM)
