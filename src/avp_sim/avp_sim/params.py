@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 from avp_common.params import ParamSpec
+from avp_sim.core import sensing as _sensing
 
 SIM_PARAMS: list[ParamSpec] = [
     ParamSpec("lot_file", str, "Lot map YAML; empty = the bundled paper lot (avp_world/maps/paper_lot.yaml).",
@@ -140,6 +141,18 @@ SIM_PARAMS: list[ParamSpec] = [
     ParamSpec("publish_markers", bool, "Publish debug/markers (MarkerArray) and debug/scan (LaserScan), each "
               "built only while it has a subscriber (a viewer or a recorder).",
               default=True),
+]
+
+#: the sensing model (avp_sim.core.sensing; docs/perception.md, "Sensing"): beyond the paper, whose §III-A assumes
+#: "the ego correctly observes every spots and agents it senses" and leaves noisy observations as future work
+SIM_PARAMS += [
+    ParamSpec("sensing.model", str, "exact: the paper's observation (every id, exact history, exact spots); "
+              "realistic / harsh: noisy detections without ids or histories, a localisation estimate, misread spots "
+              "(presets, docs/perception.md); custom: the sensing.* values below (their defaults: realistic).", "",
+              "§III-A", choices=_sensing.MODELS, default="exact"),
+    *(ParamSpec(f"sensing.{f}", float, _sensing.DESCRIPTIONS[f], "", "§III-A", min=0.0,
+                max=1.0 if f in _sensing.PROBABILITIES else None, default=getattr(_sensing.REALISTIC, f))
+      for f in _sensing.FIELDS),
 ]
 
 _ = math  # (symbols documented above)

@@ -118,6 +118,7 @@ class World:
         self.log_braking: list[np.ndarray] = [self.braking.copy()]
         self.log_commands: list[np.ndarray] = []
         self.log_egos: list[np.ndarray] = [self.egos.poses.copy()]
+        self.last_scan = None  # the RayScan of the latest observe() (avp_sim.core.sensing reads it)
         self._check_events()
 
     # ------------------------------------------------------------------ ego 0 (the paper's one ego)
@@ -333,13 +334,14 @@ class World:
 
     def observe(self, i: int = 0) -> Observation:
         """What ego ``i`` senses now: rays stop at the lot boundary, other vehicles (the other egos among them) or dQ
-        (no ground truth)."""
+        (no ground truth). :attr:`last_scan` keeps this call's :class:`~avp_sim.core.observation.RayScan`."""
         eg = self.egos
         if not eg.present[i]:
             raise ValueError(f"ego {i} has not entered the lot yet")
         others = eg.others(i)
         corners, _ = self._with_egos(self.vehicle_corners(), self.vehicle_ids, others)
         scan = self.caster.cast(eg.poses[i], corners, self.ped_pos, self.ped_radii)
+        self.last_scan = scan  # what the rays touched, for a sensing model (avp_sim.core.sensing); not observed
         occupied, vehicle_spot = self.occupancy_with(others)
         seen_spots = scan.seen_spots
         vac = self.lot.spot_ids[seen_spots & ~occupied]

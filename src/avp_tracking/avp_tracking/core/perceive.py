@@ -1,0 +1,61 @@
+"""From a noisy sensor's frame to the observation the ego's pipeline reads: the tracker's tracks in place of the
+simulator's vehicles and pedestrians (docs/perception.md, "Tracking").
+
+What reaches the belief node, the prediction node and the planner is an :class:`~avp_world.types.Observation` as
+before, with every vehicle a confirmed track (its id the tracker's, its history the tracker's own estimates, at most
+``history_steps`` of them, shorter for a young track), every pedestrian a track, and the ego's pose the localisation
+estimate. A track is static (parked: the paper's K_sv) when its centre lies in a spot and it moves slower than
+``static_speed``, the simulator's rule applied to the estimate.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from avp_tracking.core.tracker import Tracker
+from avp_world.detections import SensedFrame
+from avp_world.types import Observation, ObservedPedestrian, ObservedVehicle
+
+
+class SpotTest:
+    """Whether points lie inside a spot of a lot (each spot's rectangle)."""
+
+    def __init__(self, lot):
+        self.poses = np.asarray(lot.spot_poses, dtype=float).reshape(-1, 3)
+        self.half = 0.5 * np.asarray(lot.spot_dims, dtype=float).reshape(-1, 2)
+        self.c, self.s = np.cos(self.poses[:, 2]), np.sin(self.poses[:, 2])
+
+    def inside(self, xy: np.ndarray) -> bool:
+        if not len(self.poses):
+            return False
+        d = np.asarray(xy, dtype=float)[:2] - self.poses[:, :2]
+        u = d[:, 0] * self.c + d[:, 1] * self.s
+        w = -d[:, 0] * self.s + d[:, 1] * self.c
+        return bool(((np.abs(u) <= self.half[:, 0]) & (np.abs(w) <= self.half[:, 1])).any())
+
+
+class TrackingPerception:
+    """The tracker and the conversion of its tracks, one ego's; :meth:`observe` once a step."""
+
+    def __init__(self, lot, tracker: Tracker):
+        self.tracker = tracker
+        self.spots = SpotTest(lot)
+
+    def observe(self, frame: SensedFrame) -> Observation:
+        tracks = self.tracker.update(frame)
+        static_speed = self.tracker.cfg.static_speed
+        vehicles = tuple(
+            ObservedVehicle(id=int(t.id), length=float(t.length), width=float(t.width),
+                            is_static=bool(abs(t.speed) < static_speed and self.spots.inside(t.x[:2])),
+                            history=t.history_array())
+            for t in tracks if not t.pedestrian)
+        peds = tuple(
+            ObservedPedestrian(int(t.id), float(t.radius), t.x[:2].copy(),
+                               (t.previous_position if t.previous_position is not None else t.x[:2]).copy())
+            for t in tracks if t.pedestrian)
+        return Observation(step=frame.step, dt=frame.dt, ego_pose=np.asarray(frame.ego_pose, float).copy(),
+                           ego_length=frame.ego_length, ego_width=frame.ego_width, ego_speed=frame.ego_speed,
+                           vacant_spot_ids=np.asarray(frame.vacant_spot_ids, np.int64),
+                           occupied_spot_ids=np.asarray(frame.occupied_spot_ids, np.int64),
+                           vehicles=vehicles, pedestrians=peds, ray_angle_min=frame.ray_angle_min,
+                           ray_angle_increment=frame.ray_angle_increment, ray_ranges=frame.ray_ranges)

@@ -1,0 +1,178 @@
+"""The multi-object tracker (docs/perception.md, "Tracking"): detections of one step, with no ids, in; tracks with
+persistent ids, a state with covariance and the pose history the intent CNN, the BEV and the predictors read, out.
+
+Each step (:meth:`Tracker.update`): every track is predicted to the frame's time (:mod:`.motion`); vehicles and
+pedestrians are associated apart by gated global nearest neighbour (:mod:`.association`); a matched track is
+updated (its heading measured modulo a flip, below); an unmatched detection starts a *tentative* track, which is
+*confirmed* after ``n_init`` hits and dropped at its first miss before that; a confirmed track that goes unseen is
+coasted (predicted, its history continued with the predictions) and dropped after ``max_coast`` seconds.
+
+Heading flips: a detection whose heading differs from the track's by more than 90 degrees is taken as the box's
+other end (a car cannot turn that much in one step) and measured turned by pi; each such detection adds a vote,
+each agreeing one takes one away, and at ``flip_votes`` votes the track itself turns around
+(:meth:`~.tracks.Track.turn_around`): a track born from a flipped box is set right within a few steps, while the
+rare flipped box on a good track changes nothing.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from avp_tracking.core.association import gated_pairs
+from avp_tracking.core.motion import (
+    H_POSE,
+    H_POSE_SPEED,
+    H_POSITION,
+    MotionNoise,
+    kalman_update,
+    predict_pedestrian,
+    predict_vehicle,
+    wrap,
+)
+from avp_tracking.core.tracks import Track
+from avp_world.detections import ORIENTATION_AVAILABLE, PedestrianDetection, SensedFrame, VehicleDetection
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """The tracker's settings (tracking.* of config/tracker.param.yaml)."""
+
+    gate: float = 11.62  # squared Mahalanobis gate of a pairing (chi-square, 2 dof, 99.7 %)
+    max_distance: float = 3.0  # m, a vehicle pairing's largest centre distance
+    pedestrian_max_distance: float = 1.5  # m
+    n_init: int = 3  # hits that confirm a track
+    max_coast: float = 1.5  # s a confirmed track lives unseen
+    flip_votes: float = 3.0  # votes that turn a track around
+    size_smoothing: float = 0.2  # weight of a new box's length and width
+    history_steps: int = 41  # poses of history a track gives (t_hist / dt + 1)
+    static_speed: float = 0.3  # m/s: a track standing in a spot slower than this is static (parked)
+    publish_coasted: bool = True  # coasted confirmed tracks are given to the ego (else only those seen now)
+    noise: MotionNoise = field(default_factory=MotionNoise)
+    init_speed_sigma: float = 3.0  # m/s, a new vehicle track's speed spread without a speed estimate
+    init_yaw_rate_sigma: float = 0.5  # rad/s
+
+
+class Tracker:
+    """Tracks of one ego (module docstring). Same detections in the same order give the same tracks."""
+
+    def __init__(self, config: TrackerConfig | None = None):
+        self.cfg = config or TrackerConfig()
+        self.tracks: list[Track] = []
+        self.next_id = 1
+        self.step: int | None = None
+
+    def reset(self) -> None:
+        self.tracks, self.next_id, self.step = [], 1, None
+
+    def update(self, frame: SensedFrame) -> list[Track]:
+        """Take one step's detections; returns the tracks to give the ego (confirmed; coasted ones with
+        ``publish_coasted``)."""
+        cfg = self.cfg
+        dt = frame.dt * (frame.step - self.step) if self.step is not None else 0.0
+        if dt < 0:  # a new episode (the step went back): start again
+            self.reset()
+            dt = 0.0
+        self.step = frame.step
+        if dt > 0:
+            for t in self.tracks:
+                t.previous_position = t.x[:2].copy() if t.pedestrian else None
+                predict = predict_pedestrian if t.pedestrian else predict_vehicle
+                t.x, t.P = predict(t.x, t.P, dt, cfg.noise)
+        vehicles = [t for t in self.tracks if not t.pedestrian]
+        peds = [t for t in self.tracks if t.pedestrian]
+        seen: set[int] = set()
+        for tracks, dets, gate_d in ((vehicles, frame.vehicles, cfg.max_distance),
+                                     (peds, frame.pedestrians, cfg.pedestrian_max_distance)):
+            pairs = self._associate(tracks, dets, gate_d)
+            matched = set()
+            for ti, di in pairs:
+                self._correct(tracks[ti], dets[di], frame.step)
+                seen.add(tracks[ti].id)
+                matched.add(di)
+            for di, d in enumerate(dets):
+                if di not in matched:
+                    self.tracks.append(self._birth(d, frame.step))
+                    seen.add(self.tracks[-1].id)
+        keep = []
+        max_misses = max(1, int(round(cfg.max_coast / frame.dt))) if frame.dt > 0 else 1
+        for t in self.tracks:
+            if t.id not in seen:
+                t.misses += 1
+                if not t.confirmed or t.misses > max_misses:
+                    continue
+            keep.append(t)
+            t.record(frame.step, cfg.history_steps)
+        self.tracks = keep
+        return [t for t in self.tracks if t.confirmed and (cfg.publish_coasted or t.misses == 0)]
+
+    def _associate(self, tracks: list[Track], dets, max_distance: float) -> list[tuple[int, int]]:
+        if not tracks or not dets:
+            return []
+        txy = np.array([t.x[:2] for t in tracks])
+        tcov = np.array([t.P[:2, :2] for t in tracks])
+        if isinstance(dets[0], VehicleDetection):
+            dxy = np.array([d.pose[:2] for d in dets])
+        else:
+            dxy = np.array([d.position for d in dets])
+        dcov = np.array([np.asarray(d.covariance)[:2, :2] for d in dets])
+        return gated_pairs(txy, tcov, dxy, dcov, self.cfg.gate, max_distance)
+
+    def _correct(self, t: Track, d, step: int) -> None:
+        cfg = self.cfg
+        t.hits += 1
+        t.misses = 0
+        t.last_step = step
+        t.existence = 0.7 * t.existence + 0.3 * float(d.existence)
+        if t.hits >= cfg.n_init:
+            t.confirmed = True
+        if t.pedestrian:
+            t.x, t.P = kalman_update(t.x, t.P, np.asarray(d.position, float), H_POSITION,
+                                     np.asarray(d.covariance, float)[:2, :2])
+            t.radius = 0.8 * t.radius + 0.2 * float(d.radius)
+            return
+        z_th = float(d.pose[2])
+        flipped = abs(wrap(z_th - float(t.x[2]))) > 0.5 * math.pi
+        if d.orientation == ORIENTATION_AVAILABLE:
+            t.flip_votes = min(cfg.flip_votes, t.flip_votes + 1.0) if flipped else max(-cfg.flip_votes,
+                                                                                         t.flip_votes - 1.0)
+        if t.flip_votes >= cfg.flip_votes:  # the detections agree on the other end: the track turns around
+            t.turn_around()
+            flipped = not flipped
+        z_th = wrap(z_th + math.pi) if flipped else z_th
+        R = np.asarray(d.covariance, float)[:3, :3].copy()
+        if math.isfinite(d.speed):
+            z = np.array([d.pose[0], d.pose[1], z_th, -d.speed if flipped else d.speed])
+            Rz = np.zeros((4, 4))
+            Rz[:3, :3] = R
+            Rz[3, 3] = d.speed_variance if math.isfinite(d.speed_variance) else 1.0
+            t.x, t.P = kalman_update(t.x, t.P, z, H_POSE_SPEED, Rz, angle_rows=(2,), angle_states=(2,))
+        else:
+            z = np.array([d.pose[0], d.pose[1], z_th])
+            t.x, t.P = kalman_update(t.x, t.P, z, H_POSE, R, angle_rows=(2,), angle_states=(2,))
+        a = cfg.size_smoothing
+        t.length = (1 - a) * t.length + a * float(d.length)
+        t.width = (1 - a) * t.width + a * float(d.width)
+
+    def _birth(self, d, step: int) -> Track:
+        cfg = self.cfg
+        tid, self.next_id = self.next_id, self.next_id + 1
+        if isinstance(d, PedestrianDetection):
+            x = np.array([d.position[0], d.position[1], 0.0, 0.0])
+            P = np.diag([*np.diag(np.asarray(d.covariance, float))[:2], 1.0, 1.0])
+            return Track(id=tid, pedestrian=True, x=x, P=P, born_step=step, radius=float(d.radius),
+                         existence=float(d.existence), last_step=step, confirmed=cfg.n_init <= 1,
+                         previous_position=x[:2].copy())
+        v = float(d.speed) if math.isfinite(d.speed) else 0.0
+        sv = math.sqrt(d.speed_variance) if math.isfinite(d.speed) and math.isfinite(d.speed_variance) \
+            else cfg.init_speed_sigma
+        cov = np.asarray(d.covariance, float)
+        P = np.zeros((5, 5))
+        P[:3, :3] = cov[:3, :3]
+        P[3, 3], P[4, 4] = sv * sv, cfg.init_yaw_rate_sigma ** 2
+        x = np.array([d.pose[0], d.pose[1], wrap(float(d.pose[2])), v, 0.0])
+        return Track(id=tid, pedestrian=False, x=x, P=P, born_step=step, length=float(d.length),
+                     width=float(d.width), existence=float(d.existence), last_step=step,
+                     confirmed=cfg.n_init <= 1)

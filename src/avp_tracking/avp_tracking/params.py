@@ -1,0 +1,58 @@
+"""Parameters of the tracker node and of the in-process tracker (config/tracker.param.yaml); beyond the paper, whose
+§III-A gives the ego every vehicle's exact history (docs/perception.md, "Tracking")."""
+
+from __future__ import annotations
+
+from avp_common.params import ParamSpec
+from avp_tracking.core.motion import MotionNoise
+from avp_tracking.core.tracker import TrackerConfig
+
+_D = TrackerConfig()
+_N = MotionNoise()
+_WHY = "§III-A"
+
+TRACKER_PARAMS: list[ParamSpec] = [
+    ParamSpec("tracking.gate", float, "Squared Mahalanobis gate of a track-detection pairing (chi-square, 2 dof; "
+              "11.62 = 99.7 %, Autoware's multi_object_tracker).", "", _WHY, min=0.1, default=_D.gate),
+    ParamSpec("tracking.max_distance", float, "Largest centre distance of a vehicle pairing [m].", "", _WHY,
+              min=0.1, default=_D.max_distance),
+    ParamSpec("tracking.pedestrian_max_distance", float, "Largest distance of a pedestrian pairing [m].", "", _WHY,
+              min=0.1, default=_D.pedestrian_max_distance),
+    ParamSpec("tracking.n_init", int, "Hits that confirm a track (a tentative track dies at its first miss).", "",
+              _WHY, min=1, max=100, default=_D.n_init),
+    ParamSpec("tracking.max_coast", float, "Seconds a confirmed track lives unseen (coasted on its motion model).",
+              "", _WHY, min=0.0, max=60.0, default=_D.max_coast),
+    ParamSpec("tracking.flip_votes", float, "Detections, net, with the heading turned by pi that turn a track "
+              "around.", "", _WHY, min=1.0, max=100.0, default=_D.flip_votes),
+    ParamSpec("tracking.size_smoothing", float, "Weight of a new box's length and width in the track's.", "", _WHY,
+              min=0.0, max=1.0, default=_D.size_smoothing),
+    ParamSpec("tracking.static_speed", float, "A track standing in a spot slower than this is static (K_sv) [m/s].",
+              "K_sv", _WHY, min=0.0, default=_D.static_speed),
+    ParamSpec("tracking.publish_coasted", bool, "Give the ego coasted (occluded) confirmed tracks too, not only "
+              "those detected this step.", "", _WHY, default=_D.publish_coasted),
+    ParamSpec("tracking.accel_sigma", float, "Process noise: a vehicle's longitudinal acceleration [m/s^2].", "",
+              _WHY, min=0.0, default=_N.accel_sigma),
+    ParamSpec("tracking.yaw_accel_sigma", float, "Process noise: its yaw acceleration [rad/s^2].", "", _WHY,
+              min=0.0, default=_N.yaw_accel_sigma),
+    ParamSpec("tracking.lateral_sigma", float, "Process noise: lateral velocity the CTRV model misses [m/s].", "",
+              _WHY, min=0.0, default=_N.lateral_sigma),
+    ParamSpec("tracking.pedestrian_accel_sigma", float, "Process noise: a pedestrian's acceleration [m/s^2].", "",
+              _WHY, min=0.0, default=_N.pedestrian_accel_sigma),
+]
+
+
+def tracker_config(values: dict, dt: float = 0.1, t_hist: float = 4.0) -> TrackerConfig:
+    """The tracker's settings of validated parameter ``values``; its history is the simulator's t_hist / dt + 1."""
+    v = {k.split(".", 1)[1]: val for k, val in values.items() if k.startswith("tracking.")}
+    noise = MotionNoise(accel_sigma=v["accel_sigma"], yaw_accel_sigma=v["yaw_accel_sigma"],
+                        lateral_sigma=v["lateral_sigma"], pedestrian_accel_sigma=v["pedestrian_accel_sigma"])
+    return TrackerConfig(gate=v["gate"], max_distance=v["max_distance"],
+                         pedestrian_max_distance=v["pedestrian_max_distance"], n_init=v["n_init"],
+                         max_coast=v["max_coast"], flip_votes=v["flip_votes"], size_smoothing=v["size_smoothing"],
+                         history_steps=int(round(t_hist / dt)) + 1, static_speed=v["static_speed"],
+                         publish_coasted=v["publish_coasted"], noise=noise)
+
+
+def default_tracker_values() -> dict:
+    """The shipped config/tracker.param.yaml's values (the specs' defaults)."""
+    return {s.name: s.default for s in TRACKER_PARAMS}
