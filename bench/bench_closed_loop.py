@@ -3,7 +3,9 @@
 
 Each episode runs the simulator core and the method's in-process ego chain (:class:`MethodEgo`: the belief node's
 core with the intent CNN, the prediction, the planner) on one thread, with the planner's wall-clock caps as in the
-live graph (not lifted). Per step it times: **sense** (the simulator's occlusion-aware observation, §III-A),
+live graph (not lifted). Per step it times: **sense** (the simulator's occlusion-aware observation, §III-A; with
+``--sim-param sensing.model=realistic`` the noisy detections of avp_sim.core.sensing), **track** (the tracker,
+avp_tracking; 0 with exact sensing),
 **belief** (eq. 7-8 with the BEVs and the intent CNN), **predict** (§V-C), **plan** (§V-D) and the **loop**
 (sense + belief + predict + plan + the simulator's step). Building the scenario is not timed. Printed: median and
 p95 of each over all steps, per episode and in all, with the episodes' outcomes and the machine's load.
@@ -37,19 +39,28 @@ def _seeds(spec: str) -> list[int]:
 
 def run_episode(lot, sim: dict, profile, seed: int, reactive: bool) -> tuple[dict, dict[str, list[float]]]:
     from avp_experiment.ego import MethodEgo
+    from avp_experiment.sensing import sensed_observer
     from avp_sim.core.factory import make_world
 
     world = make_world(lot, sim, seed, reactive)
+    noisy = sensed_observer(world, sim, seed)  # sensing.model other than exact: the sensing model and the tracker
     ego = MethodEgo(lot, profile, deterministic=False)
-    t: dict[str, list[float]] = {k: [] for k in ("sense", "belief", "predict", "plan", "loop")}
+    t: dict[str, list[float]] = {k: [] for k in ("sense", "track", "belief", "predict", "plan", "loop")}
     while not world.done:
         t0 = time.perf_counter()
-        obs = world.observe()
+        if noisy is None:
+            obs = world.observe()
+            ts = time.perf_counter()
+        else:
+            frame = noisy.sensor.sense(world)
+            ts = time.perf_counter()
+            obs = noisy.perception.observe(frame)
         t1 = time.perf_counter()
         out = ego.step(obs)
         world.step(*out.command)
         t2 = time.perf_counter()
-        t["sense"].append(t1 - t0)
+        t["sense"].append(ts - t0)
+        t["track"].append(t1 - ts)
         t["belief"].append(out.timings["belief_time"])
         t["predict"].append(out.timings["prediction_time"])
         t["plan"].append(out.timings["planner_time"])
@@ -103,9 +114,9 @@ def main() -> int:
           f"{cfg.planner_overrides or ''} {args.sim_param or ''}, t_f {args.t_final} s; "
           f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, 1 torch thread, load average "
           f"{load0[0]:.2f} before")
-    print("| seed | mode | outcome | steps | moving cars | pedestrians | loop median / p95 ms | sense | belief | "
-          "predict | plan |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| seed | mode | outcome | steps | moving cars | pedestrians | loop median / p95 ms | sense | track | "
+          "belief | predict | plan |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     every: dict[str, list[float]] = {}
     episodes = []
     for seed in _seeds(args.seeds):
@@ -121,7 +132,7 @@ def main() -> int:
             print(f"| {seed} | {'reactive' if reactive else 'non-reactive'} | {what} | {outcome['steps']} | "
                   f"{outcome['moving_vehicles']} | {outcome['pedestrians']} | "
                   + " | ".join(f"{s[k]['median_ms']} / {s[k]['p95_ms']}" for k in
-                               ("loop", "sense", "belief", "predict", "plan")) + " |", flush=True)
+                               ("loop", "sense", "track", "belief", "predict", "plan")) + " |", flush=True)
     total = {k: _stats(v) for k, v in every.items()}
     load1 = os.getloadavg()
     print(f"# all {len(every['loop'])} steps: " + ", ".join(f"{k} median {v['median_ms']} ms, p95 {v['p95_ms']} ms"

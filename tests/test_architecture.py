@@ -7,7 +7,7 @@ from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 CORE_FILES = [*SRC.glob("avp_world/avp_world/**/*.py"), *SRC.glob("avp_search/avp_search/*.py"),
-              *SRC.glob("avp_sim/avp_sim/core/*.py"),
+              *SRC.glob("avp_sim/avp_sim/core/*.py"), *SRC.glob("avp_tracking/avp_tracking/core/*.py"),
               *SRC.glob("avp_planner/avp_planner/core/*.py"), *SRC.glob("avp_perception/avp_perception/core/*.py"),
               SRC / "avp_planner/avp_planner/scripted_driver.py",
               *[f for f in SRC.glob("avp_experiment/avp_experiment/*.py")
@@ -24,6 +24,7 @@ def test_cores_are_ros_free():
 
 def test_ego_nodes_never_touch_ground_truth():
     ego_side = [*SRC.glob("avp_planner/avp_planner/*.py"), *SRC.glob("avp_perception/avp_perception/**/*.py"),
+                *SRC.glob("avp_tracking/avp_tracking/**/*.py"),
                 SRC / "avp_experiment/avp_experiment/ego.py"]
     assert ego_side
     for f in ego_side:
@@ -35,7 +36,8 @@ def test_runtime_packages_never_import_training():
     """Training (data generation, fitting, evaluation) lives in avp_training; the runtime packages only run the
     shipped models. Only the `avp` command line reaches it, for `avp train-intent|gen-intent-data|train-trajectory`."""
     allowed = {SRC / "avp_bringup/avp_bringup/cli.py"}
-    runtime = ("avp_world", "avp_common", "avp_sim", "avp_perception", "avp_planner", "avp_experiment", "avp_bag",
+    runtime = ("avp_world", "avp_common", "avp_sim", "avp_tracking", "avp_perception", "avp_planner",
+               "avp_experiment", "avp_bag",
                "avp_viz", "avp_bringup")
     offenders = [str(f) for pkg in runtime for f in SRC.glob(f"{pkg}/{pkg}/**/*.py")
                  if f not in allowed and re.search(r"^\s*(from|import)\s+avp_training\b", f.read_text(), re.M)]
@@ -53,16 +55,19 @@ ALLOWED = {
     "avp_search": {"avp_world"},
     "avp_common": {"avp_msgs", "avp_world"},
     "avp_sim": {"avp_msgs", "avp_world", "avp_common"},
+    # between the simulator (or a real detector) and perception: it reads detections, never the simulator
+    "avp_tracking": {"avp_msgs", "avp_world", "avp_common"},
     "avp_perception": {"avp_msgs", "avp_world", "avp_search", "avp_common"},
     "avp_planner": {"avp_msgs", "avp_world", "avp_search", "avp_common"},
     "avp_training": {"avp_world", "avp_common", "avp_sim", "avp_perception"},
     # the experiment runs the cores in process; bags and viewers read what the graph publishes; avp_bringup (the `avp`
     # command, the graph) sits on top of everything and alone reaches training
-    "avp_experiment": {"avp_msgs", "avp_world", "avp_search", "avp_common", "avp_sim", "avp_perception",
-                       "avp_planner"},
+    "avp_experiment": {"avp_msgs", "avp_world", "avp_search", "avp_common", "avp_sim", "avp_tracking",
+                       "avp_perception", "avp_planner"},
     "avp_bag": {"avp_msgs", "avp_world", "avp_common", "avp_sim"},
     "avp_viz": {"avp_msgs", "avp_world", "avp_common", "avp_perception", "avp_bag"},
-    "avp_bringup": {"avp_msgs", "avp_world", "avp_search", "avp_common", "avp_sim", "avp_perception",
+    "avp_bringup": {"avp_msgs", "avp_world", "avp_search", "avp_common", "avp_sim", "avp_tracking",
+                    "avp_perception",
                     "avp_planner", "avp_training", "avp_experiment", "avp_bag", "avp_viz"},
 }
 #: wrong-way edges that exist today, each with where it goes. A new one fails the test; so does removing one without

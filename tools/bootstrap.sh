@@ -63,6 +63,8 @@ if [ "$(cat "$ROOT/ros2_ws/.build.sha1" 2>/dev/null || true)" != "$SRC_HASH" ] |
     # vendor/: interface packages the wheels lack, built only where they are not installed (vendor/README.md)
     BASES=(../src)
     env -u PYTHONPATH "$VENV/bin/python" -c "import tf2_msgs.msg" 2>/dev/null || BASES+=(../vendor/tf2_msgs)
+    env -u PYTHONPATH "$VENV/bin/python" -c "import autoware_perception_msgs.msg" 2>/dev/null \
+      || BASES+=(../vendor/autoware_perception_msgs)
     python -m colcon --log-base log build --base-paths "${BASES[@]}" --symlink-install \
       --event-handlers console_cohesion- summary+ \
       --cmake-args -DPython3_EXECUTABLE="$VENV/bin/python" -DBUILD_TESTING=OFF

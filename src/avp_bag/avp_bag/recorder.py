@@ -46,6 +46,10 @@ GRAPH_TOPICS: dict[str, tuple[str, bool]] = {
     "/avp/viz/spots": ("visualization_msgs/msg/MarkerArray", True),
     "/avp/viz/scene": ("visualization_msgs/msg/MarkerArray", False),
     "/avp/debug/scan": ("sensor_msgs/msg/LaserScan", False),
+    # noisy sensing (docs/perception.md): the simulator's frame and raw detections, the tracker's tracks
+    "/avp/sensing/observation": ("avp_msgs/msg/Observation", False),
+    "/avp/sensing/detections": ("autoware_perception_msgs/msg/DetectedObjects", False),
+    "/avp/tracking/objects": ("autoware_perception_msgs/msg/TrackedObjects", False),
 }
 OPTIONAL_TOPICS = {
     "/avp/debug/markers": ("visualization_msgs/msg/MarkerArray", False),  # the simulator's ground-truth view
@@ -83,7 +87,8 @@ def _qos(latched: bool) -> Qos:
 
 #: topics whose messages the graph's nodes tag (avp_common.msg_auth): by default only tagged ones are recorded
 TAGGED_TOPICS = frozenset({"/avp/lot_map", "/avp/observation", "/avp/v2v/beacons", "/avp/cmd", "/avp/beliefs",
-                           "/avp/intentions", "/avp/ego_intention", "/avp/predictions"})
+                           "/avp/intentions", "/avp/ego_intention", "/avp/predictions", "/avp/sensing/observation",
+                           "/avp/sensing/detections", "/avp/tracking/objects"})
 
 
 class BagRecorder(Node):

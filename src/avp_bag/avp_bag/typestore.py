@@ -9,14 +9,19 @@ from pathlib import Path
 from ament_index_python.packages import get_package_share_directory
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+#: the message packages of our own graph beyond ROS 2 Jazzy's (autoware_perception_msgs: the tracker's input and
+#: output, vendor/ where Autoware is absent)
+BAG_PACKAGES = ("avp_msgs", "autoware_perception_msgs")
+
 
 def make_typestore():
-    """ROS 2 Jazzy types plus every avp_msgs message (from the installed .msg files)."""
+    """ROS 2 Jazzy types plus every message of :data:`BAG_PACKAGES` (from the installed .msg files)."""
     ts = get_typestore(Stores.ROS2_JAZZY)
-    share = Path(get_package_share_directory("avp_msgs")) / "msg"
     types = {}
-    for f in sorted(share.glob("*.msg")):
-        types.update(get_types_from_msg(f.read_text(), f"avp_msgs/msg/{f.stem}"))
+    for pkg in BAG_PACKAGES:
+        share = Path(get_package_share_directory(pkg)) / "msg"
+        for f in sorted(share.glob("*.msg")):
+            types.update(get_types_from_msg(f.read_text(), f"{pkg}/msg/{f.stem}"))
     ts.register(types)
     return ts
 

@@ -46,7 +46,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
 
 
 def cmd_launch(args: argparse.Namespace) -> int:
-    from avp_bringup.graph import Graph, default_log_dir, ego_graph, fleet_graph, with_params, with_scene
+    from avp_bringup.graph import Graph, default_log_dir, ego_graph, fleet_graph, with_params, with_scene, with_sensing
     from avp_common.lifetime import hang_up_as_terminate
 
     log_dir = default_log_dir(args.log_dir)
@@ -68,6 +68,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
             if not 0 <= args.drivers <= 4:
                 raise ValueError(f"--drivers: expected 0..4 driven cars, got {args.drivers}")
             nodes[0] = with_params(nodes[0], **{"drivers.count": args.drivers, "mode": "realtime"})
+        nodes = with_sensing(nodes, args.sensing)
     except ValueError as exc:
         print(f"[avp launch] {exc}", file=sys.stderr)
         return 2
@@ -251,6 +252,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--drivers", type=int, default=0, help="cars a person drives (avp teleop, Foxglove's Teleop panel) "
                    "on /avp/driver<j>/cmd_vel; the simulator then runs in real time (docs/teleop.md)")
     p.add_argument("--no-scene", action="store_true", help="leave out the scene node (/tf, /tf_static, viz/scene)")
+    p.add_argument("--sensing", default="exact", choices=("exact", "realistic", "harsh", "custom"),
+                   help="the simulator's sensing model (sensing.model): exact (the paper) or noisy detections "
+                   "through the tracker node avp_tracker (docs/perception.md)")
     add_processes_argument(p)
     foxglove_cli.add_arguments(p)
     p.set_defaults(func=cmd_launch)

@@ -41,6 +41,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit [s]")
     p.add_argument("--bag", help="where to record the demo's bag (default bags/demo_seed<N>_<time>)")
     foxglove_cli.add_arguments(p)
+    p.add_argument("--sensing", default="exact", choices=("exact", "realistic", "harsh", "custom"),
+                   help="the simulator's sensing model (sensing.model): exact (the paper) or noisy detections "
+                   "through the tracker node avp_tracker (docs/perception.md)")
     p.add_argument("--no-scene", action="store_true",
                    help="leave out the scene node: the bag then has no /tf, /tf_static, viz/scene for viewers")
     add_processes_argument(p)
@@ -114,7 +117,7 @@ def _method(args: argparse.Namespace) -> str:
 def _demo_nodes(args: argparse.Namespace) -> list:
     """The graph of ``--method`` (bezier by default) with the simulator set up for one episode started by
     ``reset_episode`` (ValueError on conflicting options)."""
-    from avp_bringup.graph import ego_graph, fleet_graph, with_params, with_scene
+    from avp_bringup.graph import ego_graph, fleet_graph, with_params, with_scene, with_sensing
 
     if args.ego == "planner" and not args.method:
         args.method = "bezier"  # the paper's method
@@ -151,7 +154,7 @@ def _demo_nodes(args: argparse.Namespace) -> list:
     if getattr(args, "drive", False):  # a person drives car 0 (docs/teleop.md), through the gate after the ego
         extra.update({"drivers.count": 1, "drivers.enter_at": 3.0})
     nodes[0] = with_params(sim, **extra)
-    return nodes
+    return with_sensing(nodes, getattr(args, "sensing", "exact"))
 
 
 #: the recorder's topics the episode cannot be read back without (avp_bag.episode.read_episode): the demo starts the

@@ -96,6 +96,29 @@ def with_scene(nodes: list[NodeSpec]) -> list[NodeSpec]:
     return [with_params(sim, min_subscribers=n + 1), *nodes[1:], SCENE_NODE]
 
 
+#: the tracker between the simulator's noisy sensing and the ego's nodes (avp_tracking; docs/perception.md)
+TRACKER_NODE = NodeSpec("avp_tracker", "avp_tracking", "tracker_node", "config/tracker.param.yaml",
+                        component="avp_tracking.tracker_node:TrackerNode")
+SENSING_MODELS = ("exact", "realistic", "harsh", "custom")
+
+
+def with_sensing(nodes: list[NodeSpec], model: str) -> list[NodeSpec]:
+    """``nodes`` (a one-ego graph, the simulator first) with the sensing model ``model``: for any model but exact,
+    the simulator publishes its frame and detections to :data:`TRACKER_NODE`, inserted after it, whose observation
+    the ego's nodes read; the tracker holds its first answer for the subscribers the simulator's step 0 waited for,
+    and the simulator waits for the tracker. ``exact``: ``nodes`` unchanged (the paper)."""
+    if model not in SENSING_MODELS:
+        raise ValueError(f"--sensing: expected one of {SENSING_MODELS}, got {model!r}")
+    if model == "exact":
+        return nodes
+    sim = nodes[0]
+    if sim.extra_params.get("egos.count", 1) > 1:
+        raise ValueError(f"--sensing {model}: one ego only (the tracker serves one ego's sensing)")
+    n = sim.extra_params.get("min_subscribers", len(nodes) - 1)
+    tracker = with_params(TRACKER_NODE, min_subscribers=n, sync="stamp")
+    return [with_params(sim, **{"sensing.model": model, "min_subscribers": 1}), tracker, *nodes[1:]]
+
+
 def with_params(spec: NodeSpec, **extra) -> NodeSpec:
     """``spec`` with ``extra`` parameters added to (or replacing) its ``extra_params``."""
     return replace(spec, extra_params={**spec.extra_params, **extra})

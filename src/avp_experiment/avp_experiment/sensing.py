@@ -32,7 +32,7 @@ def sensed_observer(world, sim_p: dict, seed: int, tracker_values: dict | None =
     def observe() -> Observation:
         return perception.observe(sensor.sense(world, ego_index))
 
-    observe.sensor, observe.tracker = sensor, tracker  # for scoring and benches
+    observe.sensor, observe.tracker, observe.perception = sensor, tracker, perception  # for scoring and benches
     return observe
 
 

@@ -117,8 +117,10 @@ class DriverTypeCheck:
                         f"(drivers.stamped: {str(self.stamped).lower()}): its commands never arrive")
 
 
-def make_channels(node, auth, count: int, on_cmd: Callable[[int, TwistStamped], None]) -> list[EgoChannel]:
-    """The ``count`` egos' channels of the simulator ``node`` (with its Authenticator ``auth``)."""
+def make_channels(node, auth, count: int, on_cmd: Callable[[int, TwistStamped], None],
+                  observation: str = "observation") -> list[EgoChannel]:
+    """The ``count`` egos' channels of the simulator ``node`` (with its Authenticator ``auth``); ``observation``:
+    the topic of each ego's observation (``sensing/observation`` with noisy sensing: the tracker's input)."""
     if not 1 <= count <= MAX_EGOS:
         raise ValueError(f"parameter 'egos.count': {count}: between 1 and {MAX_EGOS} egos")
     channels = []
@@ -127,7 +129,7 @@ def make_channels(node, auth, count: int, on_cmd: Callable[[int, TwistStamped], 
         ego = None if count == 1 else i
         channels.append(EgoChannel(
             index=i,
-            pub_obs=auth.publisher(Observation, pre + "observation", STEP, ego=ego),
+            pub_obs=auth.publisher(Observation, pre + observation, STEP, ego=ego),
             sub_cmd=auth.subscription(TwistStamped, pre + "cmd", (lambda m, i=i: on_cmd(i, m)), STEP_INPUT),
             pub_status=node.create_publisher(EpisodeStatus, pre + "episode_status", STATUS,
                                              event_callbacks=QUIET_WRITER) if count > 1 else None,

@@ -34,19 +34,22 @@ from std_msgs.msg import Header
 from visualization_msgs.msg import MarkerArray
 
 from avp_common.conversions import lot_to_msg, observation_to_msg, step_to_ns, step_to_time, time_to_ns
+from avp_common.detection_msgs import detections_to_msg
 from avp_common.msg_auth import Authenticator, episode_of, with_episode
 from avp_common.node_main import run_node
 from avp_common.params import declare_and_validate
-from avp_common.qos import DEBUG, GROUND_TRUTH, LATCHED, QUIET_WRITER, STATUS
+from avp_common.qos import DEBUG, GROUND_TRUTH, LATCHED, QUIET_WRITER, STATUS, STEP
 from avp_common.ratelog import RateLimitedLog
 from avp_msgs.msg import AgentState, BrakingFor, EpisodeStatus, GroundTruth
 from avp_msgs.srv import ResetEpisode
 from avp_sim.core.factory import load_lot_param, make_world, world_config
 from avp_sim.core.scenario_source import requested_scenario, served_dirs
+from avp_sim.core.sensing import NoisySensor, sensing_config
 from avp_sim.core.world import COLLISION, RUNNING, SUCCESS, TIMEOUT, World
 from avp_sim.ego_channels import DriverTypeCheck, EgoChannel, make_channels, make_drivers
 from avp_sim.markers import world_markers
 from avp_sim.params import SIM_PARAMS
+from avp_world.types import Observation
 
 _STATE = {RUNNING: EpisodeStatus.STATE_RUNNING, SUCCESS: EpisodeStatus.STATE_SUCCESS,
           COLLISION: EpisodeStatus.STATE_COLLISION, TIMEOUT: EpisodeStatus.STATE_TIMEOUT}
@@ -81,7 +84,20 @@ class SimNode(Node):
         self.reject_warn = RateLimitedLog(self.get_logger().warning)
         self.auth = Authenticator(self, self.p["auth_inputs"])
         self.pub_lot = self.auth.publisher(type(lot_to_msg(self.lot)), "lot_map", LATCHED)
-        self.egos = make_channels(self, self.auth, self.p["egos.count"], self._on_cmd)
+        # noisy sensing (sensing.model not exact; docs/perception.md): the observation goes to the tracker as a frame
+        # without vehicles (sensing/observation) and the detections beside it (sensing/detections)
+        self.sensing = sensing_config(self.p)
+        if not self.sensing.exact and self.p["egos.count"] > 1:
+            raise ValueError(f"parameter 'sensing.model': {self.sensing.model} sensing drives one ego (egos.count 1)")
+        self.egos = make_channels(self, self.auth, self.p["egos.count"], self._on_cmd,
+                                  "observation" if self.sensing.exact else "sensing/observation")
+        self.pub_detections = None
+        if not self.sensing.exact:
+            from autoware_perception_msgs.msg import DetectedObjects
+
+            self.pub_detections = self.auth.publisher(DetectedObjects, "sensing/detections", STEP)
+        self.sensor = None  # the episode's NoisySensor (noisy sensing)
+        self.sensed: tuple[int, object] | None = None  # (step, frame): a lock-step re-send repeats the frame
         if self.p["drivers.count"] and self.lockstep:
             raise ValueError(f"parameter 'drivers.count': {self.p['drivers.count']} driven cars need mode realtime "
                              "(lock-step never waits for a person)")
@@ -135,6 +151,9 @@ class SimNode(Node):
         for d in self.drivers:
             d.latest = None
         self.debug_step = -1  # last step whose ground truth went out (a re-send repeats only the observation)
+        if not self.sensing.exact:  # same seed, same noise (avp_sim.core.sensing)
+            self.sensor = NoisySensor(self.sensing, seed, float(world.caster.region_range.max()))
+            self.sensed = None
         dyn = [(v.id, v.target_spot_id, v.maneuver, v.passiveness) for v in self.world.scenario.dynamic_vehicles()]
         self.get_logger().info(f"episode seed={seed} reactive={reactive}: dynamic vehicles {dyn}")
         return self.world
@@ -179,12 +198,30 @@ class SimNode(Node):
             if ch.pub_status is not None:
                 ch.pub_status.publish(self._status_msg(w, stamp, ch.index))
             if driving[ch.index] and (only is None or ch.index in only):
+                if self.sensor is not None:
+                    self._publish_sensed(ch, w, obs, stamp)
+                    continue
                 o = obs if ch.index == 0 else w.observe(ch.index)
                 ch.pub_obs.publish(observation_to_msg(o, with_episode("map", self.episode)))
         for d in self.drivers:  # a driven car's own record: the agents it made brake, its collisions (docs/teleop.md)
             d.pub_status.publish(self._status_msg(w, stamp, d.slot))
         self.last_pub_wall = time.monotonic()
         self.started = True
+
+    def _publish_sensed(self, ch: EgoChannel, w: World, obs, stamp) -> None:
+        """Noisy sensing: the frame (sensing/observation: no vehicles, no pedestrians, the estimated ego pose, the
+        spots as read) and its detections (sensing/detections), the same again for a re-sent step."""
+        if self.sensed is None or self.sensed[0] != w.step_index:
+            self.sensed = (w.step_index, self.sensor.sense(w, 0, obs))
+        f = self.sensed[1]
+        frame = Observation(step=f.step, dt=f.dt, ego_pose=f.ego_pose, ego_length=f.ego_length,
+                            ego_width=f.ego_width, ego_speed=f.ego_speed, vacant_spot_ids=f.vacant_spot_ids,
+                            occupied_spot_ids=f.occupied_spot_ids, ray_angle_min=f.ray_angle_min,
+                            ray_angle_increment=f.ray_angle_increment, ray_ranges=f.ray_ranges)
+        frame_id = with_episode("map", self.episode)
+        self.pub_detections.publish(detections_to_msg(f.vehicles, f.pedestrians, Header(stamp=stamp,
+                                                                                       frame_id=frame_id)))
+        ch.pub_obs.publish(observation_to_msg(frame, frame_id))
 
     def _lockstep_tick(self) -> None:
         w = self.world

@@ -40,6 +40,29 @@ TRACKER_PARAMS: list[ParamSpec] = [
               _WHY, min=0.0, default=_N.pedestrian_accel_sigma),
 ]
 
+#: the node's own parameters (its inputs and outputs)
+NODE_PARAMS: list[ParamSpec] = [
+    ParamSpec("sync", str, "stamp: frame k waits for the detections stamped t_k (lock-step); latest: the newest "
+              "detections received within max_detection_age (a real detector on its own clock).",
+              choices=("stamp", "latest"), default="stamp"),
+    ParamSpec("detection_wait", float, "sync stamp: wall seconds a frame waits for its detections before it is "
+              "answered without them (the tracks coasted).", min=0.0, default=1.0),
+    ParamSpec("max_detection_age", float, "sync latest: detections older than this (wall seconds) are not used.",
+              min=0.0, default=0.5),
+    ParamSpec("max_objects", int, "A DetectedObjects message with more objects is refused whole.", min=1,
+              max=100000, default=1000),
+    ParamSpec("auth_inputs", bool, "Only frames and the lot map tagged with the user's key are read "
+              "(docs/bad_input.md).", default=True),
+    ParamSpec("auth_detections", bool, "Only tagged detections are read (the simulator tags its own); false for "
+              "a real detector that does not sign (docs/perception.md).", default=True),
+    ParamSpec("min_subscribers", int, "Hold an answer until observation has this many subscribers (the ego's "
+              "nodes, and the viewers that must see step 0).", min=0, max=100, default=3),
+    ParamSpec("t_hist", float, "History length given for every track (the simulator's t_hist).", "t_hist",
+              "§III-A", min=0.0, max=20.0, default=4.0),
+]
+#: everything config/tracker.param.yaml holds
+TRACKER_NODE_PARAMS = [*TRACKER_PARAMS, *NODE_PARAMS]
+
 
 def tracker_config(values: dict, dt: float = 0.1, t_hist: float = 4.0) -> TrackerConfig:
     """The tracker's settings of validated parameter ``values``; its history is the simulator's t_hist / dt + 1."""

@@ -156,9 +156,10 @@ class NoisySensor:
         est[2] = wrap(float(est[2]))
         return est
 
-    def sense(self, world, i: int = 0) -> SensedFrame:
-        """What ego ``i`` of ``world`` reports at its current step (world.observe is called here)."""
-        obs = world.observe(i)
+    def sense(self, world, i: int = 0, obs=None) -> SensedFrame:
+        """What ego ``i`` of ``world`` reports at its current step; ``obs``: its exact observation of this step if
+        already made (``world.observe(i)`` just called), else it is made here."""
+        obs = world.observe(i) if obs is None else obs
         scan = world.last_scan
         c, rng = self.cfg, self.rng
         true_ego = np.asarray(obs.ego_pose, dtype=float)

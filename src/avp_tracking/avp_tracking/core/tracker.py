@@ -61,11 +61,12 @@ class Tracker:
     def __init__(self, config: TrackerConfig | None = None):
         self.cfg = config or TrackerConfig()
         self.tracks: list[Track] = []
+        self.tracks_given: list[Track] = []
         self.next_id = 1
         self.step: int | None = None
 
     def reset(self) -> None:
-        self.tracks, self.next_id, self.step = [], 1, None
+        self.tracks, self.tracks_given, self.next_id, self.step = [], [], 1, None
 
     def update(self, frame: SensedFrame) -> list[Track]:
         """Take one step's detections; returns the tracks to give the ego (confirmed; coasted ones with
@@ -106,7 +107,9 @@ class Tracker:
             keep.append(t)
             t.record(frame.step, cfg.history_steps)
         self.tracks = keep
-        return [t for t in self.tracks if t.confirmed and (cfg.publish_coasted or t.misses == 0)]
+        #: what the last update gave the ego
+        self.tracks_given = [t for t in self.tracks if t.confirmed and (cfg.publish_coasted or t.misses == 0)]
+        return self.tracks_given
 
     def _associate(self, tracks: list[Track], dets, max_distance: float) -> list[tuple[int, int]]:
         if not tracks or not dets:
