@@ -68,7 +68,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
             if not 0 <= args.drivers <= 4:
                 raise ValueError(f"--drivers: expected 0..4 driven cars, got {args.drivers}")
             nodes[0] = with_params(nodes[0], **{"drivers.count": args.drivers, "mode": "realtime"})
-        nodes = with_sensing(nodes, args.sensing)
+        nodes = with_sensing(nodes, args.sensing, args.detections)
     except ValueError as exc:
         print(f"[avp launch] {exc}", file=sys.stderr)
         return 2
@@ -193,9 +193,11 @@ def cmd_params(args: argparse.Namespace) -> int:
     from avp_planner.scripted_driver_node import DRIVER_PARAMS
     from avp_planner.v2v_node import V2V_PARAMS
     from avp_sim.params import SIM_PARAMS
+    from avp_tracking.params import TRACKER_NODE_PARAMS
     from avp_viz.scene_node import SCENE_PARAMS
 
-    tables = {"avp_sim": SIM_PARAMS, "avp_belief": BELIEF_PARAMS, "avp_prediction": PREDICTION_PARAMS,
+    tables = {"avp_sim": SIM_PARAMS, "avp_tracker": TRACKER_NODE_PARAMS, "avp_belief": BELIEF_PARAMS,
+              "avp_prediction": PREDICTION_PARAMS,
               "avp_planner": PLANNER_PARAMS, "scripted_driver": DRIVER_PARAMS, "minimal_planner": MINIMAL_PARAMS,
               "avp_scene": SCENE_PARAMS, "avp_reservation": RESERVATION_PARAMS,
               "avp_v2v": V2V_PARAMS}
@@ -255,6 +257,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sensing", default="exact", choices=("exact", "realistic", "harsh", "custom"),
                    help="the simulator's sensing model (sensing.model): exact (the paper) or noisy detections "
                    "through the tracker node avp_tracker (docs/perception.md)")
+    p.add_argument("--detections", metavar="TOPIC", help="the tracker reads a real detector's "
+                   "autoware_perception_msgs/DetectedObjects from TOPIC instead of the simulator's (untagged, on its "
+                   "own clock); needs --sensing other than exact (docs/perception.md, 'A real detector')")
     add_processes_argument(p)
     foxglove_cli.add_arguments(p)
     p.set_defaults(func=cmd_launch)

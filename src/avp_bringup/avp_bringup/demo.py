@@ -44,6 +44,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sensing", default="exact", choices=("exact", "realistic", "harsh", "custom"),
                    help="the simulator's sensing model (sensing.model): exact (the paper) or noisy detections "
                    "through the tracker node avp_tracker (docs/perception.md)")
+    p.add_argument("--detections", metavar="TOPIC", help="the tracker reads a real detector's "
+                   "autoware_perception_msgs/DetectedObjects from TOPIC instead of the simulator's (untagged, on its "
+                   "own clock); needs --sensing other than exact (docs/perception.md, 'A real detector')")
     p.add_argument("--no-scene", action="store_true",
                    help="leave out the scene node: the bag then has no /tf, /tf_static, viz/scene for viewers")
     add_processes_argument(p)
@@ -154,7 +157,7 @@ def _demo_nodes(args: argparse.Namespace) -> list:
     if getattr(args, "drive", False):  # a person drives car 0 (docs/teleop.md), through the gate after the ego
         extra.update({"drivers.count": 1, "drivers.enter_at": 3.0})
     nodes[0] = with_params(sim, **extra)
-    return with_sensing(nodes, getattr(args, "sensing", "exact"))
+    return with_sensing(nodes, getattr(args, "sensing", "exact"), getattr(args, "detections", None))
 
 
 #: the recorder's topics the episode cannot be read back without (avp_bag.episode.read_episode): the demo starts the

@@ -102,20 +102,27 @@ TRACKER_NODE = NodeSpec("avp_tracker", "avp_tracking", "tracker_node", "config/t
 SENSING_MODELS = ("exact", "realistic", "harsh", "custom")
 
 
-def with_sensing(nodes: list[NodeSpec], model: str) -> list[NodeSpec]:
+def with_sensing(nodes: list[NodeSpec], model: str, detections: str | None = None) -> list[NodeSpec]:
     """``nodes`` (a one-ego graph, the simulator first) with the sensing model ``model``: for any model but exact,
     the simulator publishes its frame and detections to :data:`TRACKER_NODE`, inserted after it, whose observation
     the ego's nodes read; the tracker holds its first answer for the subscribers the simulator's step 0 waited for,
-    and the simulator waits for the tracker. ``exact``: ``nodes`` unchanged (the paper)."""
+    and the simulator waits for the tracker. ``exact``: ``nodes`` unchanged (the paper). ``detections``: the topic of
+    a real detector's DetectedObjects, read instead of the simulator's (untagged, on its own clock: ``sync:
+    latest``; docs/perception.md, "A real detector")."""
     if model not in SENSING_MODELS:
         raise ValueError(f"--sensing: expected one of {SENSING_MODELS}, got {model!r}")
     if model == "exact":
+        if detections:
+            raise ValueError("--detections needs a sensing model other than exact (--sensing realistic, say)")
         return nodes
     sim = nodes[0]
     if sim.extra_params.get("egos.count", 1) > 1:
         raise ValueError(f"--sensing {model}: one ego only (the tracker serves one ego's sensing)")
     n = sim.extra_params.get("min_subscribers", len(nodes) - 1)
     tracker = with_params(TRACKER_NODE, min_subscribers=n, sync="stamp")
+    if detections:
+        tracker = replace(with_params(tracker, sync="latest", auth_detections=False),
+                          remaps=(("sensing/detections", detections),))
     return [with_params(sim, **{"sensing.model": model, "min_subscribers": 1}), tracker, *nodes[1:]]
 
 
