@@ -98,10 +98,10 @@ def test_bad_detection_messages_are_refused_and_the_node_keeps_tracking(paper_lo
         bad = []
         m = probe.detections(0, [_car(5.0, 5.0)])
         m.objects[0].kinematics.pose_with_covariance.pose.position.x = float("nan")
-        bad.append((m, "objects[0]: a pose, covariance, size or existence that is not finite"))
+        bad.append((m, "objects[0]: kinematics.pose_with_covariance.pose.position holds nan: must be finite"))
         m = probe.detections(0, [_car(5.0, 5.0)])
-        m.objects[0].kinematics.pose_with_covariance.pose.position.y = float("inf")
-        bad.append((m, "not finite"))
+        m.objects[0].kinematics.pose_with_covariance.covariance[7] = float("inf")
+        bad.append((m, "objects[0]: kinematics.pose_with_covariance.covariance holds inf: must be finite"))
         m = probe.detections(0, [_car(5.0, 5.0)])
         m.objects[0].shape.dimensions.x = -1.0
         bad.append((m, "objects[0]: shape.dimensions (length -1.0"))
@@ -129,7 +129,7 @@ def test_bad_detection_messages_are_refused_and_the_node_keeps_tracking(paper_lo
         assert "/avp/sensing/detections" in line and needle in line and "dropped" in line, (line, needle)
 
 
-def test_a_scripted_detector_feeds_the_tracks_the_planner_reads(paper_lot, ros_env, tmp_path):
+def test_a_scripted_detector_feeds_the_tracks_the_planner_reads(paper_lot, ros, tmp_path):
     """A graph whose tracker reads a scripted DetectedObjects publisher (a real detector's place: remapped topic,
     untagged, its own clock; the simulator's own detections reach nothing): the scripted car becomes a track on the
     observation the planner reads, and the planner answers those steps."""
@@ -150,12 +150,8 @@ def test_a_scripted_detector_feeds_the_tracks_the_planner_reads(paper_lot, ros_e
             "while rclpy.ok():\n"
             "    pub.publish(detections_to_msg([car], [], Header(frame_id='map')))\n"
             "    rclpy.spin_once(n, timeout_sec=0.05)\n")
+    ros_env = ros
     detector = subprocess.Popen([sys.executable, "-c", code], env=ros_env)
-    rclpy.init(args=None)
-    import os
-
-    for k, v in ros_env.items():
-        os.environ[k] = v
     probe = rclpy.create_node("scripted_probe", namespace="/avp")
     from avp_msgs.msg import PlannerDecision
 
@@ -180,7 +176,6 @@ def test_a_scripted_detector_feeds_the_tracks_the_planner_reads(paper_lot, ros_e
         graph.stop()
         detector.kill()
         probe.destroy_node()
-        rclpy.try_shutdown()
 
 
 def test_sensing_demo_parks_its_bag_holds_no_simulator_history_and_replays(ros_env, tmp_path):

@@ -50,6 +50,8 @@ GRAPH_TOPICS: dict[str, tuple[str, bool]] = {
     "/avp/sensing/observation": ("avp_msgs/msg/Observation", False),
     "/avp/sensing/detections": ("autoware_perception_msgs/msg/DetectedObjects", False),
     "/avp/tracking/objects": ("autoware_perception_msgs/msg/TrackedObjects", False),
+    "/avp/viz/detections": ("visualization_msgs/msg/MarkerArray", False),
+    "/avp/viz/tracks": ("visualization_msgs/msg/MarkerArray", False),
 }
 OPTIONAL_TOPICS = {
     "/avp/debug/markers": ("visualization_msgs/msg/MarkerArray", False),  # the simulator's ground-truth view

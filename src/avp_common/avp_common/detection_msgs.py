@@ -112,9 +112,14 @@ def detections_from_msg(msg, max_objects: int = MAX_OBJECTS) -> tuple[list, list
         p, q = k.pose_with_covariance.pose.position, k.pose_with_covariance.pose.orientation
         cov = np.asarray(k.pose_with_covariance.covariance, float)
         dims = o.shape.dimensions
-        values = [p.x, p.y, q.x, q.y, q.z, q.w, dims.x, dims.y, o.existence_probability, *cov]
-        if not all(math.isfinite(v) for v in values):
-            raise DetectionError(f"{where}: a pose, covariance, size or existence that is not finite")
+        for field, values in (("kinematics.pose_with_covariance.pose.position", (p.x, p.y)),
+                              ("kinematics.pose_with_covariance.pose.orientation", (q.x, q.y, q.z, q.w)),
+                              ("kinematics.pose_with_covariance.covariance", cov),
+                              ("shape.dimensions", (dims.x, dims.y)), ("existence_probability",
+                                                                       (o.existence_probability,))):
+            bad = [v for v in values if not math.isfinite(v)]
+            if bad:
+                raise DetectionError(f"{where}: {field} holds {bad[0]}: must be finite")
         label = max(o.classification, key=lambda c: c.probability).label if o.classification else 0
         existence = float(np.clip(o.existence_probability, 0.0, 1.0))
         if o.shape.type == 1 or label == LABEL_PEDESTRIAN:  # CYLINDER

@@ -1,7 +1,9 @@
 """avp_scene: the 3-D scene of the running graph for viewers (Foxglove, Lichtblick, RViz; docs/foxglove.md).
 
 Topics (relative names in namespace /avp, except the two TF topics, which are global as REP-105 wants them):
-  subscribes lot_map (latched), observation, beliefs, predictions, decision
+  subscribes lot_map (latched), observation, beliefs, predictions, decision; with noisy sensing also
+             sensing/detections and tracking/objects (drawn as they come on viz/detections and viz/tracks,
+             :mod:`avp_viz.sensing_markers`)
   publishes  /tf_static (map -> odom, latched), /tf (odom -> base_link, map -> agent_<id>), and as
              visualization_msgs/MarkerArray (:mod:`avp_viz.scene`) viz/lot (latched, once per lot),
              viz/spots (latched, when a spot's colour changes), viz/scene (every step)
@@ -77,6 +79,17 @@ class SceneNode(Node):
         if self.publish_tf:
             self.pub_tf = self.create_publisher(TFMessage, "/tf", TF, event_callbacks=QUIET_WRITER)
             self.pub_tf_static = self.create_publisher(TFMessage, "/tf_static", LATCHED, event_callbacks=QUIET_WRITER)
+        # noisy sensing (docs/perception.md): the raw detections and the tracks, drawn apart as they come
+        from autoware_perception_msgs.msg import DetectedObjects, TrackedObjects
+
+        from avp_viz.sensing_markers import detection_markers, track_markers
+
+        self.pub_detections = self.create_publisher(MarkerArray, "viz/detections", DEBUG, event_callbacks=QUIET_WRITER)
+        self.pub_tracks = self.create_publisher(MarkerArray, "viz/tracks", DEBUG, event_callbacks=QUIET_WRITER)
+        self.auth.subscription(DetectedObjects, "sensing/detections",
+                               lambda m: self.pub_detections.publish(detection_markers(m)), STEP_INPUT)
+        self.auth.subscription(TrackedObjects, "tracking/objects",
+                               lambda m: self.pub_tracks.publish(track_markers(m)), STEP_INPUT)
         self.auth.subscription(LotMap, "lot_map", self._on_lot, LATCHED)
         self.auth.subscription(Observation, "observation", self._on_obs, STEP_INPUT)
         self.auth.subscription(SpotBeliefs, "beliefs", self._on_beliefs, STEP_INPUT)
