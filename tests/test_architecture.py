@@ -59,7 +59,7 @@ ALLOWED = {
     "avp_tracking": {"avp_msgs", "avp_world", "avp_common"},
     "avp_perception": {"avp_msgs", "avp_world", "avp_search", "avp_common"},
     "avp_planner": {"avp_msgs", "avp_world", "avp_search", "avp_common"},
-    "avp_training": {"avp_world", "avp_common", "avp_sim", "avp_perception"},
+    "avp_training": {"avp_world", "avp_common", "avp_sim", "avp_tracking", "avp_perception"},
     # the experiment runs the cores in process; bags and viewers read what the graph publishes; avp_bringup (the `avp`
     # command, the graph) sits on top of everything and alone reaches training
     "avp_experiment": {"avp_msgs", "avp_world", "avp_search", "avp_common", "avp_sim", "avp_tracking",

@@ -180,7 +180,8 @@ def test_a_scripted_detector_feeds_the_tracks_the_planner_reads(paper_lot, ros, 
 
 def test_sensing_demo_parks_its_bag_holds_no_simulator_history_and_replays(ros_env, tmp_path):
     """`avp demo --sensing realistic` on seed 1 parks; its bag holds the raw detections and the tracks; no vehicle
-    pose the ego received equals a true one (no exact history); metrics recomputed from the bag equal the live
+    pose the ego received equals a true one (no exact history); the ego's trajectory equals the in-process
+    episode's bit for bit (same seed, same noise, over DDS or not); metrics recomputed from the bag equal the live
     ones; the bag replays."""
     from rosbags.highlevel import AnyReader
 
@@ -208,6 +209,20 @@ def test_sensing_demo_parks_its_bag_holds_no_simulator_history_and_replays(ros_e
     true_poses = {(round(a.pose.x, 9), round(a.pose.y, 9)) for g in gts for a in g.agents}
     received = [(round(v.history[-1].x, 9), round(v.history[-1].y, 9)) for m in obs for v in m.vehicles]
     assert received and not (set(received) & true_poses), "a vehicle pose the ego received is the true one"
+    from avp_experiment.episodes import run_episode_inproc
+    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_sim.core.factory import load_lot_param
+    from avp_world.lot import load_bundled_lot
+
+    cfg = RunConfig(sim_overrides={"sensing.model": "realistic"})
+    sim = sim_values(cfg)
+    lot = load_lot_param(sim["lot_file"])
+    assert lot.name == load_bundled_lot().name
+    poses: list = []
+    run_episode_inproc(lot, sim, run_profile("bezier", cfg), 1, True, cfg,
+                       on_step=lambda w, _: poses.append(w.log_ego[-1].copy()))
+    live = np.array([[a.pose.x, a.pose.y, a.pose.theta] for g in gts for a in g.agents if a.kind == 0])[1:]
+    assert live.shape == np.array(poses).shape and np.array_equal(live, np.array(poses))
     m = subprocess.run([*CLI, "metrics", str(bag)], env=ros_env, capture_output=True, text=True, timeout=120)
     assert m.returncode == 0 and "recomputed metrics equal the live ones" in m.stdout + m.stderr, m.stdout + m.stderr
     rp = subprocess.run([*CLI, "replay", str(bag), "--rate", "20"], env=ros_env, capture_output=True, text=True,

@@ -6,7 +6,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from avp_sim.core.sensing import truth_ids
 from avp_world.types import Observation
+
+__all__ = ["relabel_predictions", "sensed_observer", "truth_ids"]
 
 
 def sensed_observer(world, sim_p: dict, seed: int, tracker_values: dict | None = None, ego_index: int = 0
@@ -34,22 +37,6 @@ def sensed_observer(world, sim_p: dict, seed: int, tracker_values: dict | None =
 
     observe.sensor, observe.tracker, observe.perception = sensor, tracker, perception  # for scoring and benches
     return observe
-
-
-def truth_ids(world, obs: Observation, max_distance: float = 2.0) -> dict[int, int]:
-    """For scoring only: the simulator id of the vehicle each of ``obs``'s tracks follows now (the nearest one by
-    an optimal one-to-one pairing of their centres, within ``max_distance`` m); a track that follows no vehicle
-    (clutter) is left out. The ego never sees this."""
-    import numpy as np
-    from scipy.optimize import linear_sum_assignment
-
-    if not obs.vehicles or not len(world.states):
-        return {}
-    est = np.array([v.history[-1][:2] for v in obs.vehicles])
-    d = np.hypot(est[:, None, 0] - world.states[None, :, 0], est[:, None, 1] - world.states[None, :, 1])
-    rows, cols = linear_sum_assignment(np.where(d < max_distance, d, 1e9))
-    return {int(obs.vehicles[r].id): int(world.vehicle_ids[c]) for r, c in zip(rows, cols, strict=True)
-            if d[r, c] < max_distance}
 
 
 def relabel_predictions(preds: list, ids: dict[int, int]) -> list:

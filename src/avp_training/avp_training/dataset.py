@@ -227,9 +227,12 @@ def label_index(candidate_spot_ids: np.ndarray, target_spot_id: int) -> int:
 def run_episode(lot: LotMap, world: World, labels: dict[int, int], kinds: dict[int, str], ego_controls: np.ndarray,
                 ego_states: np.ndarray, spec: DataSpec, episode: int, lot_code: int, t_final: float,
                 rng: np.random.Generator, stop_when_parked: bool = False, builder: _Builder | None = None,
-                collect=None) -> _Builder:
+                collect=None, sensing: str = "exact") -> _Builder:
     """Run one episode and collect its samples (module docstring). ``collect(k, obs, core, ego_history, dynamic)``,
-    when given, is called every step instead of the intent sampling (the data of :mod:`.trajectory_data`)."""
+    when given, is called every step instead of the intent sampling (the data of :mod:`.trajectory_data`).
+    ``sensing``: the observer sees through the sensing model of that preset and the tracker (docs/perception.md);
+    a track's label is that of the vehicle it follows (:func:`avp_sim.core.sensing.truth_ids`, scoring only), and
+    a track that follows none is not sampled."""
     b = builder if builder is not None else _Builder()
     intent = IntentPredictor(lot, spec.bev, seed=0)  # weights unused: only inputs() is called
     core = PerceptionCore(lot, spec.bev, intent=intent, t_hist=world.scenario.t_hist)
@@ -238,8 +241,10 @@ def run_episode(lot: LotMap, world: World, labels: dict[int, int], kinds: dict[i
     i_plan, held, pause_left = 0, 0, 0
     n_steps = int(round(t_final / dt))
     agent_rows = {int(v): k for k, v in enumerate(world.vehicle_ids)}
+    observe = noisy_observer(lot, world, sensing, episode)
     for k in range(n_steps + 1):
-        obs = world.observe()
+        obs = observe()
+        truth = (lambda v: int(v.id)) if sensing == "exact" else _truth_of(world, obs)
         hist = core.ego_history(obs)
         core.beliefs.observe(obs.vacant_spot_ids, obs.occupied_spot_ids)  # eq. (7)
         dyn = [v for v in obs.vehicles if not v.is_static]
@@ -248,16 +253,16 @@ def run_episode(lot: LotMap, world: World, labels: dict[int, int], kinds: dict[i
         if collect is not None:
             collect(k, obs, core, hist, dyn)
         elif k % spec.stride == 0:
-            sel = [v for v in dyn if int(v.id) in labels]
+            sel = [v for v in dyn if truth(v) in labels]
             if sel:
                 bevs, feats = intent.inputs(obs, sel, core.beliefs, ego_history=hist)
                 for v, bev, f in zip(sel, bevs, feats, strict=True):
                     if len(bev.candidate_idx) == 0:
                         continue  # "none" is the only option: nothing to predict
-                    target = labels[int(v.id)]
+                    target = labels[truth(v)]
                     b.add(bev, f, label_index(bev.candidate_spot_ids, target), {
-                        "episode": episode, "lot": lot_code, "step": k, "vehicle": int(v.id),
-                        "kind": KIND_CODES[kinds[int(v.id)]], "target_spot": target, "speed": bev.speed})
+                        "episode": episode, "lot": lot_code, "step": k, "vehicle": truth(v),
+                        "kind": KIND_CODES[kinds[truth(v)]], "target_spot": target, "speed": bev.speed})
         if k == n_steps:
             break
         if stop_when_parked and all(_parked(world, agent_rows[v]) for v in labels):
@@ -292,6 +297,30 @@ def run_episode(lot: LotMap, world: World, labels: dict[int, int], kinds: dict[i
     return b
 
 
+def noisy_observer(lot: LotMap, world: World, sensing: str, seed: int):
+    """``world.observe`` (``sensing`` exact), or the observation through the sensing preset ``sensing`` and the
+    tracker (avp_sim.core.sensing, avp_tracking), seeded by ``seed``."""
+    if sensing == "exact":
+        return world.observe
+    from avp_sim.core.sensing import PRESETS, NoisySensor
+    from avp_tracking.core.perceive import TrackingPerception
+    from avp_tracking.core.tracker import Tracker, TrackerConfig
+
+    if sensing not in PRESETS:
+        raise ValueError(f"sensing: expected one of {sorted(PRESETS)}, got {sensing!r}")
+    sensor = NoisySensor(PRESETS[sensing], seed, float(world.caster.region_range.max()))
+    perception = TrackingPerception(lot, Tracker(TrackerConfig(history_steps=world.hist + 1)))
+    return lambda: perception.observe(sensor.sense(world))
+
+
+def _truth_of(world: World, obs):
+    """The simulator id a track follows (-1: none), for labels only."""
+    from avp_sim.core.sensing import truth_ids
+
+    ids = truth_ids(world, obs)
+    return lambda v: ids.get(int(v.id), -1)
+
+
 def _parked(world: World, row: int) -> bool:
     occupied, vehicle_spot = world.occupancy()
     return bool(vehicle_spot[row] >= 0)
@@ -322,7 +351,7 @@ def episode_lot(seed: int, spec: DataSpec, rng: np.random.Generator, lot_choice:
     return lot, {"dlp": LOT_DLP, "paper": LOT_PAPER}.get(lot_choice, LOT_RANDOM)
 
 
-def traffic_episode(seed: int, spec: DataSpec, lot_choice: str = "mixed") -> Samples:
+def traffic_episode(seed: int, spec: DataSpec, lot_choice: str = "mixed", sensing: str = "exact") -> Samples:
     """Samples of one training-distribution episode: the DLP lot (probability ``p_dlp``) or the random lot of
     this seed (``lot_choice``: "mixed", "dlp", "random" or "paper" for the paper lot with this traffic)."""
     rng = np.random.default_rng([int(seed), 7])
@@ -331,11 +360,11 @@ def traffic_episode(seed: int, spec: DataSpec, lot_choice: str = "mixed") -> Sam
     tr = gen.generate(seed)
     world = World(lot, tr.scenario, WorldConfig(t_final=spec.t_final + 1.0, sensor=SensorConfig()))
     b = run_episode(lot, world, tr.labels, tr.kinds, tr.ego_controls, tr.ego_states, spec, seed, code, spec.t_final,
-                    rng)
+                    rng, sensing=sensing)
     return b.build(spec.bev.size_px)
 
 
-def paper_episode(seed: int, spec: DataSpec) -> Samples:
+def paper_episode(seed: int, spec: DataSpec, sensing: str = "exact") -> Samples:
     """Samples of one episode of the paper's §VI-A protocol on the paper lot (1-2 cars parking in the contested
     bottom spots, reactive), seen by the observer starting at the paper's ego start and touring the lanes."""
     lot = load_bundled_lot()
@@ -350,15 +379,15 @@ def paper_episode(seed: int, spec: DataSpec) -> Samples:
     kinds = {v: PARK for v in labels}
     world = World(lot, sc, WorldConfig(t_final=spec.paper_t_final + 1.0, sensor=SensorConfig()))
     b = run_episode(lot, world, labels, kinds, ego_u, ego_x, spec, seed, LOT_PAPER, spec.paper_t_final, rng,
-                    stop_when_parked=True)
+                    stop_when_parked=True, sensing=sensing)
     return b.build(spec.bev.size_px)
 
 
-def _episode_job(args: tuple[str, int, DataSpec]) -> Samples:
-    split, seed, spec = args
+def _episode_job(args: tuple[str, int, DataSpec, str]) -> Samples:
+    split, seed, spec, sensing = args
     if split == "paper":
-        return paper_episode(seed, spec)
-    return traffic_episode(seed, spec)
+        return paper_episode(seed, spec, sensing)
+    return traffic_episode(seed, spec, sensing=sensing)
 
 
 def episode_seeds(split: str, n: int) -> list[int]:
@@ -367,11 +396,12 @@ def episode_seeds(split: str, n: int) -> list[int]:
 
 
 def generate_split(split: str, n_episodes: int, spec: DataSpec = DataSpec(), workers: int = 1,
-                   progress: bool = True, seeds: Iterable[int] | None = None) -> Samples:
+                   progress: bool = True, seeds: Iterable[int] | None = None, sensing: str = "exact") -> Samples:
     """All samples of ``n_episodes`` episodes of a split ("train", "val", "test": DLP and random lots;
-    "paper": the paper's protocol on the paper lot), in seed order whatever the number of workers."""
+    "paper": the paper's protocol on the paper lot), in seed order whatever the number of workers; ``sensing``: the
+    observer's sensing preset (:func:`noisy_observer`)."""
     seeds = list(seeds) if seeds is not None else episode_seeds(split, n_episodes)
-    jobs = [(split, s, spec) for s in seeds]
+    jobs = [(split, s, spec, sensing) for s in seeds]
     bar = _bar(len(jobs), f"episodes {split}", progress)
     parts: list[Samples] = []
     n = 0

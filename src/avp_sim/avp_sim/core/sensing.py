@@ -270,3 +270,18 @@ def _speed(history: np.ndarray, dt: float) -> float:
     d = history[-1, :2] - history[-2, :2]
     th = history[-1, 2]
     return float((d[0] * math.cos(th) + d[1] * math.sin(th)) / dt)
+
+
+def truth_ids(world, obs, max_distance: float = 2.0) -> dict[int, int]:
+    """For scoring only: the simulator id of the vehicle each of ``obs``'s tracks follows now (an optimal one-to-one
+    pairing of the tracks' current estimates with the world's vehicles, within ``max_distance`` m); a track that
+    follows no vehicle (clutter) is left out. The ego never sees this."""
+    from scipy.optimize import linear_sum_assignment
+
+    if not obs.vehicles or not len(world.states):
+        return {}
+    est = np.array([v.history[-1][:2] for v in obs.vehicles])
+    d = np.hypot(est[:, None, 0] - world.states[None, :, 0], est[:, None, 1] - world.states[None, :, 1])
+    rows, cols = linear_sum_assignment(np.where(d < max_distance, d, 1e9))
+    return {int(obs.vehicles[r].id): int(world.vehicle_ids[c]) for r, c in zip(rows, cols, strict=True)
+            if d[r, c] < max_distance}
