@@ -214,3 +214,23 @@ def test_same_seed_same_noisy_episode(paper_lot):
         assert np.array_equal(oa.vacant_spot_ids, ob.vacant_spot_ids)
     c = _episode(paper_lot, "realistic", seed=5, steps=80)
     assert any(not np.array_equal(x[0].ego_pose, y[0].ego_pose) for x, y in zip(a, c, strict=False))
+
+
+def test_exact_sensing_episodes_never_touch_the_sensing_path(paper_lot, monkeypatch):
+    """With sensing.model exact an in-process episode observes with world.observe as before: no sensor, no tracker,
+    no relabelling of its predictions (a bound method compared with `is` once relabelled every exact episode)."""
+    import avp_experiment.episodes as episodes
+    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+
+    def boom(*a, **k):
+        raise AssertionError("the sensing path ran under exact sensing")
+
+    monkeypatch.setattr(episodes, "relabel_predictions", boom, raising=False)
+    import avp_experiment.sensing as sensing
+
+    monkeypatch.setattr(sensing, "relabel_predictions", boom)
+    monkeypatch.setattr(sensing, "truth_ids", boom)
+    cfg = RunConfig(t_final=3.0)
+    sim = sim_values(cfg)
+    rec = episodes.run_episode_inproc(paper_lot, sim, run_profile("oracle", cfg), 1, True, cfg)
+    assert rec["steps"] > 0

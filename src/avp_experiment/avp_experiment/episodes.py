@@ -29,7 +29,8 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
     world = make_world(lot, sim_p, seed, reactive)
     from avp_experiment.sensing import relabel_predictions, sensed_observer, truth_ids
 
-    observe = sensed_observer(world, sim_p, seed) or world.observe  # exact sensing (the paper): world.observe
+    noisy = sensed_observer(world, sim_p, seed)  # None for exact sensing (the paper): world.observe
+    observe = noisy or world.observe
     ego = (OracleEgo if profile.ground_truth else MethodEgo)(
         lot, profile, deterministic=True, intent_weights=cfg.intent_weights, intent_seed=cfg.intent_seed,
         message_precision=cfg.message_precision)
@@ -44,7 +45,7 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
             ego.tell(ground_truth(world, ORACLE_HORIZON))
         out = ego.step(obs)
         preds[out.step] = [p for p in out.predictions if not p.is_pedestrian]
-        if observe is not world.observe:  # tracks: scored against the vehicle each follows (truth for scoring only)
+        if noisy is not None:  # tracks: scored against the vehicle each follows (truth for scoring only)
             preds[out.step] = relabel_predictions(preds[out.step], truth_ids(world, obs))
         timings.append(out.timings)
         if out.decision is not None:
