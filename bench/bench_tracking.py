@@ -24,17 +24,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+from bench_closed_loop import _seeds  # the seed lists "0-4" or "1,3,7", as that bench reads them
 
 ROOT = Path(__file__).resolve().parents[1]
 LOTS = {"paper": ("", "paper"), "dlp": (str(ROOT / "src/avp_world/avp_world/maps/dlp_lot.yaml"), "busy")}
-
-
-def _seeds(spec: str) -> list[int]:
-    out: list[int] = []
-    for part in spec.split(","):
-        a, _, b = part.partition("-")
-        out += list(range(int(a), int(b) + 1)) if b else [int(a)]
-    return out
 
 
 def run_episode(lot, sim: dict, seed: int, steps: int, acc, errs: dict) -> None:

@@ -235,6 +235,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The ``avp`` argument parser: one sub-command per tool (see the module docstring)."""
     from avp_bringup import cli_bag, demo, teleop
     from avp_bringup.compose import add_processes_argument
+    from avp_bringup.graph import add_sensing_arguments
     from avp_common.version import __version__
     from avp_viz import foxglove_cli
 
@@ -254,12 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--drivers", type=int, default=0, help="cars a person drives (avp teleop, Foxglove's Teleop panel) "
                    "on /avp/driver<j>/cmd_vel; the simulator then runs in real time (docs/teleop.md)")
     p.add_argument("--no-scene", action="store_true", help="leave out the scene node (/tf, /tf_static, viz/scene)")
-    p.add_argument("--sensing", default="exact", choices=("exact", "realistic", "harsh", "custom"),
-                   help="the simulator's sensing model (sensing.model): exact (the paper) or noisy detections "
-                   "through the tracker node avp_tracker (docs/perception.md)")
-    p.add_argument("--detections", metavar="TOPIC", help="the tracker reads a real detector's "
-                   "autoware_perception_msgs/DetectedObjects from TOPIC instead of the simulator's (untagged, on its "
-                   "own clock); needs --sensing other than exact (docs/perception.md, 'A real detector')")
+    add_sensing_arguments(p)
     add_processes_argument(p)
     foxglove_cli.add_arguments(p)
     p.set_defaults(func=cmd_launch)

@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 from avp_bringup.compose import add_processes_argument
-from avp_bringup.graph import EGO_NODES, avp_root
+from avp_bringup.graph import EGO_NODES, add_sensing_arguments, avp_root
 from avp_viz import foxglove_cli
 
 
@@ -41,12 +41,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit [s]")
     p.add_argument("--bag", help="where to record the demo's bag (default bags/demo_seed<N>_<time>)")
     foxglove_cli.add_arguments(p)
-    p.add_argument("--sensing", default="exact", choices=("exact", "realistic", "harsh", "custom"),
-                   help="the simulator's sensing model (sensing.model): exact (the paper) or noisy detections "
-                   "through the tracker node avp_tracker (docs/perception.md)")
-    p.add_argument("--detections", metavar="TOPIC", help="the tracker reads a real detector's "
-                   "autoware_perception_msgs/DetectedObjects from TOPIC instead of the simulator's (untagged, on its "
-                   "own clock); needs --sensing other than exact (docs/perception.md, 'A real detector')")
+    add_sensing_arguments(p)
     p.add_argument("--no-scene", action="store_true",
                    help="leave out the scene node: the bag then has no /tf, /tf_static, viz/scene for viewers")
     add_processes_argument(p)

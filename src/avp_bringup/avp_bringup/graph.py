@@ -102,6 +102,16 @@ TRACKER_NODE = NodeSpec("avp_tracker", "avp_tracking", "tracker_node", "config/t
 SENSING_MODELS = ("exact", "realistic", "harsh", "custom")
 
 
+def add_sensing_arguments(p) -> None:
+    """``--sensing`` and ``--detections`` of `avp launch` and `avp demo` (an argparse parser ``p``)."""
+    p.add_argument("--sensing", default="exact", choices=SENSING_MODELS,
+                   help="the simulator's sensing model (sensing.model): exact (the paper) or noisy detections "
+                   "through the tracker node avp_tracker (docs/perception.md)")
+    p.add_argument("--detections", metavar="TOPIC", help="the tracker reads a real detector's "
+                   "autoware_perception_msgs/DetectedObjects from TOPIC instead of the simulator's (untagged, on its "
+                   "own clock); needs --sensing other than exact (docs/perception.md, 'A real detector')")
+
+
 def with_sensing(nodes: list[NodeSpec], model: str, detections: str | None = None) -> list[NodeSpec]:
     """``nodes`` (a one-ego graph, the simulator first) with the sensing model ``model``: for any model but exact,
     the simulator publishes its frame and detections to :data:`TRACKER_NODE`, inserted after it, whose observation
