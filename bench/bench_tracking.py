@@ -6,8 +6,9 @@ figures do not depend on a method), the sensing model and the tracker (avp_exper
 tracks the ego receives are scored against the vehicles the rays touch at that step (what an exact sensor reports):
 a track and a vehicle match within 1 m. py-motmetrics (an independent scorer; our own distance matrix, since its
 ``norm2squared_matrix`` uses ``np.asfarray``, gone in NumPy 2) gives MOTA, IDF1 and the id switches; we add the id
-switches per track-minute (of matched vehicle time), the position and heading RMSE of the matched pairs (heading
-wrapped to +-180 degrees, so an unresolved flip counts in full) and the tracker's time per step.
+switches per track-minute (of matched vehicle time), the position and heading RMSE of the matched pairs (the
+least-cost pairing within 1 m of each step; heading wrapped to +-180 degrees, so an unresolved flip counts in full)
+and the tracker's time per step.
 
 Usage:
     python bench/bench_tracking.py [--models exact,realistic,harsh] [--seeds 0-9] [--steps 300]
@@ -32,6 +33,8 @@ LOTS = {"paper": ("", "paper"), "dlp": (str(ROOT / "src/avp_world/avp_world/maps
 
 def run_episode(lot, sim: dict, seed: int, steps: int, acc, errs: dict) -> None:
     """One scripted-ego episode scored into the motmetrics accumulator ``acc`` and the error lists ``errs``."""
+    from scipy.optimize import linear_sum_assignment
+
     from avp_experiment.sensing import sensed_observer
     from avp_planner.scripted_driver import ScriptedDriver
     from avp_sim.core.factory import make_world
@@ -58,13 +61,13 @@ def run_episode(lot, sim: dict, seed: int, steps: int, acc, errs: dict) -> None:
         if len(gt_ids) and len(hyp):
             dist = np.hypot(truth[:, None, 0] - est[None, :, 0], truth[:, None, 1] - est[None, :, 1])
             d = np.where(dist < 1.0, dist * dist, np.nan)
-        frame_id = acc.update(gt_ids, [int(v.id) for v in hyp], d)
-        for _, row in acc.mot_events.loc[frame_id].iterrows():
-            if row["Type"] in ("MATCH", "SWITCH"):
-                g = gt_ids.index(int(row["OId"]))
-                h = [int(v.id) for v in hyp].index(int(row["HId"]))
-                errs["pos"].append(math.hypot(*(truth[g, :2] - est[h, :2])))
-                errs["head"].append(math.remainder(est[h, 2] - truth[g, 2], 2 * math.pi))
+        acc.update(gt_ids, [int(v.id) for v in hyp], d)
+        if len(gt_ids) and len(hyp):  # the errors of the matched pairs (the least-cost pairing within 1 m)
+            rows, cols = linear_sum_assignment(np.where(np.isnan(d), 1e9, d))
+            for g, h in zip(rows, cols, strict=True):
+                if not np.isnan(d[g, h]):
+                    errs["pos"].append(math.hypot(*(truth[g, :2] - est[h, :2])))
+                    errs["head"].append(math.remainder(est[h, 2] - truth[g, 2], 2 * math.pi))
         world.step(*driver.command(obs))
 
 

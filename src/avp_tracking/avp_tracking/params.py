@@ -28,6 +28,11 @@ TRACKER_PARAMS: list[ParamSpec] = [
               min=0.0, max=1.0, default=_D.size_smoothing),
     ParamSpec("tracking.static_speed", float, "A track standing in a spot slower than this is static (K_sv) [m/s].",
               "K_sv", _WHY, min=0.0, default=_D.static_speed),
+    ParamSpec("tracking.stationary_after", float, "Seconds a vehicle track stays slower than static_speed before "
+              "it is held stationary (its process noise scaled by stationary_noise_scale).", "", _WHY, min=0.0,
+              default=_D.stationary_after),
+    ParamSpec("tracking.stationary_noise_scale", float, "A stationary track's process noise (variances) times the "
+              "moving one's; 1 = no stationary mode.", "", _WHY, min=0.0, max=1.0, default=_D.stationary_noise_scale),
     ParamSpec("tracking.publish_coasted", bool, "Give the ego coasted (occluded) confirmed tracks too, not only "
               "those detected this step.", "", _WHY, default=_D.publish_coasted),
     ParamSpec("tracking.accel_sigma", float, "Process noise: a vehicle's longitudinal acceleration [m/s^2].", "",
@@ -73,7 +78,8 @@ def tracker_config(values: dict, dt: float = 0.1, t_hist: float = 4.0) -> Tracke
                          pedestrian_max_distance=v["pedestrian_max_distance"], n_init=v["n_init"],
                          max_coast=v["max_coast"], flip_votes=v["flip_votes"], size_smoothing=v["size_smoothing"],
                          history_steps=int(round(t_hist / dt)) + 1, static_speed=v["static_speed"],
-                         publish_coasted=v["publish_coasted"], noise=noise)
+                         publish_coasted=v["publish_coasted"], noise=noise,
+                         stationary_after=v["stationary_after"], stationary_noise_scale=v["stationary_noise_scale"])
 
 
 def default_tracker_values() -> dict:

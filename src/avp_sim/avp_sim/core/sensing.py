@@ -7,9 +7,9 @@ al.] ... which we leave as future work." ``sensing.model: exact`` is that assump
 :meth:`World.observe <avp_sim.core.world.World.observe>` as it is). Any other model gives, per step, a
 :class:`~avp_world.detections.SensedFrame`:
 
-* the ego's pose as a localisation estimate: a slowly drifting bias (an Ornstein-Uhlenbeck process of time constant
-  ``localisation_bias_tau``) plus white noise, applied to everything sensed that step (it is correlated: every
-  detection is placed in the map with the estimated pose);
+* the ego's pose as a localisation estimate: a slowly and smoothly drifting bias (two Gauss-Markov stages of time
+  constant ``localisation_bias_tau`` in cascade) plus a small white jitter, applied to everything sensed that step
+  (it is correlated: every detection is placed in the map with the estimated pose);
 * the vehicles the rays touch, each detected with a probability that falls linearly with range (``detect_near`` at
   the ego, ``detect_far`` at the edge of Q_0) and with the share of its outline the rays see (below
   ``detect_min_share`` it falls to 0 in proportion); each detection's centre, heading and size get errors whose
@@ -60,7 +60,7 @@ class SensingConfig:
     clutter_rate: float = 0.05  # false vehicle detections a step (mean)
     pedestrian_sigma: float = 0.15  # m, a pedestrian's position error at range 0 (doubles at the region's edge)
     pedestrian_detect: float = 0.90  # a pedestrian's detection probability at the ego
-    localisation_sigma: float = 0.03  # m, white noise of the ego's position estimate
+    localisation_sigma: float = 0.01  # m, white noise of the ego's position estimate (a localiser's jitter)
     localisation_bias_sigma: float = 0.15  # m, the stationary spread of its slowly drifting bias (per axis)
     localisation_heading_sigma: float = 0.025  # rad, the stationary spread of the heading bias
     localisation_bias_tau: float = 10.0  # s, the bias's time constant
@@ -76,7 +76,7 @@ REALISTIC = SensingConfig(model="realistic")
 HARSH = SensingConfig(model="harsh", position_sigma=0.20, position_sigma_per_m=0.02, heading_sigma=0.10,
                       heading_sigma_per_m=0.006, heading_flip_rate=0.08, size_sigma=0.10, speed_sigma=0.52,
                       detect_near=0.85, detect_far=0.65, detect_min_share=0.4, clutter_rate=0.2,
-                      pedestrian_sigma=0.30, pedestrian_detect=0.75, localisation_sigma=0.06,
+                      pedestrian_sigma=0.30, pedestrian_detect=0.75, localisation_sigma=0.02,
                       localisation_bias_sigma=0.30, localisation_heading_sigma=0.05, localisation_bias_tau=10.0,
                       spot_misread_far=0.10)
 PRESETS = {"exact": SensingConfig(), "realistic": REALISTIC, "harsh": HARSH}
@@ -102,7 +102,7 @@ DESCRIPTIONS = {
     "localisation_sigma": "custom: white noise of the ego's position estimate [m].",
     "localisation_bias_sigma": "custom: stationary spread of its slowly drifting bias, per axis [m].",
     "localisation_heading_sigma": "custom: stationary spread of the heading bias [rad].",
-    "localisation_bias_tau": "custom: time constant of the bias (Ornstein-Uhlenbeck) [s].",
+    "localisation_bias_tau": "custom: time constant of the bias's two Gauss-Markov stages [s].",
     "spot_misread_far": "custom: probability of misreading a spot at the region's edge (grows as range^2).",
 }
 #: the parameters of ``sensing.model: custom`` (sensing.<name>), in :class:`SensingConfig`'s order
@@ -128,6 +128,42 @@ def wrap(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
+class _SmoothDrift:
+    """A unit-variance smooth random drift of time constant ``tau``: a first-order Gauss-Markov process x1 (x1 <- a x1
+    + sqrt(1 - a^2) n) low-pass filtered by a second stage (x2 <- a x2 + (1 - a) x1), scaled so that x2 has unit
+    stationary variance. Its step-to-step change is of order (1 - a) where a single stage's is sqrt(1 - a^2):
+    at dt = 0.1 s, tau = 10 s, about 2 % of its spread a step instead of 14 %."""
+
+    def __init__(self, tau: float):
+        self.tau = float(tau)
+        self._cache: dict[float, tuple[float, float]] = {}
+        self.start_scale = np.array([1.0, 1.0])
+
+    def _coeffs(self, dt: float) -> tuple[float, float]:
+        """(a, g): the stages' coefficient and the gain that gives x2 unit variance (from the stationary covariance
+        of the two-stage system, solved by fixed-point iteration once per dt)."""
+        if dt not in self._cache:
+            a = math.exp(-dt / self.tau) if self.tau > 0 else 0.0
+            A = np.array([[a, 0.0], [(1.0 - a) * a, a]])
+            B = np.array([math.sqrt(1.0 - a * a), (1.0 - a) * math.sqrt(1.0 - a * a)])
+            P = np.outer(B, B)
+            for _ in range(20000):
+                nxt = A @ P @ A.T + np.outer(B, B)
+                if np.allclose(nxt, P, rtol=1e-10, atol=1e-14):
+                    break
+                P = nxt
+            self._cache[dt] = (a, 1.0 / math.sqrt(P[1, 1]) if P[1, 1] > 0 else 1.0)
+            self.start_scale = np.array([1.0, 1.0])
+        return self._cache[dt]
+
+    def step(self, stages: np.ndarray, noise: np.ndarray, dt: float) -> np.ndarray:
+        """The stages (2, 3) one step on (stage 1 unit-variance, stage 2 scaled to unit variance)."""
+        a, g = self._coeffs(dt)
+        x1 = a * stages[0] + math.sqrt(max(0.0, 1.0 - a * a)) * noise
+        x2 = a * stages[1] + (1.0 - a) * g * x1
+        return np.stack([x1, x2])
+
+
 class NoisySensor:
     """The sensing model of one ego in one episode (module docstring). :meth:`sense` is called once a step."""
 
@@ -140,14 +176,18 @@ class NoisySensor:
         c = config
         self._bias_sigma = np.array([c.localisation_bias_sigma, c.localisation_bias_sigma,
                                      c.localisation_heading_sigma])
-        self.bias = self.rng.normal(0.0, 1.0, 3) * self._bias_sigma  # drawn from its stationary spread
+        # the drift: two first-order Gauss-Markov stages in cascade (a smooth path, as a filtered localiser's error is,
+        # not a rough random walk), drawn from their stationary spread
+        self._drift = _SmoothDrift(c.localisation_bias_tau)
+        self._stages = self.rng.normal(0.0, 1.0, (2, 3)) * self._drift.start_scale[:, None]
+        self.bias = self._stages[1] * self._bias_sigma
         self.last_ego_error = np.zeros(3)
 
     def _localise(self, true_pose: np.ndarray, dt: float) -> np.ndarray:
-        """The ego's pose estimate this step: the bias moves on (eq. of an OU process), white noise on top."""
+        """The ego's pose estimate this step: the drifting bias moves on (:class:`_SmoothDrift`), white noise on top."""
         c = self.cfg
-        a = math.exp(-dt / c.localisation_bias_tau) if c.localisation_bias_tau > 0 else 0.0
-        self.bias = a * self.bias + math.sqrt(max(0.0, 1.0 - a * a)) * self.rng.normal(0.0, 1.0, 3) * self._bias_sigma
+        self._stages = self._drift.step(self._stages, self.rng.normal(0.0, 1.0, 3), dt)
+        self.bias = self._stages[1] * self._bias_sigma
         white = self.rng.normal(0.0, 1.0, 3) * np.array([c.localisation_sigma, c.localisation_sigma,
                                                         c.localisation_sigma * 0.1])
         err = self.bias + white

@@ -53,6 +53,8 @@ class TrackerConfig:
     noise: MotionNoise = field(default_factory=MotionNoise)
     init_speed_sigma: float = 3.0  # m/s, a new vehicle track's speed spread without a speed estimate
     init_yaw_rate_sigma: float = 0.5  # rad/s
+    stationary_after: float = 1.0  # s a vehicle track stays slower than static_speed before it is held stationary
+    stationary_noise_scale: float = 0.05  # a stationary track's process noise, times the moving one's
 
 
 class Tracker:
@@ -64,6 +66,7 @@ class Tracker:
         self.tracks_given: list[Track] = []
         self.next_id = 1
         self.step: int | None = None
+        self._dt = 0.1
 
     def reset(self) -> None:
         self.tracks, self.tracks_given, self.next_id, self.step = [], [], 1, None
@@ -77,11 +80,13 @@ class Tracker:
             self.reset()
             dt = 0.0
         self.step = frame.step
+        self._dt = frame.dt
         if dt > 0:
+            quiet = _scaled(cfg.noise, cfg.stationary_noise_scale)
             for t in self.tracks:
                 t.previous_position = t.x[:2].copy() if t.pedestrian else None
                 predict = predict_pedestrian if t.pedestrian else predict_vehicle
-                t.x, t.P = predict(t.x, t.P, dt, cfg.noise)
+                t.x, t.P = predict(t.x, t.P, dt, quiet if t.stationary else cfg.noise)
         vehicles = [t for t in self.tracks if not t.pedestrian]
         peds = [t for t in self.tracks if t.pedestrian]
         seen: set[int] = set()
@@ -158,6 +163,24 @@ class Tracker:
         a = cfg.size_smoothing
         t.length = (1 - a) * t.length + a * float(d.length)
         t.width = (1 - a) * t.width + a * float(d.width)
+        self._stationarity(t, d, step)
+
+    def _stationarity(self, t: Track, d, step: int) -> None:
+        """A vehicle track that has been slower than ``static_speed`` for ``stationary_after`` s is held stationary
+        (its process noise scaled by ``stationary_noise_scale``: a parked car's box stops jittering with each
+        detection's noise); a detection far from it (half the gate) or a speed above ``static_speed`` lets it move
+        again at once."""
+        cfg = self.cfg
+        slow = abs(float(t.x[3])) < cfg.static_speed
+        S = t.P[:2, :2] + np.asarray(d.covariance, float)[:2, :2]
+        r = np.asarray(d.pose[:2], float) - t.x[:2]
+        jump = float(r @ np.linalg.solve(S, r)) > 0.5 * cfg.gate
+        if not slow or jump:
+            t.slow_since, t.stationary = None, False
+            return
+        if t.slow_since is None:
+            t.slow_since = step
+        t.stationary = (step - t.slow_since) * self._dt >= cfg.stationary_after
 
     def _birth(self, d, step: int) -> Track:
         cfg = self.cfg
@@ -179,3 +202,12 @@ class Tracker:
         return Track(id=tid, pedestrian=False, x=x, P=P, born_step=step, length=float(d.length),
                      width=float(d.width), existence=float(d.existence), last_step=step,
                      confirmed=cfg.n_init <= 1)
+
+
+def _scaled(q: MotionNoise, k: float) -> MotionNoise:
+    """``q`` with every spread times sqrt(k) (variances times k)."""
+    from dataclasses import replace
+
+    r = k ** 0.5
+    return replace(q, accel_sigma=q.accel_sigma * r, yaw_accel_sigma=q.yaw_accel_sigma * r,
+                   lateral_sigma=q.lateral_sigma * r, pedestrian_accel_sigma=q.pedestrian_accel_sigma * r)

@@ -31,6 +31,8 @@ class Track:
     flip_votes: float = 0.0  # > 0: detections say the heading is turned by pi
     history: deque = field(default_factory=deque)  # (step, pose (3,)) of each step since birth, oldest first
     previous_position: np.ndarray | None = None  # a pedestrian's estimate one step before
+    stationary: bool = False  # held still (tracker.Tracker._stationarity)
+    slow_since: int | None = None  # the step since which it has been slower than static_speed
 
     @property
     def position(self) -> np.ndarray:
