@@ -28,6 +28,9 @@ TRACKER_PARAMS: list[ParamSpec] = [
               min=0.0, max=1.0, default=_D.size_smoothing),
     ParamSpec("tracking.static_speed", float, "A track standing in a spot slower than this is static (K_sv) [m/s].",
               "K_sv", _WHY, min=0.0, default=_D.static_speed),
+    ParamSpec("tracking.prune_distance", float, "Of two vehicle tracks closer than this whose axes agree within 30 "
+              "degrees, the one with fewer hits is dropped (a duplicate); 0 = never [m].", "", _WHY, min=0.0,
+              default=_D.prune_distance),
     ParamSpec("tracking.stationary_after", float, "Seconds a vehicle track stays slower than static_speed before "
               "it is held stationary (its process noise scaled by stationary_noise_scale).", "", _WHY, min=0.0,
               default=_D.stationary_after),
@@ -79,7 +82,8 @@ def tracker_config(values: dict, dt: float = 0.1, t_hist: float = 4.0) -> Tracke
                          max_coast=v["max_coast"], flip_votes=v["flip_votes"], size_smoothing=v["size_smoothing"],
                          history_steps=int(round(t_hist / dt)) + 1, static_speed=v["static_speed"],
                          publish_coasted=v["publish_coasted"], noise=noise,
-                         stationary_after=v["stationary_after"], stationary_noise_scale=v["stationary_noise_scale"])
+                         prune_distance=v["prune_distance"], stationary_after=v["stationary_after"],
+                         stationary_noise_scale=v["stationary_noise_scale"])
 
 
 def default_tracker_values() -> dict:

@@ -53,6 +53,7 @@ class TrackerConfig:
     noise: MotionNoise = field(default_factory=MotionNoise)
     init_speed_sigma: float = 3.0  # m/s, a new vehicle track's speed spread without a speed estimate
     init_yaw_rate_sigma: float = 0.5  # rad/s
+    prune_distance: float = 1.5  # m: of two vehicle tracks closer than this (headings within 30 deg), one is dropped
     stationary_after: float = 1.0  # s a vehicle track stays slower than static_speed before it is held stationary
     stationary_noise_scale: float = 0.05  # a stationary track's process noise, times the moving one's
 
@@ -111,10 +112,27 @@ class Tracker:
                     continue
             keep.append(t)
             t.record(frame.step, cfg.history_steps)
-        self.tracks = keep
+        self.tracks = self._prune(keep)
         #: what the last update gave the ego
         self.tracks_given = [t for t in self.tracks if t.confirmed and (cfg.publish_coasted or t.misses == 0)]
         return self.tracks_given
+
+    def _prune(self, tracks: list[Track]) -> list[Track]:
+        """Drop duplicates (as Autoware's overlap pruning): of two vehicle tracks whose centres are closer than
+        ``prune_distance`` and whose axes agree within 30 degrees, the one with fewer hits (then the younger) goes —
+        two tracks sharing one car's detections step by step would both live on, one of them a ghost beside it."""
+        cars = [t for t in tracks if not t.pedestrian]
+        if len(cars) < 2 or self.cfg.prune_distance <= 0:
+            return tracks
+        order = sorted(cars, key=lambda t: (-int(t.confirmed), -t.hits, t.born_step, t.id))
+        kept: list[Track] = []
+        for t in order:
+            if any(math.hypot(t.x[0] - k.x[0], t.x[1] - k.x[1]) < self.cfg.prune_distance
+                   and abs(math.remainder(float(t.x[2] - k.x[2]), math.pi)) < math.radians(30.0) for k in kept):
+                continue
+            kept.append(t)
+        alive = {id(t) for t in kept}
+        return [t for t in tracks if t.pedestrian or id(t) in alive]
 
     def _associate(self, tracks: list[Track], dets, max_distance: float) -> list[tuple[int, int]]:
         if not tracks or not dets:
