@@ -87,3 +87,17 @@ def ros_env(cmd_key_file):
     env["PYTHONUNBUFFERED"] = "1"
     yield env
     lock.close()  # releases the flock
+
+
+@pytest.fixture()
+def ros_unbuffered(ros_env, monkeypatch):
+    """This process joins the test's ROS domain (rclpy initialised, shut down after) and its child nodes log
+    unbuffered (their log files are read by the test); yields the children's environment."""
+    import rclpy
+
+    env = {**ros_env, "RCUTILS_LOGGING_BUFFERED_STREAM": "0"}
+    for k, v in env.items():
+        monkeypatch.setenv(k, v)
+    rclpy.init()
+    yield env
+    rclpy.try_shutdown()

@@ -195,13 +195,8 @@ class Probe:
 
 
 @pytest.fixture()
-def ros(ros_env, monkeypatch):
-    ros_env = {**ros_env, "RCUTILS_LOGGING_BUFFERED_STREAM": "0"}
-    for k, v in ros_env.items():
-        monkeypatch.setenv(k, v)
-    rclpy.init()
-    yield ros_env
-    rclpy.try_shutdown()
+def ros(ros_unbuffered):
+    return ros_unbuffered  # tests/conftest.py
 
 
 def log_lines(tmp_path, name: str, level: str) -> list[str]:
