@@ -137,7 +137,6 @@ class _SmoothDrift:
     def __init__(self, tau: float):
         self.tau = float(tau)
         self._cache: dict[float, tuple[float, float]] = {}
-        self.start_scale = np.array([1.0, 1.0])
 
     def _coeffs(self, dt: float) -> tuple[float, float]:
         """(a, g): the stages' coefficient and the gain that gives x2 unit variance (from the stationary covariance
@@ -153,7 +152,6 @@ class _SmoothDrift:
                     break
                 P = nxt
             self._cache[dt] = (a, 1.0 / math.sqrt(P[1, 1]) if P[1, 1] > 0 else 1.0)
-            self.start_scale = np.array([1.0, 1.0])
         return self._cache[dt]
 
     def step(self, stages: np.ndarray, noise: np.ndarray, dt: float) -> np.ndarray:
@@ -179,17 +177,16 @@ class NoisySensor:
         # the drift: two first-order Gauss-Markov stages in cascade (a smooth path, as a filtered localiser's error is,
         # not a rough random walk), drawn from their stationary spread
         self._drift = _SmoothDrift(c.localisation_bias_tau)
-        self._stages = self.rng.normal(0.0, 1.0, (2, 3)) * self._drift.start_scale[:, None]
+        self._stages = self.rng.normal(0.0, 1.0, (2, 3))  # both stages have unit stationary variance
         self.bias = self._stages[1] * self._bias_sigma
+        self._white_sigma = np.array([c.localisation_sigma, c.localisation_sigma, c.localisation_sigma * 0.1])
         self.last_ego_error = np.zeros(3)
 
     def _localise(self, true_pose: np.ndarray, dt: float) -> np.ndarray:
         """The ego's pose estimate this step: the drifting bias moves on (:class:`_SmoothDrift`), white noise on top."""
-        c = self.cfg
         self._stages = self._drift.step(self._stages, self.rng.normal(0.0, 1.0, 3), dt)
         self.bias = self._stages[1] * self._bias_sigma
-        white = self.rng.normal(0.0, 1.0, 3) * np.array([c.localisation_sigma, c.localisation_sigma,
-                                                        c.localisation_sigma * 0.1])
+        white = self.rng.normal(0.0, 1.0, 3) * self._white_sigma
         err = self.bias + white
         self.last_ego_error = err
         est = true_pose + err
@@ -237,7 +234,7 @@ class NoisySensor:
                 width=width * (1.0 + c.size_sigma * noise[4]), covariance=np.diag([sp * sp, sp * sp, sh * sh]),
                 existence=float(np.clip(0.5 + 0.5 * share, 0.0, 1.0)), orientation=ORIENTATION_AVAILABLE,
                 speed=float(speed), speed_variance=c.speed_sigma ** 2))
-        vehicles += self._clutter(obs, scan, est_ego, place)
+        vehicles += self._clutter(scan, place)
         peds: list[PedestrianDetection] = []
         for k in np.nonzero(scan.seen_pedestrians)[0]:
             pos = world.ped_pos[k]
@@ -252,14 +249,13 @@ class NoisySensor:
                                             covariance=np.diag([s * s, s * s]), existence=0.8))
         vac, occ = self._read_spots(world, obs, true_ego)
         return SensedFrame(step=obs.step, dt=obs.dt, ego_pose=est_ego,
-                           ego_covariance=np.diag(np.square(self._bias_sigma) + np.square(
-                               [c.localisation_sigma, c.localisation_sigma, c.localisation_sigma * 0.1])),
+                           ego_covariance=np.diag(np.square(self._bias_sigma) + np.square(self._white_sigma)),
                            ego_length=obs.ego_length, ego_width=obs.ego_width, ego_speed=obs.ego_speed,
                            vacant_spot_ids=vac, occupied_spot_ids=occ, vehicles=tuple(vehicles),
                            pedestrians=tuple(peds), ray_angle_min=obs.ray_angle_min,
                            ray_angle_increment=obs.ray_angle_increment, ray_ranges=obs.ray_ranges)
 
-    def _clutter(self, obs, scan, est_ego: np.ndarray, place) -> list[VehicleDetection]:
+    def _clutter(self, scan, place) -> list[VehicleDetection]:
         """False vehicle detections (Poisson, mean ``clutter_rate``) at the ends of random rays."""
         c, rng = self.cfg, self.rng
         n = int(rng.poisson(c.clutter_rate)) if c.clutter_rate > 0 else 0
