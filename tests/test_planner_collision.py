@@ -10,7 +10,7 @@ from shapely import affinity
 from shapely.geometry import Point, Polygon, box
 from shapely.ops import unary_union
 
-from avp_search.collision import DynamicObstacles, StaticWorld, merge_rects
+from avp_search.collision import DynamicObstacles, StaticWorld, merge_rects, merge_rects_after
 from avp_search.settings import CollisionSettings
 from avp_world.types import PredictedTrajectory
 
@@ -98,6 +98,33 @@ def test_merge_rects_keeps_the_union(paper_lot):
         assert len(b) < len(p)
         assert a.symmetric_difference(unary_union(b)).area < 1e-6
         assert abs(sum(x.area for x in b) - a.area) < 1e-6  # no overlaps
+
+
+def test_merge_after_a_cached_base_gives_the_full_merge(paper_lot):
+    """The base (occupied spots) merged once and cached, then the vehicles after it: the same rectangles in the same
+    order as the full merge — with noisy vehicle boxes (the fast path), with boxes parallel to the spots (the full
+    merge runs), and with a vehicle box that is exactly a vacant spot's (it merges with its neighbours)."""
+    rng = np.random.default_rng(3)
+    cache: dict = {}
+    fast = 0
+    for trial in range(30):
+        occ = rng.random(paper_lot.n_spots) < 0.6
+        p, d = paper_lot.spot_poses[occ], paper_lot.spot_dims[occ]
+        k = int(rng.integers(0, 6))
+        vp = np.column_stack([rng.uniform(5, 40, k), rng.uniform(5, 40, k), rng.uniform(-3.1, 3.1, k)])
+        vd = np.column_stack([rng.uniform(4.0, 5.0, k), rng.uniform(1.7, 2.0, k)])
+        if trial % 3 == 1 and k:  # parked exactly at a spot's heading
+            vp[:, 2] = p[0, 2]
+        if trial % 3 == 2 and (~occ).any():  # exactly a vacant spot's rectangle: a merge the fast path must not skip
+            j = int(np.nonzero(~occ)[0][0])
+            vp = np.vstack([vp, paper_lot.spot_poses[j]])
+            vd = np.vstack([vd, paper_lot.spot_dims[j]])
+        poses, dims = np.vstack([p, vp]), np.vstack([d, vd])
+        want = merge_rects(poses, dims)
+        got = merge_rects_after(poses, dims, len(p), cache)
+        assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+        fast += trial % 3 == 0 and k > 0
+    assert fast >= 5
 
 
 def test_non_convex_lot_boundary(paper_lot):

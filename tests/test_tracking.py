@@ -234,3 +234,58 @@ def test_exact_sensing_episodes_never_touch_the_sensing_path(paper_lot, monkeypa
     sim = sim_values(cfg)
     rec = episodes.run_episode_inproc(paper_lot, sim, run_profile("oracle", cfg), 1, True, cfg)
     assert rec["steps"] > 0
+
+
+def test_a_parked_car_is_given_a_held_pose_until_it_moves():
+    """A parked car detected with 0.1 m noise: once stationary its given pose changes only when the estimate has
+    left it by more than stationary_hold (a few times at most in 10 s, each time near the truth); when it drives
+    off, the hold ends at once and the given pose follows the estimate again. stationary_hold 0: every step's
+    estimate."""
+    rng = np.random.default_rng(5)
+    for hold in (0.1, 0.0):
+        tr = Tracker(TrackerConfig(stationary_hold=hold))
+        given = []
+        for k in range(100):
+            tr.update(_frame(k, [_det(3.0 + rng.normal(0, 0.1), 1.0 + rng.normal(0, 0.1), 0.5)]))
+            (t,) = tr.tracks_given or (None,)
+            if t is not None and k >= 30:
+                given.append(tuple(t.history_array()[-1]))
+                assert math.hypot(t.pose[0] - 3.0, t.pose[1] - 1.0) < 0.25
+        if hold:
+            assert len(set(given)) <= 5, len(set(given))
+        else:
+            assert len(set(given)) == len(given)
+    tr = Tracker(TrackerConfig(stationary_hold=0.1))
+    for k in range(40):
+        tr.update(_frame(k, [_det(3.0, 1.0, 0.0)]))
+    assert tr.tracks[0].held is not None
+    moved = False
+    for k in range(40, 60):
+        x = 3.0 + 1.5 * DT * (k - 39)
+        tr.update(_frame(k, [_det(x, 1.0, 0.0, speed=1.5)]))
+        t = tr.tracks[0]
+        moved |= t.held is None
+        if t.held is None:
+            assert np.array_equal(t.pose, t.x[:3])
+    assert moved and tr.tracks[0].held is None and tr.tracks[0].pose[0] > 4.5
+
+
+def test_spot_readings_are_filtered_by_their_evidence():
+    """A vacant spot at the sensing region's edge misread once as occupied stays vacant; a spot that really turns
+    occupied is followed within a few readings; near the ego one reading turns it in two steps; misread_far 0 passes
+    every reading through."""
+    from avp_tracking.core.spots import SpotFilter
+
+    xy = np.array([[11.0, 0.0], [1.0, 0.0]])
+    f = SpotFilter([7, 8], xy, misread_far=0.05, reach=11.5)
+    for _ in range(20):
+        vac, occ = f.update((0.0, 0.0), [7, 8], [])
+    vac, occ = f.update((0.0, 0.0), [8], [7])  # one misread far away
+    assert occ.tolist() == [] and vac.tolist() == [7, 8]
+    turned = [f.update((0.0, 0.0), [8], [7])[1].tolist() for _ in range(4)]
+    assert turned[-1] == [7] and turned[0] == []  # it takes more than one further reading, fewer than five
+    near = [f.update((0.0, 0.0), [], [8])[1].tolist() for _ in range(2)]
+    assert near == [[], [8]]
+    raw = SpotFilter([7, 8], xy, misread_far=0.0, reach=11.5)
+    vac, occ = raw.update((0.0, 0.0), [8], [7])
+    assert vac.tolist() == [8] and occ.tolist() == [7]

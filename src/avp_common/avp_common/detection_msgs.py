@@ -192,7 +192,7 @@ def tracks_to_msg(tracks, header, episode: int = 0):
             o.shape.dimensions.z = 1.7
         else:
             o.shape.type = Shape.BOUNDING_BOX
-            o.shape.dimensions.x, o.shape.dimensions.y, o.shape.dimensions.z = float(t.length), float(t.width), 1.5
+            o.shape.dimensions.x, o.shape.dimensions.y, o.shape.dimensions.z = *t.dims, 1.5
         msg.objects.append(o)
     return msg
 

@@ -31,7 +31,7 @@ import numpy as np
 from avp_search.dynamic import DynamicObstacles
 from avp_search.settings import CollisionSettings
 
-__all__ = ["StaticWorld", "DynamicObstacles", "merge_rects"]
+__all__ = ["StaticWorld", "DynamicObstacles", "merge_rects", "merge_rects_after"]
 from avp_world.geometry import points_in_rects, polygon_contains_points, rect_corners, segments_intersect
 from avp_world.lot import LotMap
 
@@ -99,6 +99,38 @@ def merge_rects(poses: np.ndarray, dims: np.ndarray, tol: float = 1e-6) -> tuple
     return out[:, :3].copy(), out[:, 3:].copy()
 
 
+def merge_rects_after(poses: np.ndarray, dims: np.ndarray, n_base: int, cache: dict | None = None,
+                      tol: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`merge_rects` of all the rectangles when the first ``n_base`` (the believed-occupied spots, the same
+    step after step) are merged once and cached: the same rectangles, in the same order.
+
+    Exact because a rectangle that is parallel (within ``tol``) to no base rectangle and to no other rectangle
+    after the base can never merge (every merged rectangle keeps the heading of one of the base's): the full merge
+    then leaves those rectangles as they are, after the merged base. Otherwise the full merge runs.
+    """
+    poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+    dims = np.asarray(dims, dtype=float).reshape(-1, 2)
+    rest_th = poses[n_base:, 2]
+    if cache is None or not len(rest_th) or n_base <= 0:
+        return merge_rects(poses, dims, tol)
+    base_th = np.unique(poses[:n_base, 2])
+    if (np.abs(np.sin(rest_th[:, None] - base_th[None, :])) <= tol).any():
+        return merge_rects(poses, dims, tol)
+    if len(rest_th) > 1:
+        pair = np.abs(np.sin(rest_th[:, None] - rest_th[None, :])) <= tol
+        np.fill_diagonal(pair, False)
+        if pair.any():
+            return merge_rects(poses, dims, tol)
+    key = (poses[:n_base].tobytes(), dims[:n_base].tobytes(), tol)
+    base = cache.get(key)
+    if base is None:
+        base = merge_rects(poses[:n_base], dims[:n_base], tol)
+        cache[key] = base
+        while len(cache) > 8:
+            cache.pop(next(iter(cache)))
+    return np.concatenate([base[0], poses[n_base:]]), np.concatenate([base[1], dims[n_base:]])
+
+
 def _is_convex_ccw(poly: np.ndarray) -> bool:
     d1 = np.roll(poly, -1, axis=0) - poly
     d2 = np.roll(d1, -1, axis=0)
@@ -157,6 +189,8 @@ class StaticWorld:
         rect_poses, rect_dims: (K, 3) centres/headings and (K, 2) length/width of obstacle rectangles.
         length, width: the ego footprint.
         settings: grid resolution, disc count.
+        n_base, merge_cache: the first ``n_base`` rectangles are merged once per ``merge_cache`` (a dict the owner
+            keeps; :func:`merge_rects_after`) — the same world, built faster when only the others change.
     """
 
     def __init__(
@@ -167,6 +201,8 @@ class StaticWorld:
         length: float,
         width: float,
         settings: CollisionSettings = CollisionSettings(),
+        n_base: int = 0,
+        merge_cache: dict | None = None,
     ):
         self.lot = lot
         self.settings = settings
@@ -176,7 +212,8 @@ class StaticWorld:
         self.circum = math.hypot(self.half_l, self.half_w)
         self.obstacle_poses = np.asarray(rect_poses, dtype=float).reshape(-1, 3)
         self.obstacle_dims = np.asarray(rect_dims, dtype=float).reshape(-1, 2)
-        self.rect_poses, self.rect_dims = merge_rects(self.obstacle_poses, self.obstacle_dims)
+        self.rect_poses, self.rect_dims = merge_rects_after(self.obstacle_poses, self.obstacle_dims, n_base,
+                                                            merge_cache)
         self.rect_half = 0.5 * self.rect_dims
         self.rect_cos = np.cos(self.rect_poses[:, 2])
         self.rect_sin = np.sin(self.rect_poses[:, 2])

@@ -36,6 +36,21 @@ TRACKER_PARAMS: list[ParamSpec] = [
               default=_D.stationary_after),
     ParamSpec("tracking.stationary_noise_scale", float, "A stationary track's process noise (variances) times the "
               "moving one's; 1 = no stationary mode.", "", _WHY, min=0.0, max=1.0, default=_D.stationary_noise_scale),
+    ParamSpec("tracking.stationary_hold", float, "A stationary track's pose and box as given to the ego change only "
+              "when its estimate has moved by more than this (the planner's static world stays the same while a "
+              "parked car stands); 0 = the estimate every step [m].", "", _WHY, min=0.0,
+              default=_D.stationary_hold),
+    ParamSpec("tracking.stationary_hold_heading", float, "The same for a stationary track's heading [rad].", "",
+              _WHY, min=0.0, default=_D.stationary_hold_heading),
+    ParamSpec("tracking.spot_misread_far", float, "A spot reading's error probability at spot_reach, as the ego "
+              "knows its sensor (growing as range^2; sensing.spot_misread_far is the simulated truth): each seen "
+              "spot is reported by its readings' log-odds, not this step's reading alone; 0 = the reading as it "
+              "comes (eq. 7's input unfiltered).", "", _WHY, min=0.0, max=0.49, default=_D.spot_misread_far),
+    ParamSpec("tracking.spot_reach", float, "The range at which a spot reading's error is spot_misread_far (the "
+              "sensing region's reach) [m].", "", _WHY, min=0.1, default=_D.spot_reach),
+    ParamSpec("tracking.spot_max_log_odds", float, "A spot's evidence is clamped to +- this many nats, so a spot "
+              "that really changes (a car parks or leaves) is followed within a few readings.", "", _WHY, min=0.1,
+              default=_D.spot_max_log_odds),
     ParamSpec("tracking.publish_coasted", bool, "Give the ego coasted (occluded) confirmed tracks too, not only "
               "those detected this step.", "", _WHY, default=_D.publish_coasted),
     ParamSpec("tracking.accel_sigma", float, "Process noise: a vehicle's longitudinal acceleration [m/s^2].", "",
@@ -83,7 +98,11 @@ def tracker_config(values: dict, dt: float = 0.1, t_hist: float = 4.0) -> Tracke
                          history_steps=int(round(t_hist / dt)) + 1, static_speed=v["static_speed"],
                          publish_coasted=v["publish_coasted"], noise=noise,
                          prune_distance=v["prune_distance"], stationary_after=v["stationary_after"],
-                         stationary_noise_scale=v["stationary_noise_scale"])
+                         stationary_noise_scale=v["stationary_noise_scale"],
+                         stationary_hold=v["stationary_hold"],
+                         stationary_hold_heading=v["stationary_hold_heading"],
+                         spot_misread_far=v["spot_misread_far"], spot_reach=v["spot_reach"],
+                         spot_max_log_odds=v["spot_max_log_odds"])
 
 
 def default_tracker_values() -> dict:

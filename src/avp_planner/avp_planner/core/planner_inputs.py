@@ -102,7 +102,8 @@ class InputsMixin:
             build = (key[0], key[1], rp[keep].tobytes(), rd[keep].tobytes())
         world = self._world_cache.get(build)
         if world is None:
-            world = StaticWorld(self.lot, poses_a, dims_a, obs.ego_length, obs.ego_width, self.settings.collision)
+            world = StaticWorld(self.lot, poses_a, dims_a, obs.ego_length, obs.ego_width, self.settings.collision,
+                                n_base=len(occ), merge_cache=self._merge_cache)
             self._world_cache[build] = world
             while len(self._world_cache) > WORLD_CACHE_SIZE:
                 self._world_cache.pop(next(iter(self._world_cache)))

@@ -5,13 +5,15 @@ What reaches the belief node, the prediction node and the planner is an :class:`
 before, with every vehicle a confirmed track (its id the tracker's, its history the tracker's own estimates, at most
 ``history_steps`` of them, shorter for a young track), every pedestrian a track, and the ego's pose the localisation
 estimate. A track is static (parked: the paper's K_sv) when its centre lies in a spot and it moves slower than
-``static_speed``, the simulator's rule applied to the estimate.
+``static_speed``, the simulator's rule applied to the estimate. The spots seen are reported by their evidence over
+time (:mod:`.spots`), not by this step's reading alone.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from avp_tracking.core.spots import SpotFilter
 from avp_tracking.core.tracker import Tracker
 from avp_world.detections import SensedFrame
 from avp_world.types import Observation, ObservedPedestrian, ObservedVehicle
@@ -40,12 +42,26 @@ class TrackingPerception:
     def __init__(self, lot, tracker: Tracker):
         self.tracker = tracker
         self.spots = SpotTest(lot)
+        self._lot = lot
+        self.spot_filter = self._spot_filter()
+
+    def _spot_filter(self) -> SpotFilter:
+        c = self.tracker.cfg
+        return SpotFilter(self._lot.spot_ids, np.asarray(self._lot.spot_poses, float).reshape(-1, 3)[:, :2],
+                          c.spot_misread_far, c.spot_reach, c.spot_max_log_odds)
 
     def observe(self, frame: SensedFrame) -> Observation:
+        new_episode = self.tracker.step is None or frame.step < self.tracker.step
         tracks = self.tracker.update(frame)
+        c = self.tracker.cfg
+        f = self.spot_filter
+        if new_episode or (f.misread_far, f.reach, f.max_log_odds) != (c.spot_misread_far, c.spot_reach,
+                                                                       c.spot_max_log_odds):
+            self.spot_filter = f = self._spot_filter()
+        vacant, occupied = f.update(frame.ego_pose, frame.vacant_spot_ids, frame.occupied_spot_ids)
         static_speed = self.tracker.cfg.static_speed
         vehicles = tuple(
-            ObservedVehicle(id=int(t.id), length=float(t.length), width=float(t.width),
+            ObservedVehicle(id=int(t.id), length=t.dims[0], width=t.dims[1],
                             is_static=bool(abs(t.speed) < static_speed and self.spots.inside(t.x[:2])),
                             history=t.history_array())
             for t in tracks if not t.pedestrian)
@@ -55,7 +71,6 @@ class TrackingPerception:
             for t in tracks if t.pedestrian)
         return Observation(step=frame.step, dt=frame.dt, ego_pose=np.asarray(frame.ego_pose, float).copy(),
                            ego_length=frame.ego_length, ego_width=frame.ego_width, ego_speed=frame.ego_speed,
-                           vacant_spot_ids=np.asarray(frame.vacant_spot_ids, np.int64),
-                           occupied_spot_ids=np.asarray(frame.occupied_spot_ids, np.int64),
+                           vacant_spot_ids=np.asarray(vacant, np.int64), occupied_spot_ids=np.asarray(occupied, np.int64),
                            vehicles=vehicles, pedestrians=peds, ray_angle_min=frame.ray_angle_min,
                            ray_angle_increment=frame.ray_angle_increment, ray_ranges=frame.ray_ranges)

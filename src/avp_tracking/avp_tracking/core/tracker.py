@@ -56,6 +56,11 @@ class TrackerConfig:
     prune_distance: float = 1.5  # m: of two vehicle tracks closer than this (headings within 30 deg), one is dropped
     stationary_after: float = 1.0  # s a vehicle track stays slower than static_speed before it is held stationary
     stationary_noise_scale: float = 0.05  # a stationary track's process noise, times the moving one's
+    stationary_hold: float = 0.1  # m: a stationary track's given pose and box change only by more than this; 0 = off
+    stationary_hold_heading: float = 0.05  # rad: the same for its heading
+    spot_misread_far: float = 0.05  # a spot reading's error probability at spot_reach (the sensor's model); 0 = off
+    spot_reach: float = 11.5  # m, the range at which a reading's error is spot_misread_far (it grows as range^2)
+    spot_max_log_odds: float = 8.0  # a spot's evidence is clamped to +- this (a real change is followed)
 
 
 class Tracker:
@@ -87,6 +92,8 @@ class Tracker:
             for t in self.tracks:
                 t.previous_position = t.x[:2].copy() if t.pedestrian else None
                 predict = predict_pedestrian if t.pedestrian else predict_vehicle
+                if t.stationary:  # held still: a constant-position model (its speed and yaw rate are 0)
+                    t.x[3] = t.x[4] = 0.0
                 t.x, t.P = predict(t.x, t.P, dt, quiet if t.stationary else cfg.noise)
         vehicles = [t for t in self.tracks if not t.pedestrian]
         peds = [t for t in self.tracks if t.pedestrian]
@@ -184,21 +191,45 @@ class Tracker:
         self._stationarity(t, d, step)
 
     def _stationarity(self, t: Track, d, step: int) -> None:
-        """A vehicle track that has been slower than ``static_speed`` for ``stationary_after`` s is held stationary
-        (its process noise scaled by ``stationary_noise_scale``: a parked car's box stops jittering with each
-        detection's noise); a detection far from it (half the gate) or a speed above ``static_speed`` lets it move
-        again at once."""
+        """A vehicle track that has been slower than ``static_speed`` for ``stationary_after`` s is held stationary:
+        its speed and yaw rate are set to 0 before each prediction and its process noise is scaled by
+        ``stationary_noise_scale`` (a parked car's box stops jittering with each detection's noise). Two detections
+        in a row that say it moves — beyond half the gate from it, or a measured speed above ``static_speed`` by
+        two of its standard deviations (one alone comes with the detections' noise a few times in 100 steps) — or
+        an estimated speed above ``static_speed`` let it move again at once, its speed spread reset to a new
+        track's."""
         cfg = self.cfg
         slow = abs(float(t.x[3])) < cfg.static_speed
         S = t.P[:2, :2] + np.asarray(d.covariance, float)[:2, :2]
         r = np.asarray(d.pose[:2], float) - t.x[:2]
-        jump = float(r @ np.linalg.solve(S, r)) > 0.5 * cfg.gate
-        if not slow or jump:
-            t.slow_since, t.stationary = None, False
+        fast = (math.isfinite(d.speed) and math.isfinite(d.speed_variance)
+                and abs(float(d.speed)) > cfg.static_speed + 2.0 * math.sqrt(max(float(d.speed_variance), 0.0)))
+        t.jumps = t.jumps + 1 if fast or float(r @ np.linalg.solve(S, r)) > 0.5 * cfg.gate else 0
+        if not slow or t.jumps >= 2:
+            if t.stationary:
+                t.P[3, 3] = max(float(t.P[3, 3]), cfg.init_speed_sigma ** 2)
+            t.slow_since, t.stationary, t.held, t.jumps = None, False, None, 0
             return
         if t.slow_since is None:
             t.slow_since = step
         t.stationary = (step - t.slow_since) * self._dt >= cfg.stationary_after
+        self._hold(t)
+
+    def _hold(self, t: Track) -> None:
+        """A stationary track gives the ego a held pose and box, renewed from the estimate only when the estimate
+        has left it by more than ``stationary_hold`` (m; the box's length or width as well) or
+        ``stationary_hold_heading`` (rad). A parked car's estimate still moves by millimetres with each detection
+        and with the ego's localisation; held, the planner's static world stays the same step after step (and its
+        cached maps and searches with it) while the car stands."""
+        cfg = self.cfg
+        if not t.stationary or cfg.stationary_hold <= 0:
+            t.held = None
+            return
+        h = t.held
+        if (h is None or math.hypot(t.x[0] - h[0], t.x[1] - h[1]) > cfg.stationary_hold
+                or abs(wrap(float(t.x[2] - h[2]))) > cfg.stationary_hold_heading
+                or abs(t.length - h[3]) > cfg.stationary_hold or abs(t.width - h[4]) > cfg.stationary_hold):
+            t.held = np.array([t.x[0], t.x[1], wrap(float(t.x[2])), t.length, t.width])
 
     def _birth(self, d, step: int) -> Track:
         cfg = self.cfg

@@ -33,6 +33,8 @@ class Track:
     previous_position: np.ndarray | None = None  # a pedestrian's estimate one step before
     stationary: bool = False  # held still (tracker.Tracker._stationarity)
     slow_since: int | None = None  # the step since which it has been slower than static_speed
+    jumps: int = 0  # detections in a row far from a stationary track (Tracker._stationarity)
+    held: np.ndarray | None = None  # (x, y, theta, length, width) given while stationary (Tracker._hold)
 
     @property
     def position(self) -> np.ndarray:
@@ -40,11 +42,21 @@ class Track:
 
     @property
     def pose(self) -> np.ndarray:
-        """(x, y, theta); a pedestrian's theta is its direction of motion (0 standing)."""
+        """(x, y, theta) given to the ego: the held pose of a stationary vehicle track, else the estimate; a
+        pedestrian's theta is its direction of motion (0 standing)."""
+        if self.held is not None:
+            return self.held[:3].copy()
         if not self.pedestrian:
             return self.x[:3].copy()
         vx, vy = self.x[2], self.x[3]
         return np.array([self.x[0], self.x[1], math.atan2(vy, vx) if vx * vx + vy * vy > 1e-6 else 0.0])
+
+    @property
+    def dims(self) -> tuple[float, float]:
+        """(length, width) given to the ego: the held box of a stationary vehicle track, else the smoothed one."""
+        if self.held is not None:
+            return float(self.held[3]), float(self.held[4])
+        return float(self.length), float(self.width)
 
     @property
     def speed(self) -> float:
@@ -66,4 +78,5 @@ class Track:
         self.x[2] = wrap(float(self.x[2]) + math.pi)
         self.x[3] = -self.x[3]
         self.flip_votes = 0.0
+        self.held = None
         self.history = deque((s, np.array([p[0], p[1], wrap(float(p[2]) + math.pi)])) for s, p in self.history)
