@@ -71,6 +71,7 @@ class TrackingPerception:
             for t in tracks if t.pedestrian)
         return Observation(step=frame.step, dt=frame.dt, ego_pose=np.asarray(frame.ego_pose, float).copy(),
                            ego_length=frame.ego_length, ego_width=frame.ego_width, ego_speed=frame.ego_speed,
-                           vacant_spot_ids=np.asarray(vacant, np.int64), occupied_spot_ids=np.asarray(occupied, np.int64),
+                           vacant_spot_ids=np.asarray(vacant, np.int64),
+                           occupied_spot_ids=np.asarray(occupied, np.int64),
                            vehicles=vehicles, pedestrians=peds, ray_angle_min=frame.ray_angle_min,
                            ray_angle_increment=frame.ray_angle_increment, ray_ranges=frame.ray_ranges)
