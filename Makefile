@@ -52,7 +52,8 @@ results: setup
 
 results-table: setup
 	@source tools/env.sh && python -m avp_experiment.headline table --committed --json docs/results/headline.json \
-		--readme README.md && echo "README.md: table regenerated from docs/results/headline.json"
+		--readme README.md --results-page docs/results/README.md && \
+		echo "README.md and docs/results/README.md: tables regenerated from docs/results/headline.json"
 
 lint: setup
 	@source tools/env.sh && python -m ruff check src tests bench tools

@@ -1,4 +1,4 @@
-"""One process per ego (avp_bringup.compose, avp_bringup.container): which nodes share a component container, that
+"""One process per ego (avp_bringup.compose, avp_common.container): which nodes share a component container, that
 each keeps the ROS arguments of its own process, and the container's one-line errors. Over DDS:
 tests/test_fleet_dds.py (K = 2 in containers equal to in-process; one ego's planner swapped out of its container)."""
 
@@ -12,9 +12,9 @@ import pytest
 pytest.importorskip("rclpy")
 
 from avp_bringup.compose import ContainerSpec, layout, one_process_per_ego  # noqa: E402
-from avp_bringup.container import main as container_main  # noqa: E402
-from avp_bringup.container import parse_components  # noqa: E402
 from avp_bringup.graph import Graph, fleet_graph  # noqa: E402
+from avp_common.container import main as container_main  # noqa: E402
+from avp_common.container import parse_components  # noqa: E402
 
 
 def _components(graph: Graph, spec: ContainerSpec) -> list[dict]:

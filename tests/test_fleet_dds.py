@@ -68,8 +68,8 @@ def test_two_egos_over_dds_match_inprocess(paper_lot, ros_env, tmp_path, monkeyp
     """K = 2 over DDS, each ego's pipeline in one process (the default layout): every ego's trajectory bit for bit
     the in-process fleet's."""
     from avp_bringup.graph import Graph, fleet_graph
-    from avp_bringup.monitor import EpisodeMonitor
     from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_monitor.monitor import EpisodeMonitor
 
     cfg = RunConfig(t_final=T_FINAL)
     records, world = _inprocess_fleet(paper_lot, cfg, ["bezier", "bezier"])
@@ -116,9 +116,9 @@ def test_fleet_experiment_over_dds_gives_the_inprocess_records(paper_lot, ros_en
     85, through the reservation node (avp_planner.reservation_node), where ego 0 loses a spot to ego 1 and one to an
     agent and times out at t_f = 40 s, and ego 1 parks. (A fleet of the shipped default over DDS is compared pose by
     pose in test_two_egos_over_dds_match_inprocess and parks in test_demo_of_two_egos_parks_both_and_records_both.)"""
-    from avp_bringup.ros_transport import run_ros
     from avp_experiment.fleet import fleet_label, run_fleet_inproc
     from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_experiment_ros.transport import run_ros
 
     cfg = RunConfig(t_final=40.0)
     keys = [(fleet_label(["reserve", "reserve"]), 85, "reactive")]
@@ -141,9 +141,9 @@ def test_an_ego_gives_way_over_dds_as_in_process(paper_lot, ros_env, tmp_path, m
     process, ego 3 (the later) gives way to ego 0's announced path, no gridlock forms and nobody collides; over DDS,
     where ego 3 reads that path from the beacons the V2V node (avp_planner.v2v_node) relays, every ego's record is
     the in-process one."""
-    from avp_bringup.ros_transport import run_ros
     from avp_experiment.fleet import fleet_label, run_fleet_inproc
     from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_experiment_ros.transport import run_ros
 
     cfg = RunConfig(t_final=46.0)  # ego 3 stands from 39.0 s and makes way for 2 s from 42.9 s
     expected = run_fleet_inproc(paper_lot, sim_values(cfg), [run_profile("bezier", cfg)] * 4, 29, True, cfg)
@@ -246,7 +246,7 @@ def test_swap_one_egos_planner_in_realtime_while_the_other_drives(ros_env, tmp_p
 
     from avp_bringup.graph import Graph, fleet_graph
     from avp_bringup.lifecycle import LifecycleClient
-    from avp_bringup.monitor import EpisodeMonitor
+    from avp_monitor.monitor import EpisodeMonitor
 
     for k, v in ros_env.items():
         monkeypatch.setenv(k, v)

@@ -56,7 +56,7 @@ def test_a_flood_on_cmd_observation_and_beliefs_leaves_the_episode_unchanged(pap
     from test_dds_lockstep import PLANNER_OVERRIDES, PREDICTION_OVERRIDES, SEED, T_FINAL, _inprocess_trajectory
 
     from avp_bringup.graph import Graph, default_graph, with_params
-    from avp_bringup.monitor import EpisodeMonitor
+    from avp_monitor.monitor import EpisodeMonitor
 
     # the planner with the agents' reaction assumed only once seen (profile wary), the compute profile this test was
     # set up with: the default's roll-out for every agent costs more per decision. On 2 loaded cores the flooded

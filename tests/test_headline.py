@@ -11,7 +11,16 @@ from pathlib import Path
 
 import pytest
 
-from avp_experiment.headline import BEGIN, END, cell_argv, load_suite, render, replace_block, suite_table
+from avp_experiment.headline import (
+    BEGIN,
+    END,
+    cell_argv,
+    load_suite,
+    render,
+    render_narrow,
+    replace_block,
+    suite_table,
+)
 from avp_experiment.metrics import wilson
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,9 +34,31 @@ def committed() -> dict:
 def test_the_readme_table_is_the_one_the_committed_records_give(committed):
     readme = (ROOT / "README.md").read_text()
     block = readme.split(BEGIN)[1].split(END)[0]
-    assert block.strip() == render(committed).strip(), "README.md's table is stale: run `make results-table`"
+    assert block.strip() == render_narrow(committed).strip(), "README.md's table is stale: run `make results-table`"
+    page = (ROOT / "docs/results/README.md").read_text()
+    block = page.split(BEGIN)[1].split(END)[0]
+    assert block.strip() == render(committed).strip(), "docs/results/README.md's table is stale: `make results-table`"
     stored = json.loads((ROOT / "docs/results/headline.json").read_text())
     assert stored == json.loads(json.dumps(committed)), "docs/results/headline.json is stale: `make results-table`"
+
+
+def test_the_readme_stays_a_front_page(committed):
+    """README.md: under 1 200 words before its Documentation links, no table row over 130 characters, and every
+    row of its results table a term of its glossary (a method named there has a row, a row has a definition)."""
+    readme = (ROOT / "README.md").read_text()
+    front = readme.split("## Documentation")[0]
+    assert len(front.split()) < 1200, len(front.split())
+    long = [line for line in readme.splitlines() if line.startswith("|") and len(line) > 130]
+    assert not long, long
+    glossary = front.split("Glossary:")[1].split("\n## ")[0].lower()
+    for row in committed["rows"]:
+        name = row["short"].split(",")[0].split("(")[0].strip().lower()
+        if name.startswith("bézier"):
+            name = row["short"].split(",")[-1].replace("profile", "").strip().lower()
+        assert name in glossary, f"the results row {row['short']!r} is not in the README's glossary"
+    for col in committed["columns"]:
+        term = col["short"].split(":")[0].strip().lower()
+        assert term in glossary, f"the column {col['short']!r} is not in the README's glossary"
 
 
 def test_a_cell_agrees_with_its_records_read_independently(committed):

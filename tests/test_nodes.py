@@ -366,9 +366,9 @@ def test_the_graphs_endpoints_have_no_qos_event_handlers(ros, tmp_path):
     import inspect
 
     from avp_bag.recorder import BagRecorder, fleet_topics
-    from avp_bringup.monitor import EpisodeMonitor
     from avp_common.share import package_share
-    from avp_experiment.ros_fleet_collector import FleetCollector
+    from avp_experiment_ros.fleet_collector import FleetCollector
+    from avp_monitor.monitor import EpisodeMonitor
 
     _, env = ros
     bare = rclpy.create_node("bare")

@@ -251,8 +251,8 @@ def test_swap_to_a_user_node_in_lockstep(ros, tmp_path):
     """Lock-step: with the planner deactivated the simulator waits; `swap_planner` brings up the example
     user node (docs/custom_planner.md), which then drives to the end of the episode."""
     from avp_bringup.lifecycle import LifecycleClient
-    from avp_bringup.monitor import EpisodeMonitor
     from avp_bringup.swap import swap_planner
+    from avp_monitor.monitor import EpisodeMonitor
 
     env = ros
     nodes = default_graph()
@@ -322,7 +322,7 @@ def test_swap_to_a_user_node_in_lockstep(ros, tmp_path):
 def test_swap_planner_profile_in_realtime(ros, tmp_path):
     """Real time: `avp swap-planner cautious` mid-episode replaces the running planner by a new process
     with the 'cautious' profile (v_max 1 m/s) while the simulator keeps stepping; the episode completes."""
-    from avp_bringup.monitor import EpisodeMonitor
+    from avp_monitor.monitor import EpisodeMonitor
 
     env = ros
     nodes = default_graph()

@@ -153,7 +153,7 @@ def test_hijacked_commands_do_not_steer_the_ego(paper_lot, node, tmp_path):
     from test_dds_lockstep import SEED, T_FINAL, _inprocess_trajectory
 
     from avp_bringup.graph import default_graph, with_params
-    from avp_bringup.monitor import EpisodeMonitor
+    from avp_monitor.monitor import EpisodeMonitor
 
     n, env = node
     expected, world, _ = _inprocess_trajectory(paper_lot, "scripted", "bezier")

@@ -1,10 +1,10 @@
-"""avp_bringup.step_timer: the closed-loop step time of one ego from observation and command timestamps (ns)."""
+"""avp_monitor.step_timer: the closed-loop step time of one ego from observation and command timestamps (ns)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from avp_bringup.step_timer import StepTimer, summary_ms
+from avp_monitor.step_timer import StepTimer, summary_ms
 
 MS = 1_000_000
 STEP = 100 * MS  # stamps of dt = 0.1 s

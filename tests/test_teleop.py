@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon
 
-from avp_bringup.teleop import TeleopState, split_keys
+from avp_teleop.teleop import TeleopState, split_keys
 from avp_world.geometry import rect_corners
 from avp_world.vehicle import VehicleSpec
 

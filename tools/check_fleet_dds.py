@@ -36,10 +36,10 @@ def main(argv: list[str] | None = None) -> int:
 
     from avp_bringup.domain import _try_lock
     from avp_bringup.graph import Graph, fleet_graph
-    from avp_bringup.monitor import EpisodeMonitor
     from avp_common.services import call_once
     from avp_experiment.fleet import run_fleet_inproc
     from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_monitor.monitor import EpisodeMonitor
     from avp_msgs.srv import ResetEpisode
     from avp_sim.core.factory import load_lot_param
 

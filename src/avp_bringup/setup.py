@@ -18,8 +18,7 @@ setup(
     zip_safe=True,
     maintainer="AVP stack maintainers",
     maintainer_email="maintainers@avp-stack.org",
-    description="The avp command, the node graph and its launch file, the lifecycle client, demo and monitor.",
+    description="The avp command, the node graph's launcher and launch file, the lifecycle client, the demo.",
     license="Apache-2.0",
-    entry_points={"console_scripts": ["component_container = avp_bringup.container:main"],
-                  "avp.experiment_transports": ["ros = avp_bringup.ros_transport:run_ros"]},
+    entry_points={"console_scripts": []},
 )

@@ -21,5 +21,5 @@ setup(
     maintainer_email="maintainers@avp-stack.org",
     description="ROS glue shared by the AVP nodes: message conversions, QoS profiles, validated parameters.",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={"console_scripts": ["component_container = avp_common.container:main"]},
 )

@@ -233,10 +233,12 @@ def main(argv: list[str] | None = None) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``avp`` argument parser: one sub-command per tool (see the module docstring)."""
-    from avp_bringup import cli_bag, demo, teleop
+    from avp_bag import cli as bag_cli
+    from avp_bringup import demo, why
     from avp_bringup.compose import add_processes_argument
     from avp_bringup.graph import add_sensing_arguments
     from avp_common.version import __version__
+    from avp_teleop import teleop
     from avp_viz import foxglove_cli
 
     parser = argparse.ArgumentParser(prog="avp", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
@@ -265,7 +267,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("teleop", help="drive a driven car of the running graph from the keyboard (docs/teleop.md)")
     teleop.add_arguments(p)
     p.set_defaults(func=teleop.run)
-    cli_bag.add_commands(sub)
+    bag_cli.add_commands(sub)
+    why.add_command(sub)
     _add_live_commands(sub)
     _add_offline_commands(sub)
     return parser

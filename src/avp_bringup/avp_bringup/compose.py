@@ -1,6 +1,6 @@
 """Which of the graph's nodes share a process: one per node, or one per ego (a component container each).
 
-ROS 2 composition: several nodes in one process on one executor (avp_bringup.container). A fleet's ego pipeline —
+ROS 2 composition: several nodes in one process on one executor (avp_common.container). A fleet's ego pipeline —
 belief node, prediction node, planner, and its scene node when drawn — is one chain that runs one step at a time, so
 running it in one process loses no parallelism and saves two or three Python processes per ego: with K = 2 on two
 cores the live graph has 6 processes instead of 10 (docs/benchmarks.md, "The live fleet in one process per ego").
@@ -50,7 +50,7 @@ class ContainerSpec:
     def command(self, ros_args: Callable[[Any], list[str]]) -> list[str]:
         from ament_index_python.packages import get_package_prefix
 
-        exe = Path(get_package_prefix("avp_bringup")) / "lib" / "avp_bringup" / "component_container"
+        exe = Path(get_package_prefix("avp_common")) / "lib" / "avp_common" / "component_container"
         components = [{"component": m.component, "args": ros_args(m)} for m in self.members]
         return [str(exe), "--components", json.dumps(components)]
 

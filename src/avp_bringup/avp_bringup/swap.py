@@ -15,7 +15,7 @@ A *planner* is any node publishing on ``<namespace>/cmd``; to be swappable it mu
    lock-step the simulator waits, in real time its watchdog holds the ego still;
 4. activates the new planner (it answers the newest observation first);
 5. shuts the old planners down (their processes exit; a planner in a fleet's component container is unloaded from
-   it and its ego's other nodes run on, avp_bringup.container), unless asked to keep them.
+   it and its ego's other nodes run on, avp_common.container), unless asked to keep them.
 
 Docs: docs/custom_planner.md (the topic contract and a minimal planner of your own).
 """

@@ -9,7 +9,9 @@ blocking agents).
 
 from __future__ import annotations
 
+import argparse
 import json
+import sys
 from pathlib import Path
 
 from avp_planner.core.trace import DecisionTrace, spells_text
@@ -94,3 +96,24 @@ def explain(source: str, seed: int | None = None, method: str = "bezier", mode: 
         summary, dt = trace_from_bag(p, ego)
         head = f"{p}: the last episode of the bag{who}"
     return f"{head}\n{spells_text(summary, dt)}"
+
+
+def cmd_why(args: argparse.Namespace) -> int:
+    try:
+        print(explain(args.source, args.seed, args.method, args.mode, args.ego))
+    except (ValueError, OSError) as exc:
+        print(f"[avp why] {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def add_command(sub) -> None:
+    """The ``avp why`` sub-command."""
+    p = sub.add_parser("why", help="why the ego was not moving: an episode's idle spells and their causes")
+    p.add_argument("source", help="a bag, the --out folder of avp experiment, or a .jsonl file of its records")
+    p.add_argument("--seed", type=int, help="the episode of a run folder or records file")
+    p.add_argument("--method", default="bezier")
+    p.add_argument("--mode", default="reactive", choices=["reactive", "non_reactive"])
+    p.add_argument("--ego", type=int, default=None, metavar="I", help="ego I of several (a bag of avp demo --egos K, "
+                   "or a fleet's records; --method: its method or the fleet label)")
+    p.set_defaults(func=cmd_why)

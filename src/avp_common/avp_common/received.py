@@ -1,6 +1,6 @@
 """Received messages: one deserialisation per process, and a stamp read without any.
 
-rclpy has no intra-process transport: nodes of one component container (avp_bringup.container) each get the same
+rclpy has no intra-process transport: nodes of one component container (avp_common.container) each get the same
 bytes over DDS and would each build the same Python message from them — for an observation of the busy lot, several
 hundred ``Pose2D`` objects per subscriber and step. :func:`share_received` makes :func:`deserialize` hand every
 subscription of the process one message per distinct payload, as rclcpp's intra-process delivery hands several
@@ -9,7 +9,7 @@ convert it, :mod:`avp_common.conversions`). It is off unless a container turns i
 own gets a message of its own, as before.
 
 :func:`stamp_ns` reads ``header.stamp`` straight from the serialised bytes (a reader that needs only the step time,
-avp_bringup.monitor); :func:`observation_head` reads an observation's fields before its first sequence (a reader that
+avp_monitor.monitor); :func:`observation_head` reads an observation's fields before its first sequence (a reader that
 needs only the step and the ego's pose, avp_planner.v2v_node).
 """
 

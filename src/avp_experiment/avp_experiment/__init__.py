@@ -7,5 +7,5 @@
 * :mod:`.summary` — the Table I Markdown table (with the paper's numbers) and the PNG plots;
 * :mod:`.paper` — Table I of the paper;
 * :mod:`.transports` — ``--transport``: ``ros``, the live DDS graph, is avp_bringup's plugin
-  (``avp_bringup.ros_transport``, with :mod:`.ros_collector`).
+  (``avp_experiment_ros.transport``, with :mod:`.ros_collector`).
 """

@@ -92,7 +92,7 @@ class MethodEgo:
     def from_parts(cls, lot: LotMap, core: PerceptionCore, predictor, planner: EgoPlanner, *,
                    name: str = "graph", message_precision: bool = True) -> MethodEgo:
         """The ego of the default live graph from cores built elsewhere (as the nodes build theirs from their
-        parameter files: :func:`avp_bringup.inproc.perception_planner`): intent beliefs, ``predictor`` (the
+        parameter files: :func:`avp_experiment.inproc.perception_planner`): intent beliefs, ``predictor`` (the
         prediction node's, not the core's), the planner using both."""
         ego = cls.__new__(cls)
         profile = MethodProfile(name=name, label=name, group="", available=True, beliefs="intent",
@@ -102,7 +102,7 @@ class MethodEgo:
         return ego
 
     def __call__(self, obs: Observation) -> tuple[float, float]:
-        """A controller for :func:`avp_bringup.inproc.run_episode`: the command of :meth:`step`."""
+        """A controller for :func:`avp_experiment.inproc.run_episode`: the command of :meth:`step`."""
         return self.step(obs).command
 
     def reset(self) -> None:

@@ -267,8 +267,11 @@ def suite_table(suite: Mapping, out: Path | None = None, root: Path | None = Non
             stats = cell_stats(col["metric"], records)
             if stats is not None:
                 cells[col["id"]][row["id"]] = {**stats, "sources": sources, "notes": notes}
-    return {"suite": suite["name"], "columns": [{k: c[k] for k in ("id", "title", "metric")} for c in suite["columns"]],
-            "rows": [{"id": r["id"], "label": r["label"]} for r in suite["rows"]], "cells": cells,
+    return {"suite": suite["name"],
+            "columns": [{**{k: c[k] for k in ("id", "title", "metric")}, "short": c.get("short", c["title"])}
+                        for c in suite["columns"]],
+            "rows": [{"id": r["id"], "label": r["label"], "short": r.get("short", r["label"])} for r in suite["rows"]],
+            "cells": cells,
             "na": {c["id"]: [r["id"] for r in suite["rows"] if not runs_in(r, c)] for c in suite["columns"]}}
 
 
@@ -337,6 +340,32 @@ def render(table: Mapping) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _num(x: float) -> str:
+    """A percentage with one decimal, 100.0 and 0.0 without it."""
+    return f"{x:.0f}" if x in (0.0, 100.0) else f"{x:.1f}"
+
+
+def render_narrow(table: Mapping) -> str:
+    """The README's table: one rate [95 % interval] a cell (success for the busy and fleet columns), short labels,
+    no counts, no footnotes — :func:`render`'s table, with every figure behind it, is on docs/results/README.md."""
+    head = ["pick"] + [c["short"] for c in table["columns"]]
+    lines = ["| " + " | ".join(head) + " |", "|:--" + "|--:" * len(table["columns"]) + "|"]
+    for row in table["rows"]:
+        cells = [row["short"]]
+        for c in table["columns"]:
+            s = table["cells"][c["id"]].get(row["id"])
+            if row["id"] in table["na"].get(c["id"], []):
+                cells.append("–")
+                continue
+            if s is None:
+                cells.append("not run")
+                continue
+            r = s["failed_or_stolen"] if c["metric"] == "failed_or_stolen" else s["success"]
+            cells.append(f"{_num(r['percent'])} [{_num(r['ci95'][0])}, {_num(r['ci95'][1])}]")
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def write_table(table: Mapping, json_path: Path, md_path: Path | None = None) -> None:
     json_path.parent.mkdir(parents=True, exist_ok=True)
     json_path.write_text(json.dumps(table, indent=1, sort_keys=True) + "\n")
@@ -364,7 +393,10 @@ def main(argv: list[str] | None = None) -> int:
     t.add_argument("--root", default=".", help="the repository (committed records are under it) [.]")
     t.add_argument("--json", help="write the table's JSON here [OUT/headline.json]")
     t.add_argument("--quick", action="store_true", help="OUT was run with --quick: the cells are that size")
-    t.add_argument("--readme", help="replace the table between the headline markers of this file")
+    t.add_argument("--readme", help="replace the narrow table (a rate [interval] a cell) between the headline "
+                   "markers of this file")
+    t.add_argument("--results-page", help="replace the full table (counts, sub-columns, footnotes) between the "
+                   "headline markers of this file")
     args = ap.parse_args(argv)
     if args.committed == bool(args.out):
         ap.error("give a suite's OUT folder or --committed, one of them")
@@ -380,8 +412,11 @@ def main(argv: list[str] | None = None) -> int:
         write_table(table, json_path, json_path.with_suffix(".md"))
     if args.readme:
         p = Path(args.readme)
+        p.write_text(replace_block(p.read_text(), render_narrow(table)))
+    if args.results_page:
+        p = Path(args.results_page)
         p.write_text(replace_block(p.read_text(), render(table)))
-    if not json_path and not args.readme:
+    if not json_path and not args.readme and not args.results_page:
         print(render(table), end="")
     return 0
 

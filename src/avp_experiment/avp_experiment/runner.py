@@ -14,7 +14,7 @@ the end ``OUT/summary.md``, ``OUT/summary.json`` and ``OUT/plots/*.png`` are wri
 
 Transports: ``inproc`` runs each episode in a worker process (``concurrent.futures``, spawn, one torch
 thread per worker; :mod:`.episodes`) on the simulator core and :class:`~.ego.MethodEgo`; ``ros`` runs them
-through the live DDS graph (``avp_bringup.ros_transport``, a plugin of :mod:`.transports`; one episode at a
+through the live DDS graph (``avp_experiment_ros.transport``, a plugin of :mod:`.transports`; one episode at a
 time). The planner's wall-clock caps are lifted in both (:data:`~.profiles.DETERMINISTIC_PLANNER`), so the same
 command gives the same episodes.
 """

@@ -4,7 +4,7 @@
 transport is a function registered in the entry-point group ``avp.experiment_transports``
 (:mod:`avp_world.plugins`), called as ``run(keys, cfg, on_record, log_dir, timeout=seconds)`` to run the episode keys
 ``(method, seed, mode)`` and hand each record to ``on_record``. The live DDS graph's transport, ``ros``, is
-avp_bringup's (``avp_bringup.ros_transport:run_ros``): it launches the node graph, which this package does not know.
+avp_bringup's (``avp_experiment_ros.transport:run_ros``): it launches the node graph, which this package does not know.
 """
 
 from __future__ import annotations

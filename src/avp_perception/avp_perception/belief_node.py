@@ -70,7 +70,7 @@ def check_spot_ids(obs, lot) -> None:
 class BeliefNode(Node):
     def __init__(self, **node_options) -> None:
         """``node_options``: rclpy Node keywords (``cli_args``, ``use_global_arguments``), as a component container
-        (avp_bringup.container) gives them."""
+        (avp_common.container) gives them."""
         super().__init__("avp_belief", **node_options)
         p = declare_and_validate(self, BELIEF_PARAMS)
         self.p = p

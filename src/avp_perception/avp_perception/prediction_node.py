@@ -49,7 +49,7 @@ from avp_perception.params import PREDICTION_PARAMS, prediction_config
 class PredictionNode(Node):
     def __init__(self, **node_options) -> None:
         """``node_options``: rclpy Node keywords (``cli_args``, ``use_global_arguments``), as a component container
-        (avp_bringup.container) gives them."""
+        (avp_common.container) gives them."""
         super().__init__("avp_prediction", **node_options)
         p = declare_and_validate(self, PREDICTION_PARAMS)
         self.method = p["method"]

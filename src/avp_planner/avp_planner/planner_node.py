@@ -12,7 +12,7 @@ A lifecycle (managed) node, so that planners can be swapped while the simulator 
 docs/custom_planner.md): *configure* builds the planner core for the lot, *activate* starts answering
 observations (the newest one buffered while inactive first), *deactivate* stops it (no command is
 published while inactive: the simulator holds the ego still), *shutdown* ends the process (in a component
-container, avp_bringup.container: unloads the node, :attr:`PlannerNode.end_hook`). With
+container, avp_common.container: unloads the node, :attr:`PlannerNode.end_hook`). With
 ``autostart`` (default) it configures and activates itself at start-up. An observation of a later episode
 (the episode id in its tag) starts a new episode (the core is reset); one of an earlier episode, or of a
 step older than the newest seen (step 0 included), is dropped with a warning; commands carry the episode id.
@@ -71,13 +71,13 @@ MAX_PENDING = 100  # observations kept while their other inputs are awaited (10 
 
 
 class PlannerNode(LifecycleNode):
-    #: what *shutdown* ends: the process (rclpy.try_shutdown); a component container (avp_bringup.container) sets
+    #: what *shutdown* ends: the process (rclpy.try_shutdown); a component container (avp_common.container) sets
     #: its own, which unloads this node and keeps the others of the process running
     end_hook: Callable[[], object] = staticmethod(rclpy.try_shutdown)
 
     def __init__(self, **node_options) -> None:
         """``node_options``: rclpy Node keywords (``cli_args``, ``use_global_arguments``), as a component container
-        (avp_bringup.container) gives them."""
+        (avp_common.container) gives them."""
         super().__init__("avp_planner", **node_options)
         guard_lifecycle_services(self)
         p = declare_and_validate(self, PLANNER_PARAMS)

@@ -13,7 +13,7 @@ transforms and the scene of step k (with the spot fill, if a colour changed) onc
 predictions and decision k have all arrived (in any order), or else when observation k + 1 does, with what came (a
 graph without perception or planner); once per step (a re-sent observation sends nothing new), each stamped with the
 step's simulated time. Until then it only keeps what came: the observation is read when its step is drawn, after
-the planner answered it, so that in a component container (avp_bringup.container), where this node shares the
+the planner answered it, so that in a component container (avp_common.container), where this node shares the
 pipeline's thread, the scene never runs between an observation and its command. lot_map, observation, beliefs and
 predictions are taken only when tagged with the user's key (``auth_inputs``); the decision only draws the plan,
 so it is taken unchecked, from any publisher (a forged one changes the picture, never the
@@ -55,7 +55,7 @@ KEEP_STEPS = 20  # steps of inputs kept while waiting for their decision (bounde
 class SceneNode(Node):
     def __init__(self, **node_options) -> None:
         """``node_options``: rclpy Node keywords (``cli_args``, ``use_global_arguments``), as a component container
-        (avp_bringup.container) gives them."""
+        (avp_common.container) gives them."""
         super().__init__("avp_scene", **node_options)
         p = declare_and_validate(self, SCENE_PARAMS)
         self.publish_tf = p["publish_tf"]

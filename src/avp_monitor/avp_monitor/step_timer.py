@@ -1,4 +1,4 @@
-"""One ego's closed-loop step time (sense → command), as :mod:`avp_bringup.monitor` defines it: for every step k,
+"""One ego's closed-loop step time (sense → command), as :mod:`avp_monitor.monitor` defines it: for every step k,
 the DDS source timestamp of observation k (the simulator's writer; in lock-step, its last re-send before the answer)
 to the DDS reception timestamp of the first command stamped t_k at the monitor's reader. The monitor keeps one per
 ego (``observation``/``cmd`` with one ego, ``ego<i>/observation``/``ego<i>/cmd`` with several)."""

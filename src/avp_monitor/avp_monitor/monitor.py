@@ -8,7 +8,7 @@ observation k (taken by the simulator's writer; in lock-step, of its last re-sen
 thread, so it does not depend on how busy this process is). Both clocks are the same machine's system clock. In
 real time (sim ``mode: realtime``) a command arriving after observation k+1 was sent comes too late to be used
 (``command_max_lag`` 0): counted as ``late_steps``. With several egos each has its own
-(:class:`~avp_bringup.step_timer.StepTimer` on ``ego<i>/observation`` and ``ego<i>/cmd``): the figures cover every
+(:class:`~avp_monitor.step_timer.StepTimer` on ``ego<i>/observation`` and ``ego<i>/cmd``): the figures cover every
 ego's steps, and ``per_ego`` gives each ego's.
 
 Under a flood (docs/bad_input.md row 48) the figure stays honest: ``observation`` and ``cmd`` are taken only with a
@@ -28,12 +28,12 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
-from avp_bringup.step_timer import StepTimer, summary_ms
 from avp_common.conversions import observation_from_msg
 from avp_common.drain import draining_subscription
 from avp_common.msg_auth import ego_scope, load_key, scoped_key, verify
 from avp_common.qos import QUIET_READER, STATUS
 from avp_common.received import stamp_ns
+from avp_monitor.step_timer import StepTimer, summary_ms
 from avp_msgs.msg import AgentState, EpisodeStatus, GroundTruth, Observation, PredictedTrajectoryArray, SpotBeliefs
 
 #: reader side of the metric streams: a whole episode (t_f = 100 s at dt = 0.1 s, 1000 steps) may queue while the

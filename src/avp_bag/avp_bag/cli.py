@@ -1,4 +1,5 @@
-"""The ``avp`` sub-commands of bags and runs: record, replay, merge-bag, metrics, why (avp_bringup.cli)."""
+"""The ``avp`` sub-commands of bags: record, replay, merge-bag, metrics (the ``avp`` command of avp_bringup adds them;
+rosbag2 stands apart from the launcher, as here)."""
 
 from __future__ import annotations
 
@@ -127,19 +128,8 @@ def cmd_metrics(args: argparse.Namespace) -> int:
     return 0 if same else 1
 
 
-def cmd_why(args: argparse.Namespace) -> int:
-    from avp_bringup.why import explain
-
-    try:
-        print(explain(args.source, args.seed, args.method, args.mode, args.ego))
-    except (ValueError, OSError) as exc:
-        print(f"[avp why] {exc}", file=sys.stderr)
-        return 2
-    return 0
-
-
 def add_commands(sub) -> None:
-    """record, replay, merge-bag, metrics, why: the sub-commands of bags and runs."""
+    """record, replay, merge-bag, metrics: the sub-commands of bags."""
     p = sub.add_parser("record", help="record the graph to a rosbag2")
     p.add_argument("out")
     p.add_argument("--topics", nargs="+")
@@ -170,11 +160,3 @@ def add_commands(sub) -> None:
     p.add_argument("--driver", type=int, default=None, metavar="J",
                    help="driven car J of a bag of avp demo --drive: the agents it made brake, its collisions")
     p.set_defaults(func=cmd_metrics)
-    p = sub.add_parser("why", help="why the ego was not moving: an episode's idle spells and their causes")
-    p.add_argument("source", help="a bag, the --out folder of avp experiment, or a .jsonl file of its records")
-    p.add_argument("--seed", type=int, help="the episode of a run folder or records file")
-    p.add_argument("--method", default="bezier")
-    p.add_argument("--mode", default="reactive", choices=["reactive", "non_reactive"])
-    p.add_argument("--ego", type=int, default=None, metavar="I", help="ego I of several (a bag of avp demo --egos K, "
-                   "or a fleet's records; --method: its method or the fleet label)")
-    p.set_defaults(func=cmd_why)

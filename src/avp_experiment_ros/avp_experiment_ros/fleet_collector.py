@@ -1,4 +1,4 @@
-"""The collector of ``avp experiment --transport ros --egos K`` (avp_bringup.ros_fleet_transport): a debug-side
+"""The collector of ``avp experiment --transport ros --egos K`` (avp_experiment_ros.transport): a debug-side
 observer of one fleet episode at a time, never part of any ego.
 
 It records the lot's ``episode_status`` (when the episode ends), ``debug/ground_truth`` (every vehicle and ego in the
@@ -16,7 +16,7 @@ import numpy as np
 from rclpy.node import Node
 
 from avp_common.qos import QUIET_READER, STATUS
-from avp_experiment.ros_collector import NAMESPACE, STATE_NAMES, deep_qos, status_metrics, with_perception
+from avp_experiment_ros.collector import NAMESPACE, STATE_NAMES, deep_qos, status_metrics, with_perception
 from avp_msgs.msg import (
     AgentState,
     BrakingFor,

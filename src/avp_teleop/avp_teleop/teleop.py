@@ -146,3 +146,15 @@ def _raw(fd: int):
     old = termios.tcgetattr(fd)
     tty.setcbreak(fd)
     return lambda: termios.tcsetattr(fd, termios.TCSADRAIN, old)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The ``teleop_keyboard`` executable: ``avp teleop`` without the ``avp`` command (it joins ROS_DOMAIN_ID as
+    set)."""
+    p = argparse.ArgumentParser(prog="teleop_keyboard", description=__doc__.split("\n\n")[0])
+    add_arguments(p)
+    return run(p.parse_args(argv))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,6 +1,6 @@
 """A component container: several of the graph's nodes in one process, on one executor (ROS 2 composition).
 
-``install/avp_bringup/lib/avp_bringup/component_container --components JSON``, JSON a list of
+``install/avp_common/lib/avp_common/component_container --components JSON``, JSON a list of
 ``{"component": "package.module:Class", "args": [ROS arguments]}``: each entry is built as
 ``Class(cli_args=["--ros-args", *args], use_global_arguments=False)``, so every node keeps its own name, namespace,
 remappings and parameter files exactly as it would have in a process of its own

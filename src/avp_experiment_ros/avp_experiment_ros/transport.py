@@ -11,7 +11,7 @@ times of ``observation`` and ``predictions``. The record is built by the same fu
 
 Several egos (``--egos K``, ``--fleet``): one fleet graph per fleet (:func:`avp_bringup.graph.fleet_graph`: the
 simulator with ``egos.count`` K, K pipelines in ``/avp/ego<i>``), recorded by
-:class:`avp_experiment.ros_fleet_collector.FleetCollector`, a record per ego with the in-process fleet's fields.
+:class:`avp_experiment_ros.fleet_collector.FleetCollector`, a record per ego with the in-process fleet's fields.
 
 Timings: the perception runs in two other processes, so its share of the spot-selection time is measured on
 the critical path — the DDS source timestamps of predictions k minus observation k (belief node, prediction
@@ -37,7 +37,7 @@ DRAIN_S = 10.0
 def run_ros(keys: list[Key], cfg: RunConfig, on_record: Callable, log_dir: Path,
             timeout: float = 600.0, env: dict | None = None) -> None:
     """Run ``keys`` through the live graph, one graph per method (or fleet: :func:`avp_bringup.graph.fleet_graph`,
-    recorded by :class:`avp_experiment.ros_fleet_collector.FleetCollector`, a list of records per episode) after the
+    recorded by :class:`avp_experiment_ros.fleet_collector.FleetCollector`, a list of records per episode) after the
     other (see the module docstring)."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -45,8 +45,8 @@ def run_ros(keys: list[Key], cfg: RunConfig, on_record: Callable, log_dir: Path,
     from avp_bringup.graph import fleet_graph, method_graph
     from avp_experiment.fleet import fleet_names
     from avp_experiment.metrics import lot_record
-    from avp_experiment.ros_collector import EpisodeCollector
-    from avp_experiment.ros_fleet_collector import FleetCollector
+    from avp_experiment_ros.collector import EpisodeCollector
+    from avp_experiment_ros.fleet_collector import FleetCollector
     from avp_sim.core.factory import load_lot_param
 
     if not cfg.message_precision:

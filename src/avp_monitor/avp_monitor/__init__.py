@@ -1,0 +1,1 @@
+"""The episode monitor (:mod:`.monitor`) and the closed-loop step time it measures (:mod:`.step_timer`)."""

@@ -1,0 +1,1 @@
+"""Keyboard teleop of a driven car (docs/teleop.md): :mod:`.teleop`."""
