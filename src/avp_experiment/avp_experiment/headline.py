@@ -334,8 +334,11 @@ def render(table: Mapping) -> str:
         lines.append("| " + " | ".join(cells) + " |")
     lines.append("")
     maker = "make results" if table["suite"] == "headline" else f"avp experiment --suite {table['suite']}"
-    lines.append("Percent [95 % Wilson interval] (episodes); interrupted steps: mean [95 % interval]. \"not run\": "
-                 f"no committed records at full size yet (`{maker}` makes them); \"–\": does not apply.")
+    unrun = any(table["cells"][c["id"]].get(r["id"]) is None and r["id"] not in table["na"].get(c["id"], [])
+                for c in table["columns"] for r in table["rows"])
+    lines.append("Percent [95 % Wilson interval] (episodes); interrupted steps: mean [95 % interval]"
+                 + (f"; \"not run\": no committed records at full size yet (`{maker}` makes them)" if unrun else "")
+                 + "; \"–\": does not apply.")
     lines += [f"<sup>{i + 1}</sup> {n}." for i, n in enumerate(notes)]
     return "\n".join(lines) + "\n"
 
