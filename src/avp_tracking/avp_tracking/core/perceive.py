@@ -51,13 +51,13 @@ class TrackingPerception:
                           c.spot_misread_far, c.spot_reach, c.spot_max_log_odds)
 
     def observe(self, frame: SensedFrame) -> Observation:
-        new_episode = self.tracker.step is None or frame.step < self.tracker.step
+        new_episode = self.tracker.step is None or frame.step < self.tracker.step  # as the tracker resets itself
         tracks = self.tracker.update(frame)
-        c = self.tracker.cfg
-        f = self.spot_filter
-        if new_episode or (f.misread_far, f.reach, f.max_log_odds) != (c.spot_misread_far, c.spot_reach,
-                                                                       c.spot_max_log_odds):
-            self.spot_filter = f = self._spot_filter()
+        c, f = self.tracker.cfg, self.spot_filter
+        if (f.misread_far, f.reach, f.max_log_odds) != (c.spot_misread_far, c.spot_reach, c.spot_max_log_odds):
+            self.spot_filter = f = self._spot_filter()  # the node's parameters changed
+        elif new_episode:
+            f.reset()
         vacant, occupied = f.update(frame.ego_pose, frame.vacant_spot_ids, frame.occupied_spot_ids)
         static_speed = self.tracker.cfg.static_speed
         vehicles = tuple(

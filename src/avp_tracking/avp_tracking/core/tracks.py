@@ -33,7 +33,7 @@ class Track:
     previous_position: np.ndarray | None = None  # a pedestrian's estimate one step before
     stationary: bool = False  # held still (tracker.Tracker._stationarity)
     slow_since: int | None = None  # the step since which it has been slower than static_speed
-    jumps: int = 0  # detections in a row far from a stationary track (Tracker._stationarity)
+    jumps: int = 0  # detections in a row that say a stationary track moves (Tracker._stationarity)
     held: np.ndarray | None = None  # (x, y, theta, length, width) given while stationary (Tracker._hold)
 
     @property
