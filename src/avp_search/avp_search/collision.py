@@ -30,6 +30,7 @@ import numpy as np
 
 from avp_search.dynamic import DynamicObstacles
 from avp_search.settings import CollisionSettings
+from avp_search.world_extend import RASTER_SHIFT, extend_grid
 
 __all__ = ["StaticWorld", "DynamicObstacles", "merge_rects", "merge_rects_after"]
 from avp_world.geometry import points_in_rects, polygon_contains_points, rect_corners, segments_intersect
@@ -191,6 +192,8 @@ class StaticWorld:
         settings: grid resolution, disc count.
         n_base, merge_cache: the first ``n_base`` rectangles are merged once per ``merge_cache`` (a dict the owner
             keeps; :func:`merge_rects_after`) — the same world, built faster when only the others change.
+        base: a world of the same lot and ego whose rectangles are the first of this one's (after merging): its
+            grid is extended by the others (:mod:`avp_search.world_extend`) — the same world, built faster.
     """
 
     def __init__(
@@ -203,6 +206,7 @@ class StaticWorld:
         settings: CollisionSettings = CollisionSettings(),
         n_base: int = 0,
         merge_cache: dict | None = None,
+        base: StaticWorld | None = None,
     ):
         self.lot = lot
         self.settings = settings
@@ -220,10 +224,27 @@ class StaticWorld:
         self.rect_circum = np.hypot(self.rect_half[:, 0], self.rect_half[:, 1])
         self.boundary = _Boundary(lot.boundary)
         self.disc_offsets, self.disc_radius = _disc_layout(self.length, self.width, settings.n_discs)
-        self._build_grid()
+        if base is None or not extend_grid(self, base):
+            self._build_grid()
 
     # ------------------------------------------------------------------ grid
     def _build_grid(self) -> None:
+        self._grid_frame()
+        grid = np.ones((self.shape[0], self.shape[1]), dtype=np.uint8)  # 1 = occupied
+        for ring in self.boundary._shrunk_rings(self.grow):
+            cv2.fillPoly(grid, [self._px(ring)], 0, lineType=cv2.LINE_8, shift=RASTER_SHIFT)
+        self._raster_rects(grid, self.rect_poses, self.rect_dims)
+        self.grid = grid
+        free = (grid == 0).astype(np.uint8)
+        self.edt = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE).astype(np.float32) * self.res
+        depth = cv2.distanceTransform(grid, cv2.DIST_L2, cv2.DIST_MASK_PRECISE).astype(np.float32) * self.res
+        self.depth = np.minimum(depth, np.float32(self.depth_cap))
+        # signed field: distance to obstacles outside them, minus the depth inside them (capped: only whether a
+        # point lies deeper than sure_depth is ever asked)
+        self._sdf_flat = (self.edt - self.depth).ravel()
+
+    def _grid_frame(self) -> None:
+        """The grid's origin, cell, shape and the raster's growth and slack (the lot's alone)."""
         res = self.settings.grid_resolution
         xmin, ymin, xmax, ymax = self.lot.bounds()
         pad = 2 * res
@@ -231,32 +252,25 @@ class StaticWorld:
         self.res = res
         w = int(math.ceil((xmax - xmin + 2 * pad) / res))
         h = int(math.ceil((ymax - ymin + 2 * pad) / res))
-        grid = np.ones((h, w), dtype=np.uint8)  # 1 = occupied
+        self.shape = (h, w)
         half_diag = res * math.sqrt(0.5)
-        grow = 2.0 * half_diag  # every cell that contains an obstacle point lies well inside the grown shape
+        self.grow = 2.0 * half_diag  # every cell that contains an obstacle point lies well inside the grown shape
         self.slack = 2.0 * half_diag + 1e-6
-        shift = 8
-        scale = float(1 << shift)
-
-        def px(pts: np.ndarray) -> np.ndarray:
-            u = (pts - self.origin) / res - 0.5  # pixel-centre coordinates
-            return np.round(u * scale).astype(np.int32)
-
-        for ring in self.boundary._shrunk_rings(grow):
-            cv2.fillPoly(grid, [px(ring)], 0, lineType=cv2.LINE_8, shift=shift)
-        if len(self.rect_poses):
-            grown = rect_corners(self.rect_poses, self.rect_dims[:, 0] + 2 * grow, self.rect_dims[:, 1] + 2 * grow)
-            for c in grown:  # one call each: fillPoly fills several contours even-odd (overlaps would be holes)
-                cv2.fillPoly(grid, [px(c)], 1, lineType=cv2.LINE_8, shift=shift)
-        self.grid = grid
-        free = (grid == 0).astype(np.uint8)
-        self.edt = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE).astype(np.float32) * res
-        depth = cv2.distanceTransform(grid, cv2.DIST_L2, cv2.DIST_MASK_PRECISE).astype(np.float32) * res
-        self.shape = grid.shape
-        # signed field: distance to obstacles outside them, minus the depth inside them
-        self._sdf_flat = (self.edt - depth).ravel()
         # a point deeper than this inside the raster lies inside a true obstacle
-        self.sure_depth = grow + 2.0 * half_diag + 1e-6
+        self.sure_depth = self.grow + 2.0 * half_diag + 1e-6
+        self.depth_cap = self.sure_depth + 2.0 * res
+
+    def _px(self, pts: np.ndarray) -> np.ndarray:
+        u = (pts - self.origin) / self.res - 0.5  # pixel-centre coordinates
+        return np.round(u * float(1 << RASTER_SHIFT)).astype(np.int32)
+
+    def _raster_rects(self, grid: np.ndarray, poses: np.ndarray, dims: np.ndarray) -> None:
+        """Marks the rectangles, grown by ``grow``, occupied in ``grid``."""
+        if len(poses):
+            g = self.grow
+            grown = rect_corners(poses, dims[:, 0] + 2 * g, dims[:, 1] + 2 * g)
+            for c in grown:  # one call each: fillPoly fills several contours even-odd (overlaps would be holes)
+                cv2.fillPoly(grid, [self._px(c)], 1, lineType=cv2.LINE_8, shift=RASTER_SHIFT)
 
     def clearance(self, xy: np.ndarray) -> np.ndarray:
         """Lower bound on the distance (m) from points (..., 2) to the static obstacles (0 off the grid)."""

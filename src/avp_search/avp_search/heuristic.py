@@ -48,6 +48,24 @@ def rs_length_table(radius: float, res: float, extent: float, bins: int) -> np.n
     return table
 
 
+def coarse_max(world: StaticWorld, k: int) -> np.ndarray:
+    """The largest clearance (``world.edt``) in each k x k block of cells (the grid padded with 0), kept on the world:
+    the heuristics rooted in one world share it."""
+    memo = world.__dict__.setdefault("_coarse_max", {})
+    if k not in memo:
+        edt = world.edt
+        h, w = edt.shape
+        hh, ww = -(-h // k), -(-w // k)
+        pad = np.zeros((hh * k, ww * k), dtype=np.float32)
+        pad[:h, :w] = edt
+        rows = pad.reshape(hh, k, ww * k)
+        m = rows[:, 0].copy()
+        for i in range(1, k):  # row by row, then within each block: the same maxima, far faster than one reduce
+            np.maximum(m, rows[:, i], out=m)
+        memo[k] = m.reshape(hh, ww, k).max(axis=2)
+    return memo[k]
+
+
 class EgoHeuristic:
     """h(pose) = max(RS length pose -> ego, 2-D obstacle-aware distance pose -> ego); built once per step."""
 
@@ -66,8 +84,9 @@ class EgoHeuristic:
 
         The map depends only on the static world and the start cell, so with a ``cache`` (keyed by
         ``world.key``, which the owner of the world sets) a caller rooting many heuristics in the same world (the
-        Hybrid A* predictor: one per vehicle and step) computes it once per cell; at most
-        :data:`DISTANCE_CACHE_SIZE` maps are kept."""
+        Hybrid A* predictor: one per vehicle and step) computes it once per cell; and as it depends on the world only
+        through the coarse cells that may hold the car centre, a new world with the same such cells finds the map of
+        an earlier one (the same map, computed once); at most :data:`DISTANCE_CACHE_SIZE` maps are kept."""
         k = max(1, int(round(res / world.res)))
         self.h_res = k * world.res
         self.h_origin = world.origin
@@ -77,18 +96,22 @@ class EgoHeuristic:
         if cache is not None and key in cache:
             self.reachable, self.dist = cache[key]
             return
-        edt = world.edt
-        h, w = edt.shape
-        hh, ww = -(-h // k), -(-w // k)
-        pad = np.zeros((hh * k, ww * k), dtype=np.float32)
-        pad[:h, :w] = edt
+        best = coarse_max(world, k)
+        hh, ww = best.shape
         # a coarse cell is free if some point of it may hold the car centre (clearance >= half width, less the
         # grid's conservative slack and the rasterisation growth)
-        best = pad.reshape(hh, k, ww, k).max(axis=(1, 3))
         free = best >= max(world.half_w - 2.0 * world.slack, 0.05)
-        dist = np.full((hh, ww), BIG, dtype=np.float32)
-        if 0 <= si < hh and 0 <= sj < ww:
+        inside = 0 <= si < hh and 0 <= sj < ww
+        if inside:
             free[si, sj] = True
+        # the map depends only on the coarse free cells and the start: a world that differs only within cells
+        # (a standing pedestrian's box a few centimetres on, a parked car's held pose renewed) has the same map
+        free_key = ("free", self.h_res, world.origin.tobytes(), (si, sj), free.shape, free.tobytes())
+        if cache is not None and free_key in cache:
+            self.reachable, self.dist = cache[key] = cache[free_key]
+            return
+        dist = np.full((hh, ww), BIG, dtype=np.float32)
+        if inside:
             dist[si, sj] = 0.0
         blocked = ~free
         cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
@@ -107,9 +130,9 @@ class EgoHeuristic:
             filled = np.where(blocked, np.minimum(filled, cv2.erode(filled, box) + diag), filled)
         self.dist = filled
         if cache is not None:
-            if len(cache) >= DISTANCE_CACHE_SIZE:
+            if len(cache) >= 2 * DISTANCE_CACHE_SIZE:
                 cache.clear()
-            cache[key] = (self.reachable, self.dist)
+            cache[key] = cache[free_key] = (self.reachable, self.dist)
 
     def dist2d(self, xy: np.ndarray) -> np.ndarray:
         xy = np.asarray(xy, dtype=float)

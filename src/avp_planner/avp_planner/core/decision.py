@@ -119,6 +119,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
         self.beliefs = np.full(self.lot.n_spots, 0.5)
         self._plan: _Plan | None = None
         self._world_cache: dict[tuple, StaticWorld] = {}
+        self._spots_cache: dict[tuple, StaticWorld] = {}  # the believed-occupied spots' worlds (_spots_world)
         self._merge_cache: dict[tuple, tuple] = {}  # the believed-occupied spots merged (merge_rects_after)
         self._distance_cache: dict[tuple, tuple] = {}  # the heuristic's 2-D distance maps by (world, start cell)
         self._last_park_attempt: tuple | None = None

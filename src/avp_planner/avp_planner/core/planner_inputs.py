@@ -67,7 +67,8 @@ class InputsMixin:
             self.beliefs[self.lot.spot_index(sid)] = 1.0
         return self.beliefs
 
-    def _static_world(self, obs: Observation, beliefs: np.ndarray, extra: np.ndarray | None = None) -> StaticWorld:
+    def _static_world(self, obs: Observation, beliefs: np.ndarray, extra: np.ndarray | None = None,
+                      base: StaticWorld | None = None) -> StaticWorld:
         """The static obstacles: believed-occupied spots (b >= beta), observed static vehicles, and ``extra``.
 
         Built worlds are cached by what they are built from (the last ``WORLD_CACHE_SIZE``: parked cars at the
@@ -75,7 +76,10 @@ class InputsMixin:
         the same step after step while the ego is held up). A static vehicle lying inside a believed-occupied spot with
         ``CONTAINED_MARGIN`` to spare adds nothing to the union of obstacles, nor to its raster, so it is left
         out of what the world is built from. ``world.key`` still names every input (the parking retry logic
-        compares it), so decisions are those of a world built from everything.
+        compares it), so decisions are those of a world built from everything. A world is built by extending the
+        grid of one with fewer rectangles (the same world, built faster: :mod:`avp_search.world_extend`): ``base``,
+        this step's world without ``extra``, or else the world of the believed-occupied spots alone, which changes
+        seldom while the vehicles' estimates move with the sensor's noise.
         """
         d = self.settings.decision
         occ = np.nonzero(beliefs >= d.belief_threshold)[0]
@@ -102,14 +106,28 @@ class InputsMixin:
             build = (key[0], key[1], rp[keep].tobytes(), rd[keep].tobytes())
         world = self._world_cache.get(build)
         if world is None:
+            if extra is None or not len(extra):
+                base = self._spots_world(occ, obs) if len(poses_a) > len(occ) else None
             world = StaticWorld(self.lot, poses_a, dims_a, obs.ego_length, obs.ego_width, self.settings.collision,
-                                n_base=len(occ), merge_cache=self._merge_cache)
+                                n_base=len(occ), merge_cache=self._merge_cache, base=base)
             self._world_cache[build] = world
             while len(self._world_cache) > WORLD_CACHE_SIZE:
                 self._world_cache.pop(next(iter(self._world_cache)))
         else:
             self._world_cache[build] = self._world_cache.pop(build)  # most recently used last
         world.key = key
+        return world
+
+    def _spots_world(self, occ: np.ndarray, obs: Observation) -> StaticWorld:
+        """The static world of the believed-occupied spots ``occ`` alone (cached: the last few)."""
+        key = (float(obs.ego_length), float(obs.ego_width), np.asarray(occ).tobytes())
+        world = self._spots_cache.get(key)
+        if world is None:
+            world = StaticWorld(self.lot, self.lot.spot_poses[occ], self.lot.spot_dims[occ], obs.ego_length,
+                                obs.ego_width, self.settings.collision, n_base=len(occ), merge_cache=self._merge_cache)
+            self._spots_cache[key] = world
+            while len(self._spots_cache) > 4:
+                self._spots_cache.pop(next(iter(self._spots_cache)))
         return world
 
     def _not_inside_occupied(self, poses: np.ndarray, dims: np.ndarray, occ: np.ndarray) -> np.ndarray:

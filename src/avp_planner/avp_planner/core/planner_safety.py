@@ -96,7 +96,7 @@ class SafetyMixin:
         if len(extra):
             t_fb = min(t_end, time.perf_counter() + d.fallback_time_cap)
             it_fb = d.fallback_max_iterations
-            world2 = self._static_world(obs, b, extra)
+            world2 = self._static_world(obs, b, extra, base=world)
             heur2, astar2 = self._searcher(world2, ego, timing)
             if len(cands):
                 found, _ = self._search_set(PARK, cands.tolist(), ego, world, dyn, heur2, astar2,
