@@ -7,6 +7,7 @@ from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 CORE_FILES = [*SRC.glob("avp_world/avp_world/**/*.py"), *SRC.glob("avp_search/avp_search/*.py"),
+              *SRC.glob("avp_collision/avp_collision/*.py"),
               *SRC.glob("avp_sim/avp_sim/core/*.py"), *SRC.glob("avp_tracking/avp_tracking/core/*.py"),
               *SRC.glob("avp_planner/avp_planner/core/*.py"), *SRC.glob("avp_perception/avp_perception/core/*.py"),
               SRC / "avp_planner/avp_planner/scripted_driver.py",
@@ -46,29 +47,31 @@ def test_runtime_packages_never_import_training():
 
 
 #: which avp packages each package may import: the data flow sim -> perception -> planner, on top of the ROS-free
-#: libraries (avp_world: lot, geometry, kinematics; avp_search: Hybrid A*, Reeds-Shepp shots, collision), the
+#: libraries (avp_world: lot, geometry, kinematics; avp_collision: collision checking; avp_search: Hybrid A*,
+#: Reeds-Shepp shots), the
 #: messages and the shared node helpers (avp_common); training and the command line last
 ALLOWED = {
     "avp_msgs": set(),
     "avp_world": set(),
-    "avp_search": {"avp_world"},
+    "avp_collision": {"avp_world"},
+    "avp_search": {"avp_world", "avp_collision"},
     "avp_common": {"avp_msgs", "avp_world"},
     "avp_sim": {"avp_msgs", "avp_world", "avp_common"},
     # between the simulator (or a real detector) and perception: it reads detections, never the simulator
     "avp_tracking": {"avp_msgs", "avp_world", "avp_common"},
-    "avp_perception": {"avp_msgs", "avp_world", "avp_search", "avp_common"},
-    "avp_planner": {"avp_msgs", "avp_world", "avp_search", "avp_common"},
+    "avp_perception": {"avp_msgs", "avp_world", "avp_collision", "avp_search", "avp_common"},
+    "avp_planner": {"avp_msgs", "avp_world", "avp_collision", "avp_search", "avp_common"},
     "avp_training": {"avp_world", "avp_common", "avp_sim", "avp_tracking", "avp_perception"},
     # the experiment runs the cores in process; bags and viewers read what the graph publishes; avp_bringup (the `avp`
     # command, the graph) sits on top of everything and alone reaches training
-    "avp_experiment": {"avp_msgs", "avp_world", "avp_search", "avp_common", "avp_sim", "avp_tracking",
+    "avp_experiment": {"avp_msgs", "avp_world", "avp_collision", "avp_search", "avp_common", "avp_sim", "avp_tracking",
                        "avp_perception", "avp_planner"},
     "avp_bag": {"avp_msgs", "avp_world", "avp_common", "avp_sim"},
     "avp_viz": {"avp_msgs", "avp_world", "avp_common", "avp_perception", "avp_bag"},
     # one package per job beside the launcher: the keyboard teleop (as teleop_twist_keyboard), the episode monitor
     "avp_teleop": set(),
     "avp_monitor": {"avp_msgs", "avp_world", "avp_common", "avp_viz"},
-    "avp_bringup": {"avp_msgs", "avp_world", "avp_search", "avp_common", "avp_sim", "avp_tracking",
+    "avp_bringup": {"avp_msgs", "avp_world", "avp_collision", "avp_search", "avp_common", "avp_sim", "avp_tracking",
                     "avp_perception",
                     "avp_planner", "avp_training", "avp_experiment", "avp_bag", "avp_viz", "avp_teleop",
                     "avp_monitor"},

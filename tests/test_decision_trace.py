@@ -51,7 +51,7 @@ def test_evasive_horizon_evades_only_an_imminent_hit(paper_lot):
     """``decision.evasive_horizon``: the standing ego is predicted to be hit at step k (read from the
     planner's own check); a horizon shorter than k·dt leaves it standing (idle, the car named), one at least as long
     evades, as 0 (the shipped value: any predicted hit) does."""
-    from avp_search.dynamic import DynamicObstacles
+    from avp_collision.dynamic import DynamicObstacles
 
     car, pred = _rushing_car()
     ego = (21.5, 25.0, -math.pi / 2)

@@ -10,7 +10,7 @@ from shapely import affinity
 from shapely.geometry import Point, Polygon, box
 from shapely.ops import unary_union
 
-from avp_search.collision import DynamicObstacles, StaticWorld, merge_rects, merge_rects_after
+from avp_collision.static import DynamicObstacles, StaticWorld, merge_rects, merge_rects_after
 from avp_search.settings import CollisionSettings
 from avp_world.types import PredictedTrajectory
 

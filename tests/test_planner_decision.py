@@ -261,7 +261,7 @@ def test_parked_cars_inside_occupied_spots_leave_the_static_world_unchanged(pape
     """The world is built without static vehicles lying inside believed-occupied spots (a speed-up): its raster,
     signed distance field and exact answers equal those of a world built with every vehicle (the oracle), and
     a vehicle sticking out of its spot is kept."""
-    from avp_search.collision import StaticWorld
+    from avp_collision.static import StaticWorld
 
     s21, s22 = paper_lot.spots[paper_lot.spot_index(21)], paper_lot.spots[paper_lot.spot_index(22)]
     inside = static_car(1, s21.x, s21.y, s21.heading)  # a 4.6 x 1.85 car centred in its spot

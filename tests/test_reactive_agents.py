@@ -1,5 +1,5 @@
 """Collision checking against agents that stop for the ego (``collision.reactive_steps``,
-avp_search.reactive), with shapely as the independent oracle of the geometry."""
+avp_collision.reactive), with shapely as the independent oracle of the geometry."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 from shapely.geometry import Polygon
 from unhurried import unhurried
 
-from avp_search.dynamic import DynamicObstacles
+from avp_collision.dynamic import DynamicObstacles
 from avp_world.geometry import rect_corners
 from avp_world.types import PredictedTrajectory
 
@@ -110,7 +110,7 @@ def _reference_meetings(preds, ego, steps, vm=0.3, pm=0.4, overlap=False):
     those elsewhere). ``overlap``: ``collision.reactive_trigger: overlap`` — the agent brakes only where its next
     poses would overlap the ego, and it meets the ego within the margin only where the ego's own move brought it
     nearer to the agent's pose, or where they overlap."""
-    from avp_search.reactive import disc_gaps, rect_gaps
+    from avp_collision.reactive import disc_gaps, rect_gaps
 
     n = max(len(ego), max(len(p.poses) for p in preds) + 1)
     ego = np.concatenate([ego, np.repeat(ego[-1:], n - len(ego), axis=0)])
@@ -142,7 +142,7 @@ def _reference_meetings(preds, ego, steps, vm=0.3, pm=0.4, overlap=False):
 
 
 def test_the_vectorised_roll_out_equals_the_recurrence_written_out():
-    """avp_search.reactive (vectorised over agents, rolled out only where some gap is finite, agents pre-filtered
+    """avp_collision.reactive (vectorised over agents, rolled out only where some gap is finite, agents pre-filtered
     by bounding box) against the plain recurrence, on random scenes: the same first meeting."""
     rng = np.random.default_rng(7)
     checked = 0
@@ -192,10 +192,10 @@ def _plain_roll_out(g, margin, react, steps, own_n, hold_last, k0, first_only, e
 
 
 def test_the_roll_out_over_a_gap_table_equals_the_plain_recurrence():
-    """avp_search.reactive._roll_out (tables of both tests, j stepped through bytes, only the steps where some gap
+    """avp_collision.reactive._roll_out (tables of both tests, j stepped through bytes, only the steps where some gap
     is finite) against the recurrence written out, on random gap tables with unreachable pairs (+inf), agents the
     rule leaves out (-inf), and every switch: the same meetings in the same order."""
-    from avp_search.reactive import _roll_out
+    from avp_collision.reactive import _roll_out
 
     rng = np.random.default_rng(11)
     met = 0
@@ -223,10 +223,10 @@ def test_the_roll_out_over_a_gap_table_equals_the_plain_recurrence():
 
 
 def test_the_plan_poses_are_made_distinct_as_numpy_does():
-    """avp_search.reactive._unique_rows against np.unique(axis=0, return_inverse=True) on plans with repeated poses
+    """avp_collision.reactive._unique_rows against np.unique(axis=0, return_inverse=True) on plans with repeated poses
     (an ego that waits): the same rows in the same order and the same inverse, bit for bit where no -0.0 is in play
     (where one is, 0.0 and -0.0 are one row, as in numpy, and equal by value)."""
-    from avp_search.reactive import _unique_rows
+    from avp_collision.reactive import _unique_rows
 
     rng = np.random.default_rng(5)
     exact = 0

@@ -1,4 +1,4 @@
-"""A static world extended from another one's grid (avp_search.world_extend) is the world a full build gives: every
+"""A static world extended from another one's grid (avp_collision.world_extend) is the world a full build gives: every
 array equal, on the paper's lot and the DLP lot, with rectangles anywhere (inside obstacles, at the boundary, apart
 and overlapping, few or many); and the planner's worlds, built so, are those a full build gives."""
 
@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from avp_search.collision import StaticWorld
+from avp_collision.static import StaticWorld
 from avp_search.settings import CollisionSettings
 from avp_world.lot import load_lot
 

@@ -49,7 +49,7 @@ SAFETY_EXTRAS: dict[str, dict[str, tuple[Any, Any]]] = {
     # d) after standing decision.stuck_time, creep along the best blocked plan while its next 2 s are clear
     "deadlock_breaker": {"decision.deadlock_breaker": (True, False)},
     # "avoids collisions with the predicted trajectories" (§V-D-1) as if each agent went on whatever the ego does:
-    # the agents stop for the ego as §III-B's do (look-ahead 2 steps, avp_search.reactive), on in planner.param.yaml
+    # the agents stop for the ego as §III-B's do (look-ahead 2 steps, avp_collision.reactive), on in planner.param.yaml
     # for every agent from the first step (collision.reactive_evidence: assumed)
     "reactive_agents": {"collision.reactive_steps": (2, 0)},
     # c) "wait-and-go" (Nawaz et al.) waits before starting only: wait at a stop on the path instead

@@ -15,7 +15,7 @@ import sys
 import cv2
 import numpy as np
 
-from avp_search.collision import StaticWorld
+from avp_collision.static import StaticWorld
 from avp_search.paths import wrap
 from avp_search.settings import SearchConfig
 from avp_search.table_cache import cached_table

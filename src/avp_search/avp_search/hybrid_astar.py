@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from avp_search.collision import StaticWorld
+from avp_collision.static import StaticWorld
 from avp_search.heuristic import BIG, EgoHeuristic, rs_length_table
 from avp_search.paths import Path, arc_poses, merge_segments, sample_xycs, wrap
 from avp_search.rs_scalar import CURVATURE_SIGN, rs_candidates

@@ -27,7 +27,7 @@ this keeps the same world from step to step — except the goal spots (>= mu) of
 any spot that an observed dynamic vehicle's current footprint meets (a car already half-way into or out
 of a spot must be able to start); plus the observed static vehicles and the lot boundary L. The ego and the
 other moving vehicles are not obstacles (they move; the ego planner handles the interaction). The
-:class:`~avp_search.collision.StaticWorld` (occupancy grid + distance transform) is cached under that
+:class:`~avp_collision.static.StaticWorld` (occupancy grid + distance transform) is cached under that
 obstacle set and the footprint size, so it is rebuilt only when the set changes; the obstacle-aware 2-D
 heuristic (:class:`~avp_search.heuristic.EgoHeuristic`, rooted at the vehicle) is built once per vehicle
 and step and shared by its goals, and its 2-D distance map is reused while the vehicle stays in the same
@@ -44,6 +44,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from avp_collision.static import StaticWorld
 from avp_perception.core.intention import Intention
 from avp_perception.core.prediction import (
     BezierPredictor,
@@ -55,7 +56,6 @@ from avp_perception.core.prediction import (
     intention_trajectory,
     vehicle_motion,
 )
-from avp_search.collision import StaticWorld
 from avp_search.heuristic import EgoHeuristic, rs_length_table
 from avp_search.hybrid_astar import HybridAStar
 from avp_search.paths import Path

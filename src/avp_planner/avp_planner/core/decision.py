@@ -7,7 +7,7 @@ At each step t, :meth:`EgoPlanner.decide` receives the observation (§III-A), th
 §V-B without the intention model): b = 0.5 initially; observed vacant -> 0, observed occupied -> 1,
 otherwise kept.
 
-**Static world** (:mod:`~avp_search.collision`): lot boundary, spots with b >= β as full spot
+**Static world** (:mod:`~avp_collision.static`): lot boundary, spots with b >= β as full spot
 rectangles, observed static vehicles. **Dynamic obstacles**: the given predictions; an observed dynamic
 vehicle or pedestrian without any prediction gets a constant-velocity one (``fallback_prediction``; §V-C uses
 constant velocity for pedestrians), so that the planner stays safe when run without a prediction module.
@@ -50,7 +50,7 @@ repeated once (small budget) with the current footprints of the agents that stan
 obstacles (``dynamic_as_static_fallback``), which lets the ego drive around a stopped car. Two safety
 additions to the paper's rule: an agent that is already closer than the margin to the ego (a reactive car
 that stopped next to it) only has to keep its
-current gap (:class:`~avp_search.collision.DynamicObstacles`), so the ego is not frozen next to it;
+current gap (:class:`~avp_collision.static.DynamicObstacles`), so the ego is not frozen next to it;
 and if standing still is itself predicted to be hit (``evasive``), the ego drives the candidate that is hit
 latest or never: a blocked plan of this step or a short escape arc (forward/reverse, 2-8 m).
 """
@@ -63,6 +63,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from avp_collision.static import DynamicObstacles, StaticWorld
 from avp_planner.core.ego_yield import EgoYieldMixin
 from avp_planner.core.making_way import MakeWayMixin
 from avp_planner.core.planner_candidates import CandidatesMixin
@@ -86,7 +87,6 @@ from avp_planner.core.settings import PlannerSettings
 from avp_planner.core.spot_selection import SelectionContext, make_spot_selector
 from avp_planner.core.trace import blocked_poses, idle_cause
 from avp_planner.core.yielding import ReactionEvidence
-from avp_search.collision import DynamicObstacles, StaticWorld
 from avp_search.hybrid_astar import PlanResult
 from avp_search.paths import wrap
 from avp_world.lot import LotMap

@@ -27,9 +27,9 @@ import time
 
 import numpy as np
 
+from avp_collision.reactive import rect_gaps
 from avp_planner.core.making_way import RETRY_STEPS
 from avp_planner.core.planner_types import _Plan
-from avp_search.reactive import rect_gaps
 from avp_world.types import Beacon
 
 MATCH = 1.0  # m: an observed vehicle this close to a beacon's pose is its sender

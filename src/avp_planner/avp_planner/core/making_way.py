@@ -30,12 +30,12 @@ import time
 
 import numpy as np
 
+from avp_collision.reactive import rect_gaps
 from avp_planner.core.control import track
 from avp_planner.core.planner_inputs import pedestrian_stands, vehicle_stands
 from avp_planner.core.planner_search import start_relaxed_margins
 from avp_planner.core.planner_types import EXPLORE, IDLE, Decision, _Plan
 from avp_search.paths import Path
-from avp_search.reactive import rect_gaps
 
 #: the manoeuvres tried: (length of the first arc, length of the second, opposite-curvature arc) in m; 0 = one arc
 MOVES = ((2.0, 0.0), (3.0, 0.0), (4.0, 0.0), (6.0, 0.0), (2.0, 2.0), (3.0, 3.0), (4.0, 4.0))

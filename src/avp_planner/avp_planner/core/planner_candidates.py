@@ -10,9 +10,9 @@ import math
 
 import numpy as np
 
+from avp_collision.static import DynamicObstacles, StaticWorld
 from avp_planner.core.control import reference_trajectory
 from avp_planner.core.waiting import stop_and_wait
-from avp_search.collision import DynamicObstacles, StaticWorld
 from avp_search.hybrid_astar import EgoHeuristic
 from avp_search.paths import Path, wrap
 from avp_search.rs_scalar import rs_shortest

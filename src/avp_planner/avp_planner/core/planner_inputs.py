@@ -12,13 +12,13 @@ from dataclasses import replace
 
 import numpy as np
 
+from avp_collision.static import DynamicObstacles, StaticWorld
 from avp_planner.core.planner_types import (
     CONTAINED_MARGIN,
     STILL_SPEED,
     WORLD_CACHE_SIZE,
 )
 from avp_planner.core.yielding import yielding_predictions
-from avp_search.collision import DynamicObstacles, StaticWorld
 from avp_search.paths import wrap
 from avp_world.geometry import rect_corners, rect_inside_rect
 from avp_world.kinematics import step_vehicle
@@ -77,7 +77,7 @@ class InputsMixin:
         ``CONTAINED_MARGIN`` to spare adds nothing to the union of obstacles, nor to its raster, so it is left
         out of what the world is built from. ``world.key`` still names every input (the parking retry logic
         compares it), so decisions are those of a world built from everything. A world is built by extending the
-        grid of one with fewer rectangles (the same world, built faster: :mod:`avp_search.world_extend`): ``base``,
+        grid of one with fewer rectangles (the same world, built faster: :mod:`avp_collision.world_extend`): ``base``,
         this step's world without ``extra``, or else the world of the believed-occupied spots alone, which changes
         seldom while the vehicles' estimates move with the sensor's noise.
         """

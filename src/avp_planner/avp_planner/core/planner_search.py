@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 
+from avp_collision.static import DynamicObstacles, StaticWorld
 from avp_planner.core.control import Trajectory, track
 from avp_planner.core.planner_types import (
     EXPLORE,
@@ -21,7 +22,6 @@ from avp_planner.core.planner_types import (
 )
 from avp_planner.core.trace import blocker_trace
 from avp_planner.core.waiting import insert_wait, stop_index
-from avp_search.collision import DynamicObstacles, StaticWorld
 from avp_search.hybrid_astar import EgoHeuristic, HybridAStar, PlanResult
 from avp_search.paths import wrap
 from avp_world.geometry import rect_corners, rect_inside_rect

@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from avp_collision.static import DynamicObstacles, StaticWorld
 from avp_planner.core.control import Trajectory
-from avp_search.collision import DynamicObstacles, StaticWorld
 from avp_search.paths import Path
 from avp_world.types import Observation
 

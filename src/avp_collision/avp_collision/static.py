@@ -18,7 +18,7 @@ and an exact test of the corners against L shrunk by the margin. "Free with marg
 obstacle some separating axis shows a gap > m (which implies Euclidean distance > m), and the footprint
 lies in L shrunk by m.
 
-**Dynamic obstacles** (predicted agents) are :class:`avp_search.dynamic.DynamicObstacles`, re-exported here.
+**Dynamic obstacles** (predicted agents) are :class:`avp_collision.dynamic.DynamicObstacles`, re-exported here.
 """
 
 from __future__ import annotations
@@ -28,9 +28,9 @@ import math
 import cv2
 import numpy as np
 
-from avp_search.dynamic import DynamicObstacles
-from avp_search.settings import CollisionSettings
-from avp_search.world_extend import RASTER_SHIFT, extend_grid
+from avp_collision.dynamic import DynamicObstacles
+from avp_collision.settings import CollisionSettings
+from avp_collision.world_extend import RASTER_SHIFT, extend_grid
 
 __all__ = ["StaticWorld", "DynamicObstacles", "merge_rects", "merge_rects_after"]
 from avp_world.geometry import points_in_rects, polygon_contains_points, rect_corners, segments_intersect
@@ -193,7 +193,7 @@ class StaticWorld:
         n_base, merge_cache: the first ``n_base`` rectangles are merged once per ``merge_cache`` (a dict the owner
             keeps; :func:`merge_rects_after`) — the same world, built faster when only the others change.
         base: a world of the same lot and ego whose rectangles are the first of this one's (after merging): its
-            grid is extended by the others (:mod:`avp_search.world_extend`) — the same world, built faster.
+            grid is extended by the others (:mod:`avp_collision.world_extend`) — the same world, built faster.
     """
 
     def __init__(

@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from avp_search.reactive import disc_gaps, reactive_hits, rect_gaps
+from avp_collision.reactive import disc_gaps, reactive_hits, rect_gaps
 from avp_world.types import PredictedTrajectory
 
 
@@ -54,7 +54,7 @@ class DynamicObstacles:
         self.keep_current_gap, self.hold_last = bool(keep_current_gap), bool(hold_last)
         self.commit_steps, self.risk_bound = int(commit_steps), float(risk_bound)  # 0: every meeting blocks
         self.react_steps, self.react_margin = int(react_steps), float(react_margin)
-        self.react_trigger = str(react_trigger)  # "margin" | "overlap" (avp_search.reactive)
+        self.react_trigger = str(react_trigger)  # "margin" | "overlap" (avp_collision.reactive)
         if self.commit_steps > 0 and hold_after_commit:  # cut every prediction at the window, held there
             predictions = [replace(p, poses=np.asarray(p.poses, dtype=float)[: self.commit_steps])
                            for p in predictions]
@@ -81,7 +81,7 @@ class DynamicObstacles:
         self.veh_react = np.array([react_keys is None or (False, int(i)) in react_keys for i in self.veh_ids], bool)
         self.ped_react = np.array([react_keys is None or (True, int(i)) in react_keys for i in self.ped_ids], bool)
         self._margin_cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}  # by the ego's pose at k = 0
-        self._react_cache: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  # avp_search.reactive's gap tables
+        self._react_cache: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  # avp_collision.reactive's gap tables
 
     @property
     def empty(self) -> bool:
@@ -159,7 +159,7 @@ class DynamicObstacles:
         vm, pm = self._margins(ego[0])
         if self.react_steps <= 0 or not (self.veh_react.any() or self.ped_react.any()):
             return self._plain_hits(ego, vm, pm, k0)
-        # agents stop for the ego (avp_search.reactive), after a commit window in which they are assumed not to
+        # agents stop for the ego (avp_collision.reactive), after a commit window in which they are assumed not to
         late = reactive_hits(self, ego, vm, pm, max(k0, self.commit_steps + 1), first_only)
         if self.commit_steps <= 0 or k0 > self.commit_steps:
             return late
