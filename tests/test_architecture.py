@@ -36,14 +36,16 @@ def test_runtime_packages_never_import_training():
     """Training (data generation, fitting, evaluation) lives in avp_training; the runtime packages only run the
     shipped models. Only the `avp` command line reaches it, for `avp train-intent|gen-intent-data|train-trajectory`."""
     allowed = {SRC / "avp_bringup/avp_bringup/cli.py"}
-    runtime = ("avp_world", "avp_common", "avp_sim", "avp_tracking", "avp_perception", "avp_planner",
-               "avp_experiment", "avp_bag",
+    runtime = ("avp_world", "avp_collision", "avp_search", "avp_common", "avp_sim", "avp_tracking",
+               "avp_perception", "avp_planner", "avp_experiment", "avp_bag",
                "avp_viz", "avp_bringup")
     offenders = [str(f) for pkg in runtime for f in SRC.glob(f"{pkg}/{pkg}/**/*.py")
-                 if f not in allowed and re.search(r"^\s*(from|import)\s+avp_training\b", f.read_text(), re.M)]
+                 if f not in allowed
+                 and re.search(r"^\s*(from|import)\s+avp_(trajectory_)?training\b", f.read_text(), re.M)]
     assert offenders == []
     assert not (SRC / "avp_perception/avp_perception/training").exists()
     assert "<exec_depend>avp_training</exec_depend>" in (SRC / "avp_bringup/package.xml").read_text()
+    assert "<exec_depend>avp_trajectory_training</exec_depend>" in (SRC / "avp_bringup/package.xml").read_text()
 
 
 #: which avp packages each package may import: the data flow sim -> perception -> planner, on top of the ROS-free
@@ -62,6 +64,8 @@ ALLOWED = {
     "avp_perception": {"avp_msgs", "avp_world", "avp_collision", "avp_search", "avp_common"},
     "avp_planner": {"avp_msgs", "avp_world", "avp_collision", "avp_search", "avp_common"},
     "avp_training": {"avp_world", "avp_common", "avp_sim", "avp_tracking", "avp_perception"},
+    # the learned trajectory predictor's training shares the intent CNN's data generation
+    "avp_trajectory_training": {"avp_world", "avp_sim", "avp_perception", "avp_training"},
     # the experiment runs the cores in process; bags and viewers read what the graph publishes; avp_bringup (the `avp`
     # command, the graph) sits on top of everything and alone reaches training
     "avp_experiment": {"avp_msgs", "avp_world", "avp_collision", "avp_search", "avp_common", "avp_sim", "avp_tracking",
@@ -73,7 +77,8 @@ ALLOWED = {
     "avp_monitor": {"avp_msgs", "avp_world", "avp_common", "avp_viz"},
     "avp_bringup": {"avp_msgs", "avp_world", "avp_collision", "avp_search", "avp_common", "avp_sim", "avp_tracking",
                     "avp_perception",
-                    "avp_planner", "avp_training", "avp_experiment", "avp_bag", "avp_viz", "avp_teleop",
+                    "avp_planner", "avp_training", "avp_trajectory_training", "avp_experiment", "avp_bag", "avp_viz",
+                    "avp_teleop",
                     "avp_monitor"},
     # the experiment's DDS transport: the experiment's runs through the launcher's graph (a plugin of avp_experiment,
     # found by its entry point, so neither the experiment nor the launcher imports it)

@@ -200,7 +200,7 @@ def test_make_predictor_and_bad_weights(paper_lot, tmp_path):
 
 def test_data_labels_and_determinism():
     from avp_training.dataset import SPLIT_SEED0
-    from avp_training.trajectory_data import TRAJ_SEED0, TrajDataSpec, episode_samples
+    from avp_trajectory_training.data import TRAJ_SEED0, TrajDataSpec, episode_samples
 
     # seeds: disjoint from each other and from every intent split (the intent CNN trained on SPLIT_SEED0["train"]+)
     ranges = [range(v, v + 100_000) for v in TRAJ_SEED0.values()]
@@ -224,7 +224,7 @@ def test_data_labels_and_determinism():
 
 def test_min_errors_match_the_runner_definition():
     from avp_experiment.metrics import prediction_errors
-    from avp_training.trajectory import min_errors
+    from avp_trajectory_training.train import min_errors
     from avp_world.types import PredictedTrajectory
 
     rng = np.random.default_rng(0)
@@ -264,7 +264,7 @@ def test_shipped_weights_beat_constant_velocity_on_fresh_episodes():
     """Fresh held-out episodes (seeds used by no split) generated here; minADE with the true goal at least MARGIN
     below constant velocity's on the same samples."""
     from avp_perception.core.learned_prediction import load_model as load
-    from avp_training.trajectory import TRAJ_SEED0, TrajDataSpec, TrajSamples, episode_samples, evaluate
+    from avp_trajectory_training.train import TRAJ_SEED0, TrajDataSpec, TrajSamples, episode_samples, evaluate
 
     seeds = [TRAJ_SEED0["test"] + 90_000 + i for i in range(8)]  # some episodes see no traffic car
     s = TrajSamples.concat([episode_samples(("val", sd, TrajDataSpec())) for sd in seeds])

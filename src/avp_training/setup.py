@@ -15,6 +15,6 @@ setup(
     zip_safe=True,
     maintainer="AVP stack maintainers",
     maintainer_email="maintainers@avp-stack.org",
-    description="Training data, training and evaluation of the intent CNN and the trajectory transformer (offline).",
+    description="Training data, training and evaluation of the intent CNN (offline).",
     license="Apache-2.0",
 )

@@ -221,7 +221,7 @@ def cmd_gen_intent_data(args: argparse.Namespace) -> int:
 
 
 def cmd_train_trajectory(args: argparse.Namespace) -> int:
-    from avp_training.run_trajectory import cmd_train_trajectory as run
+    from avp_trajectory_training.run import cmd_train_trajectory as run
 
     return run(args)
 
@@ -315,7 +315,7 @@ def _add_offline_commands(sub) -> None:
     p = sub.add_parser("gen-intent-data", help="generate intent-model samples of one split")
     add_gen_arguments(p)
     p.set_defaults(func=cmd_gen_intent_data)
-    from avp_training.run_trajectory import add_arguments as add_trajectory_arguments
+    from avp_trajectory_training.run import add_arguments as add_trajectory_arguments
 
     p = sub.add_parser("train-trajectory", help="train the learned trajectory predictor (docs/trajectory_model.md)")
     add_trajectory_arguments(p)

@@ -24,7 +24,7 @@ as ParkPredict+), feed-forward (GELU), post-norm; the decoder also sees each inp
 head outputs a *correction* to constant velocity: pose_j+1 = pose_j + (pose_j - pose_j-1) + head (pose_-1 = the
 history pose at t - 0.4 s), so an untrained head predicts constant velocity and turn rate (ParkPredict+ seeded
 its decoder with a constant-velocity guess, sheet §2.2). Training: teacher forcing, L1 on
-(x, y, psi) in metres / radians (:mod:`avp_training.trajectory`). Inference: autoregressive, 10
+(x, y, psi) in metres / radians (:mod:`avp_trajectory_training.train`). Inference: autoregressive, 10
 steps (4 s), batched over every (vehicle, intention) pair of the step.
 
 **Output** (:class:`LearnedPredictor`, name ``"learned"``, the interface of :mod:`.prediction`): one

@@ -1,6 +1,6 @@
 """The trajectory transformer of the learned predictor (ParkPredict+, reference sheet §2.2; paper §VI-B-1), its
 architecture settings and its weight files. :mod:`.learned_prediction` explains the inputs and the network
-(its "Network" paragraph) and runs it as a §V-C predictor; :mod:`avp_training.trajectory` trains it.
+(its "Network" paragraph) and runs it as a §V-C predictor; :mod:`avp_trajectory_training.train` trains it.
 """
 
 from __future__ import annotations

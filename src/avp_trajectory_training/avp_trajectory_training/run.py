@@ -38,7 +38,7 @@ def cmd_train_trajectory(args: argparse.Namespace) -> int:
         save_weights,
         start_run,
     )
-    from avp_training.trajectory import (
+    from avp_trajectory_training.train import (
         TRAJ_SEED0,
         TrajDataSpec,
         TrajSamples,
@@ -98,7 +98,7 @@ def summary_table(metrics: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m avp_training.run_trajectory ...`` (the same as ``avp train-trajectory ...``)."""
+    """``python -m avp_trajectory_training.run ...`` (the same as ``avp train-trajectory ...``)."""
     parser = argparse.ArgumentParser(prog="avp train-trajectory")
     add_arguments(parser)
     return cmd_train_trajectory(parser.parse_args(argv))

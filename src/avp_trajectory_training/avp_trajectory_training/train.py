@@ -40,7 +40,7 @@ from avp_perception.core.prediction import BezierPredictor, PredictionConfig, co
 from avp_training.dataset import (
     LOT_NAMES,
 )
-from avp_training.trajectory_data import (  # noqa: F401 - re-exported: the data side of this module's API
+from avp_trajectory_training.data import (  # noqa: F401 - re-exported: the data side of this module's API
     HORIZON,
     MAX_GOALS,
     TRAJ_SEED0,
