@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from shapely.geometry import Point, Polygon
 
-from avp_sim.core.observation import SensorConfig
-from avp_sim.core.scenario import PedestrianAgent, Scenario, VehicleAgent
+from avp_scenario.scenario import PedestrianAgent, Scenario, VehicleAgent
+from avp_sensing.observation import SensorConfig
 from avp_sim.core.world import World, WorldConfig
 from avp_world.geometry import rect_corners
 from avp_world.vehicle import VehicleSpec

@@ -7,7 +7,8 @@ from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 CORE_FILES = [*SRC.glob("avp_world/avp_world/**/*.py"), *SRC.glob("avp_search/avp_search/*.py"),
-              *SRC.glob("avp_collision/avp_collision/*.py"),
+              *SRC.glob("avp_collision/avp_collision/*.py"), *SRC.glob("avp_scenario/avp_scenario/*.py"),
+              *SRC.glob("avp_traffic/avp_traffic/*.py"), *SRC.glob("avp_sensing/avp_sensing/*.py"),
               *SRC.glob("avp_sim/avp_sim/core/*.py"), *SRC.glob("avp_tracking/avp_tracking/core/*.py"),
               *SRC.glob("avp_planner/avp_planner/core/*.py"), *SRC.glob("avp_perception/avp_perception/core/*.py"),
               SRC / "avp_planner/avp_planner/scripted_driver.py",
@@ -58,18 +59,24 @@ ALLOWED = {
     "avp_collision": {"avp_world"},
     "avp_search": {"avp_world", "avp_collision"},
     "avp_common": {"avp_msgs", "avp_world"},
-    "avp_sim": {"avp_msgs", "avp_world", "avp_common"},
+    # the simulator's libraries: the episode's scenario and ParkSim's maneuvers, the traffic, the sensing models
+    "avp_scenario": {"avp_world"},
+    "avp_traffic": {"avp_world", "avp_scenario"},
+    "avp_sensing": {"avp_world"},
+    "avp_sim": {"avp_msgs", "avp_world", "avp_common", "avp_scenario", "avp_sensing", "avp_traffic"},
     # between the simulator (or a real detector) and perception: it reads detections, never the simulator
     "avp_tracking": {"avp_msgs", "avp_world", "avp_common"},
     "avp_perception": {"avp_msgs", "avp_world", "avp_collision", "avp_search", "avp_common"},
     "avp_planner": {"avp_msgs", "avp_world", "avp_collision", "avp_search", "avp_common"},
-    "avp_training": {"avp_world", "avp_common", "avp_sim", "avp_tracking", "avp_perception"},
+    "avp_training": {"avp_world", "avp_common", "avp_sim", "avp_tracking", "avp_perception",
+                     "avp_scenario", "avp_sensing", "avp_traffic"},
     # the learned trajectory predictor's training shares the intent CNN's data generation
-    "avp_trajectory_training": {"avp_world", "avp_sim", "avp_perception", "avp_training"},
+    "avp_trajectory_training": {"avp_world", "avp_sim", "avp_perception", "avp_training",
+                                "avp_scenario", "avp_sensing", "avp_traffic"},
     # the experiment runs the cores in process; bags and viewers read what the graph publishes; avp_bringup (the `avp`
     # command, the graph) sits on top of everything and alone reaches training
     "avp_experiment": {"avp_msgs", "avp_world", "avp_collision", "avp_search", "avp_common", "avp_sim", "avp_tracking",
-                       "avp_perception", "avp_planner"},
+                       "avp_perception", "avp_planner", "avp_scenario", "avp_sensing"},
     "avp_bag": {"avp_msgs", "avp_world", "avp_common", "avp_sim"},
     "avp_viz": {"avp_msgs", "avp_world", "avp_common", "avp_perception", "avp_bag"},
     # one package per job beside the launcher: the keyboard teleop (as teleop_twist_keyboard), the episode monitor

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import yaml
 
-from avp_sim.core.scenario import ScenarioError, plan_states
+from avp_scenario.scenario import ScenarioError, plan_states
 from avp_sim.core.scenario_file import load_scenario_file
 from avp_world.geometry import rect_corners
 
@@ -273,7 +273,7 @@ def test_bad_messages_into_a_running_planner(ros_env, tmp_path, monkeypatch, pap
 
     from avp_common.conversions import step_to_ns
     from avp_msgs.msg import PredictedTrajectory
-    from avp_sim.core.scenario import generate_paper_scenario
+    from avp_scenario.scenario import generate_paper_scenario
     from avp_sim.core.world import World, WorldConfig
 
     for k, v in ros_env.items():
@@ -489,7 +489,7 @@ def test_a_planner_behind_in_real_time_skips_to_the_newest_step(ros_env, tmp_pat
     from avp_common.conversions import step_to_ns
     from avp_common.qos import STATUS
     from avp_msgs.msg import EpisodeStatus
-    from avp_sim.core.scenario import generate_paper_scenario
+    from avp_scenario.scenario import generate_paper_scenario
     from avp_sim.core.world import World, WorldConfig
 
     for k, v in ros_env.items():

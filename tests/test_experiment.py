@@ -275,8 +275,8 @@ def test_failure_analysis_reruns_failed_episodes(tmp_path):
     came out the same, which maneuvers the agents did, and how close they came."""
     from avp_experiment import failures
     from avp_experiment.runner import RunConfig, sim_values
+    from avp_scenario.scenario import generate_paper_scenario
     from avp_sim.core.factory import scenario_params
-    from avp_sim.core.scenario import generate_paper_scenario
     from avp_world.lot import load_bundled_lot
 
     out = tmp_path / "run"

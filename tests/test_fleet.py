@@ -163,7 +163,7 @@ def test_two_egos_face_to_face_in_one_aisle(paper_lot):
     ([{"start": GATE, "enter_at": -1.0}], "egos[0].enter_at: -1.0 is outside"),
 ])
 def test_bad_egos_in_a_scenario_file_get_one_error_naming_the_field(paper_lot, egos, needle):
-    from avp_sim.core.scenario import ScenarioError
+    from avp_scenario.scenario import ScenarioError
 
     with pytest.raises(ScenarioError) as e:
         _scene(paper_lot, [17], egos)
@@ -349,7 +349,7 @@ def test_the_occupancy_with_egos_is_the_stacked_classification(paper_lot):
     every agent and ego together gives, and a parked ego holds its spot (shapely judges which ego lies inside)."""
     from avp_experiment.fleet import _holders
     from avp_experiment.fleet_metrics import spot_holders
-    from avp_sim.core.observation import classify_world
+    from avp_sensing.observation import classify_world
 
     w = World(paper_lot, _scene(paper_lot, [17, 26], []), WorldConfig(n_egos=3))
     w.egos.present[:] = True

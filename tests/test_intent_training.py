@@ -18,9 +18,9 @@ import pytest
 import torch
 
 from avp_perception.core.intent_model import N_FEATURES, IntentPredictor, default_weights_path
-from avp_sim.core.lanes import Path, follow
-from avp_sim.core.observation import classify_world
-from avp_sim.core.traffic import PARK, WANDER, TrafficGenerator, TrafficParams
+from avp_sensing.observation import classify_world
+from avp_traffic.lanes import Path, follow
+from avp_traffic.traffic import PARK, WANDER, TrafficGenerator, TrafficParams
 from avp_training.dataset import (
     DataSpec,
     Samples,

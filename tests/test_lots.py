@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon
 
-from avp_sim.core.scenario import ScenarioParams, generate_paper_scenario
+from avp_scenario.scenario import ScenarioParams, generate_paper_scenario
 from avp_world.geometry import rect_corners
 from avp_world.lot import LotMapError, bundled_lot_path, load_bundled_lot, load_lot, lot_from_dict
 from avp_world.lot_scenario import derive_lot_scenario, lot_scenario
@@ -127,8 +127,8 @@ def test_the_busy_family_on_the_dlp_lot():
     """The whole DLP lot (364 spots); a busy episode has 20+ moving cars, parking and leaving,
     10+ pedestrians on the lot's roads, spots that free and fill; same seed => same episode; the ego's start is
     clear at t = 0; non-reactive zeroes every passiveness."""
-    from avp_sim.core.busy import BusyParams, generate_busy_scenario
     from avp_sim.core.world import World, WorldConfig
+    from avp_traffic.busy import BusyParams, generate_busy_scenario
 
     lot = load_bundled_lot("dlp_lot")
     assert lot.n_spots == 364 and lot.bounds() == (0.0, 0.0, 140.0, 80.0)
@@ -138,7 +138,7 @@ def test_the_busy_family_on_the_dlp_lot():
     assert all(np.array_equal(x.controls, y.controls) for x, y in zip(a.pedestrians, b.pedestrians, strict=True))
     moving = [v for v in a.vehicles if not v.parked]
     parkers = [v for v in moving if v.target_spot_id >= 0]
-    from avp_sim.core.observation import classify_world
+    from avp_sensing.observation import classify_world
 
     _, in_spot = classify_world(lot, np.array([rect_corners(v.initial_state, v.length, v.width) for v in moving]))
     leavers = [v for v, s in zip(moving, in_spot, strict=True) if v.target_spot_id < 0 and s >= 0]

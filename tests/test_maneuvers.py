@@ -1,4 +1,4 @@
-"""ParkSim's 8 parking maneuvers re-made for eq. (1) (avp_sim.core.maneuvers), with shapely as the
+"""ParkSim's 8 parking maneuvers re-made for eq. (1) (avp_scenario.maneuvers), with shapely as the
 independent geometry oracle: control bounds, exact replay, collision-free, end in the spot, world mapping."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 from shapely.geometry import Point, Polygon, box
 from shapely.ops import unary_union
 
-from avp_sim.core import maneuvers as mv
+import avp_scenario.maneuvers as mv
 from avp_world.geometry import rect_corners, wrap_angle
 from avp_world.kinematics import rollout_vehicle
 from avp_world.vehicle import VehicleSpec

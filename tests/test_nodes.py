@@ -160,7 +160,7 @@ def test_reset_service(ros, tmp_path):
         bad = call(seed=1, reactive=True, scenario_file="/nonexistent.yaml")
         assert not bad.success and "reset_episode" in bad.message
         ok = call(seed=11, reactive=False)
-        from avp_sim.core.scenario import generate_paper_scenario
+        from avp_scenario.scenario import generate_paper_scenario
         from avp_world.lot import load_bundled_lot
 
         # the node built the same scenario as the core does for this seed (29..39 vehicles by §VI-A)

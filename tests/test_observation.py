@@ -1,4 +1,4 @@
-"""Tests of the occlusion-aware observation model (paper §III-A): ``avp_sim.core.observation``.
+"""Tests of the occlusion-aware observation model (paper §III-A): ``avp_sensing.observation``.
 
 The expected values come from shapely (an independent geometry engine) or are worked out by hand;
 none are produced by the code under test.
@@ -15,7 +15,7 @@ import shapely
 from shapely import affinity
 from shapely.geometry import LinearRing, Point, Polygon, box
 
-from avp_sim.core.observation import RayCaster, SensorConfig, classify_world
+from avp_sensing.observation import RayCaster, SensorConfig, classify_world
 from avp_world.geometry import rect_corners, rect_inside_rect
 from avp_world.lot import LotMap, load_bundled_lot
 
@@ -390,7 +390,7 @@ def test_the_occupancy_tracker_is_classify_world_step_after_step():
     """OccupancyTracker (tests again only the cars that moved) against classify_world of every car, over 60 steps
     in which some cars park, some leave their spots and some drive on, on a lot whose spot 5 is there twice
     (both rows occupied, the lowest named): the same arrays each step; a change in the number of cars too."""
-    from avp_sim.core.occupancy import OccupancyTracker
+    from avp_sensing.occupancy import OccupancyTracker
 
     lot = load_bundled_lot("paper_lot")
     twin = LotMap(name="twin", boundary=lot.boundary, entrance=lot.entrance, roads=lot.roads,

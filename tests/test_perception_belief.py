@@ -13,7 +13,7 @@ import pytest
 
 from avp_perception.core.belief import BELIEF_INIT, BeliefMap, intention_update, observation_update, spot_indices
 from avp_perception.core.intention import Intention, split_none_mass
-from avp_sim.core.scenario import ScenarioParams, generate_paper_scenario
+from avp_scenario.scenario import ScenarioParams, generate_paper_scenario
 from avp_sim.core.world import World
 
 

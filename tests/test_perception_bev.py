@@ -31,7 +31,7 @@ from avp_perception.core.bev import (
     rank_exploration_points,
     trail_colors,
 )
-from avp_sim.core.scenario import ScenarioParams, generate_paper_scenario
+from avp_scenario.scenario import ScenarioParams, generate_paper_scenario
 from avp_sim.core.world import World
 from avp_world.lot import load_bundled_lot
 from avp_world.types import Observation, ObservedVehicle

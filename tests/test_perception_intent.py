@@ -32,7 +32,7 @@ from avp_perception.core.intent_model import (
     sigmoid_normalise,
 )
 from avp_perception.core.pipeline import PerceptionCore
-from avp_sim.core.scenario import ScenarioParams, generate_paper_scenario
+from avp_scenario.scenario import ScenarioParams, generate_paper_scenario
 from avp_sim.core.world import World
 from avp_world.lot import load_bundled_lot
 from avp_world.types import Observation, ObservedVehicle

@@ -108,7 +108,7 @@ def _episode_observations(lot, method: str):
     in-process outputs per step: (observations, [(beliefs, intentions, predictions, bevs)])."""
     from avp_perception.core.prediction import make_predictor
     from avp_perception.params import prediction_config
-    from avp_sim.core.scenario import ScenarioError, ScenarioParams, generate_paper_scenario
+    from avp_scenario.scenario import ScenarioError, ScenarioParams, generate_paper_scenario
     from avp_sim.core.world import World
 
     b, r = node_params()

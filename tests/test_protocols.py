@@ -19,8 +19,7 @@ from avp_experiment.oracle import apply_targets, ground_truth
 from avp_experiment.profiles import ProfileError, load_profile, method_node_params
 from avp_experiment.protocols import SAFETY_EXTRAS, ablation_variants, apply_planner, load_protocol
 from avp_perception.core.prediction import make_predictor
-from avp_sim.core.observation import SensorConfig
-from avp_sim.core.scenario import (
+from avp_scenario.scenario import (
     Scenario,
     ScenarioError,
     ScenarioParams,
@@ -28,6 +27,7 @@ from avp_sim.core.scenario import (
     generate_paper_scenario,
     plan_states,
 )
+from avp_sensing.observation import SensorConfig
 from avp_sim.core.world import World, WorldConfig
 from avp_world.types import PredictedTrajectory
 from avp_world.vehicle import VehicleSpec

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon
 
-from avp_sim.core.maneuvers import ManeuverKey, SceneGeometry, generate_maneuver
-from avp_sim.core.scenario import ScenarioError, ScenarioParams, generate_paper_scenario, plan_states
+from avp_scenario.maneuvers import ManeuverKey, SceneGeometry, generate_maneuver
+from avp_scenario.scenario import ScenarioError, ScenarioParams, generate_paper_scenario, plan_states
 from avp_sim.core.world import World, WorldConfig
 from avp_world.geometry import rect_corners
 

@@ -293,7 +293,7 @@ def test_foreign_inputs_are_dropped_by_the_planner(paper_lot, ros_env, tmp_path,
 
     from avp_common.conversions import step_to_ns
     from avp_msgs.msg import PredictedTrajectoryArray, SpotBeliefs
-    from avp_sim.core.scenario import generate_paper_scenario
+    from avp_scenario.scenario import generate_paper_scenario
     from avp_sim.core.world import World, WorldConfig
 
     for k, v in ros_env.items():

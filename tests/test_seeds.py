@@ -7,8 +7,8 @@ import pytest
 from avp_experiment import seeds as seeds_mod
 from avp_experiment.pool import make_pool
 from avp_experiment.run_config import RunConfig, sim_values
+from avp_scenario.scenario import ScenarioError
 from avp_sim.core.factory import generate_scenario, load_lot_param
-from avp_sim.core.scenario import ScenarioError
 
 
 @pytest.fixture(scope="module")

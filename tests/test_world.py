@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon
 
-from avp_sim.core.observation import SensorConfig
-from avp_sim.core.scenario import Scenario, VehicleAgent
+from avp_scenario.scenario import Scenario, VehicleAgent
+from avp_sensing.observation import SensorConfig
 from avp_sim.core.world import COLLISION, SUCCESS, TIMEOUT, World, WorldConfig
 from avp_world.geometry import rect_corners
 from avp_world.vehicle import VehicleSpec
@@ -178,7 +178,7 @@ def test_reactive_brakes_skip_only_agents_that_cannot_reach_the_ego(paper_lot):
 
 
 def _walker(ped_id, start, heading, speed, n_steps, hist=40):
-    from avp_sim.core.scenario import PedestrianAgent
+    from avp_scenario.scenario import PedestrianAgent
 
     d = np.array([math.cos(heading), math.sin(heading)])
     init = np.asarray(start, float) - d * speed * hist * 0.1

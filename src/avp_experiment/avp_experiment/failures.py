@@ -3,7 +3,7 @@
 For every failed record of ``OUT/episodes.jsonl`` the episode is run again in this process exactly as the runner
 ran it (same seed, mode, method profile, intent weights and deterministic settings — the record is checked to come
 out equal) while the ego's decisions are logged. Reported per failure: the dynamic vehicles of the scenario
-(ParkSim maneuver ``side/stop/entry`` and target spot, :mod:`avp_sim.core.scenario`), the spot the ego was heading
+(ParkSim maneuver ``side/stop/entry`` and target spot, :mod:`avp_scenario.scenario`), the spot the ego was heading
 for at the end, whether that is a dynamic vehicle's target, and the closest approach (centre distance) between the
 ego and each dynamic vehicle. Beside it, how often each maneuver occurs in all scenarios of the run, so that a
 maneuver over-represented among the failures stands out.
@@ -65,8 +65,8 @@ def replay_failure(lot, sim_p: dict, record: dict, cfg: RunConfig) -> dict:
 
 def maneuver_counts(lot, sim_p: dict, seeds: list[int]) -> Counter:
     """How many dynamic vehicles of the run's scenarios do each maneuver (the setup does not depend on the mode)."""
+    from avp_scenario.scenario import generate_paper_scenario
     from avp_sim.core.factory import scenario_params
-    from avp_sim.core.scenario import generate_paper_scenario
 
     params = scenario_params(sim_p)
     c: Counter = Counter()

@@ -19,7 +19,7 @@ def spot_holders(lot, agent_corners: np.ndarray, ego_corners: np.ndarray, ego_id
     """Spot id -> ``"agent"`` or ``"ego:<j>"`` for every spot a vehicle or ego lies inside (§III-A's rule).
     ``agent_corners`` (N, 4, 2) of the agents' vehicles, ``ego_corners`` (M, 4, 2) of the egos in the lot, whose
     indices are ``ego_ids``."""
-    from avp_sim.core.occupancy import classify_world
+    from avp_sensing.occupancy import classify_world
 
     ego_ids = [int(j) for j in ego_ids]
     corners = np.concatenate([agent_corners, ego_corners]) if len(ego_ids) else agent_corners
@@ -28,7 +28,7 @@ def spot_holders(lot, agent_corners: np.ndarray, ego_corners: np.ndarray, ego_id
 
 
 def holders_of(lot, vehicle_spot: np.ndarray, n_agents: int, ego_ids: Iterable[int]) -> dict[int, str]:
-    """:func:`spot_holders` from the classification (:func:`~avp_sim.core.occupancy.classify_world`'s
+    """:func:`spot_holders` from the classification (:func:`~avp_sensing.occupancy.classify_world`'s
     ``vehicle_spot``) of the ``n_agents`` agents and then the egos ``ego_ids``."""
     ego_ids = [int(j) for j in ego_ids]
     out: dict[int, str] = {}

@@ -27,8 +27,8 @@ def _lot(lot_file: str):
 
 def seed_builds(sim_p: dict, seed: int) -> bool:
     """Whether the generator of ``sim_p`` builds a scenario for ``seed`` (runs in a pool worker)."""
+    from avp_scenario.scenario import ScenarioError
     from avp_sim.core.factory import generate_scenario
-    from avp_sim.core.scenario import ScenarioError
 
     try:
         generate_scenario(_lot(sim_p["lot_file"]), sim_p, seed, False)

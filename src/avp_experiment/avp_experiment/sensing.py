@@ -1,12 +1,12 @@
 """The noisy sensing model and the tracker in process (``sensing.model`` other than exact; docs/perception.md): the
-simulator's :class:`~avp_sim.core.sensing.NoisySensor` and avp_tracking's tracker between the world and the ego, as
+simulator's :class:`~avp_sensing.noisy.NoisySensor` and avp_tracking's tracker between the world and the ego, as
 the live graph has them between the simulator and the ego's nodes (avp_tracking.tracker_node)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
-from avp_sim.core.sensing import truth_ids
+from avp_sensing.noisy import truth_ids
 from avp_world.types import Observation
 
 __all__ = ["relabel_predictions", "sensed_observer", "truth_ids"]
@@ -17,7 +17,7 @@ def sensed_observer(world, sim_p: dict, seed: int, tracker_values: dict | None =
     """What ego ``ego_index`` of ``world`` observes each step through the sensing model and the tracker of the
     simulator parameters ``sim_p`` (tracker parameters: ``tracker_values``, default the shipped ones); None for
     ``sensing.model: exact`` (then ``world.observe`` is the observation, as in the paper)."""
-    from avp_sim.core.sensing import NoisySensor, sensing_config
+    from avp_sensing.noisy import NoisySensor, sensing_config
 
     cfg = sensing_config(sim_p)
     if cfg.exact:

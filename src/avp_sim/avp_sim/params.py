@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import math
 
+import avp_sensing.noisy as _sensing
 from avp_common.params import ParamSpec
-from avp_sim.core import sensing as _sensing
 
 SIM_PARAMS: list[ParamSpec] = [
     ParamSpec("lot_file", str, "Lot map YAML; empty = the bundled paper lot (avp_world/maps/paper_lot.yaml).",
@@ -143,7 +143,7 @@ SIM_PARAMS: list[ParamSpec] = [
               default=True),
 ]
 
-#: the sensing model (avp_sim.core.sensing; docs/perception.md, "Sensing"): beyond the paper, whose §III-A assumes
+#: the sensing model (avp_sensing.noisy; docs/perception.md, "Sensing"): beyond the paper, whose §III-A assumes
 #: "the ego correctly observes every spots and agents it senses" and leaves noisy observations as future work
 SIM_PARAMS += [
     ParamSpec("sensing.model", str, "exact: the paper's observation (every id, exact history, exact spots); "

@@ -42,9 +42,9 @@ from avp_common.qos import DEBUG, GROUND_TRUTH, LATCHED, QUIET_WRITER, STATUS, S
 from avp_common.ratelog import RateLimitedLog
 from avp_msgs.msg import AgentState, BrakingFor, EpisodeStatus, GroundTruth
 from avp_msgs.srv import ResetEpisode
+from avp_sensing.noisy import NoisySensor, sensing_config
 from avp_sim.core.factory import load_lot_param, make_world, world_config
 from avp_sim.core.scenario_source import requested_scenario, served_dirs
-from avp_sim.core.sensing import NoisySensor, sensing_config
 from avp_sim.core.world import COLLISION, RUNNING, SUCCESS, TIMEOUT, World
 from avp_sim.ego_channels import DriverTypeCheck, EgoChannel, make_channels, make_drivers
 from avp_sim.markers import world_markers
@@ -151,7 +151,7 @@ class SimNode(Node):
         for d in self.drivers:
             d.latest = None
         self.debug_step = -1  # last step whose ground truth went out (a re-send repeats only the observation)
-        if not self.sensing.exact:  # same seed, same noise (avp_sim.core.sensing)
+        if not self.sensing.exact:  # same seed, same noise (avp_sensing.noisy)
             self.sensor = NoisySensor(self.sensing, seed, float(world.caster.region_range.max()))
             self.sensed = None
         dyn = [(v.id, v.target_spot_id, v.maneuver, v.passiveness) for v in self.world.scenario.dynamic_vehicles()]

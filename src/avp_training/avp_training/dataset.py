@@ -34,10 +34,10 @@ import numpy as np
 from avp_perception.core.bev import BEVConfig
 from avp_perception.core.intent_model import N_FEATURES, IntentPredictor
 from avp_perception.core.pipeline import PerceptionCore
-from avp_sim.core.observation import SensorConfig
-from avp_sim.core.scenario import ScenarioError, generate_paper_scenario
-from avp_sim.core.traffic import LEAVE, PARK, WANDER, TrafficGenerator, TrafficParams
+from avp_scenario.scenario import ScenarioError, generate_paper_scenario
+from avp_sensing.observation import SensorConfig
 from avp_sim.core.world import World, WorldConfig
+from avp_traffic.traffic import LEAVE, PARK, WANDER, TrafficGenerator, TrafficParams
 from avp_training.lots import load_dlp_lot, random_lot
 from avp_world.geometry import rect_corners, rects_overlap
 from avp_world.lot import LotMap, load_bundled_lot
@@ -231,7 +231,7 @@ def run_episode(lot: LotMap, world: World, labels: dict[int, int], kinds: dict[i
     """Run one episode and collect its samples (module docstring). ``collect(k, obs, core, ego_history, dynamic)``,
     when given, is called every step instead of the intent sampling (the data of :mod:`.trajectory_data`).
     ``sensing``: the observer sees through the sensing model of that preset and the tracker (docs/perception.md);
-    a track's label is that of the vehicle it follows (:func:`avp_sim.core.sensing.truth_ids`, scoring only), and
+    a track's label is that of the vehicle it follows (:func:`avp_sensing.noisy.truth_ids`, scoring only), and
     a track that follows none is not sampled."""
     b = builder if builder is not None else _Builder()
     intent = IntentPredictor(lot, spec.bev, seed=0)  # weights unused: only inputs() is called
@@ -299,10 +299,10 @@ def run_episode(lot: LotMap, world: World, labels: dict[int, int], kinds: dict[i
 
 def noisy_observer(lot: LotMap, world: World, sensing: str, seed: int):
     """``world.observe`` (``sensing`` exact), or the observation through the sensing preset ``sensing`` and the
-    tracker (avp_sim.core.sensing, avp_tracking), seeded by ``seed``."""
+    tracker (avp_sensing.noisy, avp_tracking), seeded by ``seed``."""
     if sensing == "exact":
         return world.observe
-    from avp_sim.core.sensing import PRESETS, NoisySensor
+    from avp_sensing.noisy import PRESETS, NoisySensor
     from avp_tracking.core.perceive import TrackingPerception
     from avp_tracking.core.tracker import Tracker, TrackerConfig
 
@@ -315,7 +315,7 @@ def noisy_observer(lot: LotMap, world: World, sensing: str, seed: int):
 
 def _truth_of(world: World, obs):
     """The simulator id a track follows (-1: none), for labels only."""
-    from avp_sim.core.sensing import truth_ids
+    from avp_sensing.noisy import truth_ids
 
     ids = truth_ids(world, obs)
     return lambda v: ids.get(int(v.id), -1)

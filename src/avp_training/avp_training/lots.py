@@ -9,7 +9,7 @@ None of them is the paper's experiment lot (§VI-A), which is kept for testing o
   rows along the outer aisles, connector roads at both ends (and optionally one in the middle) so that
   every aisle is part of a loop, the entrance at the end of an aisle or of a connector road, the whole lot
   rotated by a random angle. Spot sizes and aisle widths come from small sets for which ParkSim's 8
-  maneuvers exist (:mod:`avp_sim.core.maneuvers`, one cached library per scene geometry).
+  maneuvers exist (:mod:`avp_scenario.maneuvers`, one cached library per scene geometry).
 * :func:`spot_aisles` — for every spot, the road it borders (its aisle): what the maneuver library needs.
 """
 

@@ -26,9 +26,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from avp_sim.core.lanes import A_DEC
-from avp_sim.core.maneuvers import ManeuverKey
-from avp_sim.core.traffic import PARK, AgentPlan, TrafficGenerator, TrafficParams
+from avp_scenario.maneuvers import ManeuverKey
+from avp_traffic.lanes import A_DEC
+from avp_traffic.traffic import PARK, AgentPlan, TrafficGenerator, TrafficParams
 from avp_training.dataset import DataSpec, Samples, episode_lot
 
 GROUPS = ("cruising", "rolling", "maneuvering", "not modelled")

@@ -37,10 +37,10 @@ from avp_perception.core.learned_prediction import (
     to_agent_frame,
 )
 from avp_perception.core.prediction import BezierPredictor, PredictionConfig
-from avp_sim.core.observation import SensorConfig
-from avp_sim.core.scenario import ScenarioError, generate_paper_scenario
-from avp_sim.core.traffic import PARK, TrafficParams
+from avp_scenario.scenario import ScenarioError, generate_paper_scenario
+from avp_sensing.observation import SensorConfig
 from avp_sim.core.world import World, WorldConfig
+from avp_traffic.traffic import PARK, TrafficParams
 from avp_training.dataset import (
     KIND_CODES,
     LOT_DLP,

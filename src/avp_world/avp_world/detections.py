@@ -1,6 +1,6 @@
 """What a real car's perception gives at one step: a detector's objects of this step only, with no identity and no
 history, and a localisation estimate of the ego (docs/perception.md, "Sensing"). The simulator's sensing model
-(avp_sim.core.sensing) makes them; the tracker (avp_tracking) turns them into tracks. Plain data, ROS-free.
+(avp_sensing.noisy) makes them; the tracker (avp_tracking) turns them into tracks. Plain data, ROS-free.
 
 The ROS form of :class:`SensedFrame`'s objects is Autoware's ``autoware_perception_msgs/DetectedObjects``
 (avp_tracking.conversions): :data:`LABEL_CAR` and :data:`LABEL_PEDESTRIAN` are its labels, and

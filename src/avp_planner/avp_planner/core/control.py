@@ -12,7 +12,7 @@ moves exactly along the path with that profile; cheap (vectorised), used to time
 against predictions and to price them.
 
 **Tracking** (:func:`track`): the controls actually sent, produced while simulating eq. (1) (the idea of
-``avp_sim.core.maneuvers``): an Euler step moves the car along its *current* heading, so the heading is set
+``avp_scenario.maneuvers``): an Euler step moves the car along its *current* heading, so the heading is set
 one step ahead: ω_k makes θ_{k+1} equal to the path heading at the middle of step k + 1 (the chord direction
 of an arc) minus d atan(e_lat / L), e_lat being the lateral error of the already-determined next position
 and d = ±1 the driving direction; ω is clipped to |v| / R_min. The states are ``rollout_vehicle(start,

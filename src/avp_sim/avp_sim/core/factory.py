@@ -5,12 +5,12 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Any
 
-from avp_sim.core.busy import BusyParams, generate_busy_scenario
-from avp_sim.core.observation import SensorConfig
-from avp_sim.core.scenario import ScenarioParams, generate_paper_scenario
+from avp_scenario.scenario import ScenarioParams, generate_paper_scenario
+from avp_sensing.observation import SensorConfig
 from avp_sim.core.scenario_cache import cached_scenario
 from avp_sim.core.scenario_file import load_scenario_file, scenario_from_dict
 from avp_sim.core.world import World, WorldConfig
+from avp_traffic.busy import BusyParams, generate_busy_scenario
 from avp_world.lot import LotMap, load_bundled_lot, load_lot
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from avp_sim.core.scenario import PedestrianAgent, Scenario, VehicleAgent
+from avp_scenario.scenario import PedestrianAgent, Scenario, VehicleAgent
 from avp_world.disk_cache import cached
 from avp_world.lot import LotMap
 from avp_world.vehicle import VehicleSpec
@@ -36,11 +36,15 @@ def lot_key(lot: LotMap) -> str:
 
 
 def _sources() -> list[Path]:
-    """Every source file of avp_sim.core and avp_world: the generator's code and all it may import."""
+    """Every source file of avp_sim.core, avp_scenario, avp_traffic and avp_world: the generator's code and all it
+    may import."""
+    import avp_scenario
+    import avp_traffic
     import avp_world
 
     here = Path(__file__).resolve().parent
-    return sorted(here.glob("*.py")) + sorted(Path(avp_world.__file__).resolve().parent.glob("*.py"))
+    return sorted(here.glob("*.py")) + [f for m in (avp_scenario, avp_traffic, avp_world)
+                                        for f in sorted(Path(m.__file__).resolve().parent.glob("*.py"))]
 
 
 def _pack(sc: Scenario) -> dict[str, np.ndarray]:

@@ -2,7 +2,7 @@
 
 :func:`scenario_from_dict` checks the counts first (vehicles, vacant spot ids: bounded work per request, even
 a hostile one), then every field, naming the source and the field at fault, and builds the scenario with the
-building blocks of :mod:`avp_sim.core.scenario` (the same vehicles, plans and validity rule as §VI-A's protocol).
+building blocks of :mod:`avp_scenario.scenario` (the same vehicles, plans and validity rule as §VI-A's protocol).
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from avp_sim.core.maneuvers import ALL_MANEUVERS
-from avp_sim.core.scenario import (
+from avp_scenario.maneuvers import ALL_MANEUVERS
+from avp_scenario.scenario import (
     Scenario,
     ScenarioError,
     ScenarioParams,

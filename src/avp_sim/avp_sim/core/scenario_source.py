@@ -17,7 +17,7 @@ import stat
 from pathlib import Path
 from typing import Any
 
-from avp_sim.core.scenario import ScenarioError
+from avp_scenario.scenario import ScenarioError
 from avp_world.safe_yaml import YamlInputError, load_bounded, read_bounded
 
 DEFAULT_MAX_BYTES = 1_000_000

@@ -21,12 +21,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from avp_sim.core.agent_yield import agents_yield, plan_lookahead
+from avp_scenario.scenario import Scenario
+from avp_sensing.observation import RayCaster, SensorConfig, classify_world
+from avp_sensing.occupancy import OccupancyTracker
 from avp_sim.core.egos import EGO_ID_BASE, Egos
 from avp_sim.core.metrics import COLLISION, RUNNING, SUCCESS, TIMEOUT, EpisodeMetrics, apply_event, step_event
-from avp_sim.core.observation import RayCaster, SensorConfig, classify_world
-from avp_sim.core.occupancy import OccupancyTracker
-from avp_sim.core.scenario import Scenario
+from avp_traffic.agent_yield import agents_yield, plan_lookahead
 from avp_world.geometry import disc_rect_overlap, rect_corners, rects_overlap
 from avp_world.kinematics import step_pedestrian, step_vehicle
 from avp_world.lot import LotMap
@@ -118,7 +118,7 @@ class World:
         self.log_braking: list[np.ndarray] = [self.braking.copy()]
         self.log_commands: list[np.ndarray] = []
         self.log_egos: list[np.ndarray] = [self.egos.poses.copy()]
-        self.last_scan = None  # the RayScan of the latest observe() (avp_sim.core.sensing reads it)
+        self.last_scan = None  # the RayScan of the latest observe() (avp_sensing.noisy reads it)
         self._check_events()
 
     # ------------------------------------------------------------------ ego 0 (the paper's one ego)
@@ -334,14 +334,14 @@ class World:
 
     def observe(self, i: int = 0) -> Observation:
         """What ego ``i`` senses now: rays stop at the lot boundary, other vehicles (the other egos among them) or dQ
-        (no ground truth). :attr:`last_scan` keeps this call's :class:`~avp_sim.core.observation.RayScan`."""
+        (no ground truth). :attr:`last_scan` keeps this call's :class:`~avp_sensing.observation.RayScan`."""
         eg = self.egos
         if not eg.present[i]:
             raise ValueError(f"ego {i} has not entered the lot yet")
         others = eg.others(i)
         corners, _ = self._with_egos(self.vehicle_corners(), self.vehicle_ids, others)
         scan = self.caster.cast(eg.poses[i], corners, self.ped_pos, self.ped_radii)
-        self.last_scan = scan  # what the rays touched, for a sensing model (avp_sim.core.sensing); not observed
+        self.last_scan = scan  # what the rays touched, for a sensing model (avp_sensing.noisy); not observed
         occupied, vehicle_spot = self.occupancy_with(others)
         seen_spots = scan.seen_spots
         vac = self.lot.spot_ids[seen_spots & ~occupied]

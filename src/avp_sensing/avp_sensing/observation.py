@@ -32,8 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from avp_sim.core.occupancy import classify_world
-from avp_sim.core.ray_geometry import curve_polygon, point_segment_dist, ray_polyline_t, slab_interval, slabs
+from avp_sensing.occupancy import classify_world
+from avp_sensing.ray_geometry import curve_polygon, point_segment_dist, ray_polyline_t, slab_interval, slabs
 from avp_world.geometry import wrap_angle
 from avp_world.lot import LotMap
 

@@ -3,7 +3,7 @@
 **Lane graph.** Nodes are the end points of the road centre lines C_j and their crossings (T and X
 junctions, corners), merged within 0.3 m. Each piece of a centre line between two nodes gives two directed
 lanes, offset to the right of the driving direction by w_j / 4 (the right-hand half of the aisle, as
-ParkSim's 1.75 m on a 7 m aisle and the start pose of the 8 maneuvers, :mod:`avp_sim.core.maneuvers`). The
+ParkSim's 1.75 m on a 7 m aisle and the start pose of the 8 maneuvers, :mod:`avp_scenario.maneuvers`). The
 entrance is joined to its nearest node by one more pair of lanes (in and out) that continue outside the lot.
 
 **Turns.** From lane L1 into lane L2 at a node (no U-turns, |turn angle| <= 100 deg): the two lane lines
@@ -13,7 +13,7 @@ right turns, 5.0 m for left turns; R_min = 3.22 m) and joins L2 at X + T d2, T =
 **Paths** are chains of straights and arcs, evaluated exactly (:class:`Path`).
 
 **Tracker** (:func:`follow`): the controls of eq. (1) that drive a path forward and stop exactly at its end,
-the same scheme as the maneuver tracker of :mod:`avp_sim.core.maneuvers`: each step the largest speed that
+the same scheme as the maneuver tracker of :mod:`avp_scenario.maneuvers`: each step the largest speed that
 the speed limits allow (cruise speed, lateral acceleration in arcs, acceleration / deceleration limits,
 braking to stop exactly at the end in whole steps), and the heading set one step ahead to the reference
 heading at the middle of the next step minus atan(e_lat / 1 m) (e_lat: lateral error of the next

@@ -52,7 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from avp_sim.core.maneuver_scene import (
+from avp_scenario.maneuver_scene import (
     ALL_MANEUVERS,
     START_OFFSET,
     Maneuver,
@@ -64,7 +64,7 @@ from avp_sim.core.maneuver_scene import (
     start_pose,
     target_spot_pose,
 )
-from avp_sim.core.maneuver_tracking import MAX_ACCEL, MAX_SPEED, controls_ok, end_ok, pieces, track
+from avp_scenario.maneuver_tracking import MAX_ACCEL, MAX_SPEED, controls_ok, end_ok, pieces, track
 from avp_world.geometry import rect_corners, rects_overlap, wrap_angle
 from avp_world.kinematics import rollout_vehicle
 from avp_world.reeds_shepp import RSBatch, RSPath, reeds_shepp_batch, sample_path

@@ -9,9 +9,9 @@ import math
 
 import numpy as np
 
-from avp_sim.core.lanes import A_DEC, Path, follow, rollout
-from avp_sim.core.maneuvers import ManeuverKey
-from avp_sim.core.traffic_types import LEAVE, PARK, WANDER, AgentPlan, moving_flags, slow_tail
+from avp_scenario.maneuvers import ManeuverKey
+from avp_traffic.lanes import A_DEC, Path, follow, rollout
+from avp_traffic.types import LEAVE, PARK, WANDER, AgentPlan, moving_flags, slow_tail
 from avp_world.geometry import rect_corners, rect_inside_rect
 
 

@@ -1,7 +1,7 @@
 """Ray geometry of the observation model (paper §III-A), vectorised with numpy: rays against polylines,
 point-to-segment distances, the slab form of parallelograms (vehicles, spots) and ray-slab intervals.
 
-Conventions are those of :mod:`avp_sim.core.observation` (closed sets; "touching" counts).
+Conventions are those of :mod:`avp_sensing.observation` (closed sets; "touching" counts).
 """
 
 from __future__ import annotations

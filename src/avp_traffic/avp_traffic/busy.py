@@ -30,8 +30,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from avp_sim.core.scenario import PedestrianAgent, Scenario, ScenarioError
-from avp_sim.core.traffic import TrafficGenerator, TrafficParams
+from avp_scenario.scenario import PedestrianAgent, Scenario, ScenarioError
+from avp_traffic.traffic import TrafficGenerator, TrafficParams
 from avp_world.geometry import disc_rect_overlap, polygon_contains_points, rect_corners, rects_overlap
 from avp_world.lot import LotMap
 from avp_world.lot_scenario import lot_scenario

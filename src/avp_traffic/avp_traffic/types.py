@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from avp_sim.core.lanes import LaneGraph
-from avp_sim.core.maneuvers import ManeuverKey, SceneGeometry, generate_maneuver, maneuver_to_world
-from avp_sim.core.scenario import Scenario
+from avp_scenario.maneuvers import ManeuverKey, SceneGeometry, generate_maneuver, maneuver_to_world
+from avp_scenario.scenario import Scenario
+from avp_traffic.lanes import LaneGraph
 from avp_world.geometry import polygon_contains_points, rect_corners
 from avp_world.lot import LotMap
 from avp_world.vehicle import VehicleSpec

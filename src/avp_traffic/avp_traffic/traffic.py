@@ -1,6 +1,6 @@
 """Seeded parking-lot traffic for the intent model's training data (docs/intent_model.md), as plans of eq. (1).
 
-Every car is a :class:`~avp_sim.core.scenario.VehicleAgent` (initial state + control plan), so the existing
+Every car is a :class:`~avp_scenario.scenario.VehicleAgent` (initial state + control plan), so the existing
 :class:`~avp_sim.core.world.World` simulates it (reactive braking for the ego included, §III-B). Kinds:
 
 * **parkers** wait 12 m outside the entrance (outside the lot: rays stop at its boundary, §III-A, so the
@@ -13,7 +13,7 @@ Every car is a :class:`~avp_sim.core.scenario.VehicleAgent` (initial state + con
   before, more likely one along which spots are free; passing a free, unreserved spot they take it with
   probability 1 - (1 - p) exp(-tau / 60 s) (p ~ U[0.3, 0.85] per driver, tau: time spent searching; x 0.7
   across the aisle). A taken spot is parked in with one of ParkSim's 8 maneuvers
-  (:mod:`avp_sim.core.maneuvers`): the side (near/far) follows from the spot's side of the lane, stop before
+  (:mod:`avp_scenario.maneuvers`): the side (near/far) follows from the spot's side of the lane, stop before
   (80 %: ParkSim overshoots only near the ends of rows) or after the spot, head-in or tail-in (50 %); the
   driver slows to U[0.8, 1.5] m/s (ParkSim: v_end = 1 m/s) over the last U[6, 12] m, stops at the
   maneuver's start pose on its lane, waits U[0, 1.5] s and runs the maneuver. Label: that spot. An explorer
@@ -40,10 +40,10 @@ from collections import Counter
 import numpy as np
 import shapely
 
-from avp_sim.core.lanes import LaneGraph, Path, follow, rollout
-from avp_sim.core.scenario import Scenario, VehicleAgent
-from avp_sim.core.traffic_agents import AgentPlannersMixin
-from avp_sim.core.traffic_types import (  # noqa: F401 - re-exported: the generator's API
+from avp_scenario.scenario import Scenario, VehicleAgent
+from avp_traffic.agents import AgentPlannersMixin
+from avp_traffic.lanes import LaneGraph, Path, follow, rollout
+from avp_traffic.types import (  # noqa: F401 - re-exported: the generator's API
     AGENT_ID0,
     LEAVE,
     PARK,

@@ -1,6 +1,6 @@
 """The canonical scene of ParkSim's maneuver library (ROS-free): which of the 8 maneuvers (:class:`ManeuverKey`),
 the aisle and spots (:class:`SceneGeometry`), the start, spot and goal poses and the parked cars around the
-target spot; and the :class:`Maneuver` record. :mod:`avp_sim.core.maneuvers` builds the maneuvers on it.
+target spot; and the :class:`Maneuver` record. :mod:`avp_scenario.maneuvers` builds the maneuvers on it.
 """
 
 from __future__ import annotations

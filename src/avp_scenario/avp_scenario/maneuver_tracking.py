@@ -1,5 +1,5 @@
 """Time parameterisation and tracking of a maneuver's Reeds-Shepp plan with the car of eq. (1) (ROS-free):
-steps 2 and 3 of :mod:`avp_sim.core.maneuvers` (see its docstring for the method), and the final checks.
+steps 2 and 3 of :mod:`avp_scenario.maneuvers` (see its docstring for the method), and the final checks.
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from avp_sim.core.maneuvers import ALL_MANEUVERS, ManeuverKey, SceneGeometry, generate_maneuver, maneuver_to_world
+from avp_scenario.maneuvers import ALL_MANEUVERS, ManeuverKey, SceneGeometry, generate_maneuver, maneuver_to_world
 from avp_world.geometry import polygon_contains_points, rect_corners, rects_overlap
 from avp_world.kinematics import rollout_vehicle
 from avp_world.lot import LotMap
