@@ -4,7 +4,7 @@
 Each episode runs the simulator core and the method's in-process ego chain (:class:`MethodEgo`: the belief node's
 core with the intent CNN, the prediction, the planner) on one thread, with the planner's wall-clock caps as in the
 live graph (not lifted). Per step it times: **sense** (the simulator's occlusion-aware observation, §III-A; with
-``--sim-param sensing.model=realistic`` the noisy detections of avp_sim.core.sensing), **track** (the tracker,
+``--sim-param sensing.model=realistic`` the noisy detections of avp_sensing.noisy), **track** (the tracker,
 avp_tracking; 0 with exact sensing),
 **belief** (eq. 7-8 with the BEVs and the intent CNN), **predict** (§V-C), **plan** (§V-D) and the **loop**
 (sense + belief + predict + plan + the simulator's step). Building the scenario is not timed. Printed: median and

@@ -41,7 +41,7 @@ from avp_perception.core.intent_model import IntentPredictor, SmallRegularizedCN
 from avp_perception.core.intention import Intention
 from avp_perception.core.pipeline import make_intent_predictor
 from avp_perception.core.prediction import BezierPredictor
-from avp_sim.core.scenario import ScenarioError, ScenarioParams, generate_paper_scenario
+from avp_scenario.scenario import ScenarioError, ScenarioParams, generate_paper_scenario
 from avp_sim.core.world import World
 from avp_world.lot import load_bundled_lot
 

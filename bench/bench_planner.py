@@ -86,8 +86,8 @@ def _seeds(text: str) -> list[int]:
 def capture(args) -> None:
     import avp_sim.params
     from avp_common.params import load_yaml_params
+    from avp_scenario.scenario import ScenarioError, generate_paper_scenario
     from avp_sim.core.factory import make_world, scenario_params, world_config
-    from avp_sim.core.scenario import ScenarioError, generate_paper_scenario
     from avp_sim.core.world import World
 
     p = load_yaml_params(ROOT / "src/avp_sim/config/sim.param.yaml", "avp_sim", avp_sim.params.SIM_PARAMS)

@@ -28,7 +28,7 @@ from hostile_requests import SCENARIO, hostile_requests  # noqa: E402
 
 def accepted_requests(lot) -> dict[str, dict]:
     """The largest requests the simulator takes: a bundled file, a padded text, a scenario as full as validates."""
-    from avp_sim.core.scenario import ALL_MANEUVERS, ScenarioError
+    from avp_scenario.scenario import ALL_MANEUVERS, ScenarioError
     from avp_sim.core.scenario_file import scenario_from_dict
 
     text = SCENARIO.read_text()

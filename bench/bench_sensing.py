@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from avp_sim.core.observation import RayCaster, SensorConfig
+from avp_sensing.observation import RayCaster, SensorConfig
 from avp_world.geometry import rect_corners
 from avp_world.lot import load_bundled_lot
 
@@ -72,7 +72,7 @@ def main() -> None:
         f"mean {ms.mean():.3f} ms, min {ms.min():.3f} ms"
     )
     # the whole observation step of the simulator (ray casting + spot/vehicle classification + histories)
-    from avp_sim.core.scenario import generate_paper_scenario
+    from avp_scenario.scenario import generate_paper_scenario
     from avp_sim.core.world import World, WorldConfig
 
     world = World(lot, generate_paper_scenario(lot, args.seed, True), WorldConfig(sensor=caster.config))
