@@ -23,6 +23,7 @@ lies in L shrunk by m.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import cv2
@@ -264,13 +265,23 @@ class StaticWorld:
         u = (pts - self.origin) / self.res - 0.5  # pixel-centre coordinates
         return np.round(u * float(1 << RASTER_SHIFT)).astype(np.int32)
 
-    def _raster_rects(self, grid: np.ndarray, poses: np.ndarray, dims: np.ndarray) -> None:
-        """Marks the rectangles, grown by ``grow``, occupied in ``grid``."""
-        if len(poses):
-            g = self.grow
-            grown = rect_corners(poses, dims[:, 0] + 2 * g, dims[:, 1] + 2 * g)
-            for c in grown:  # one call each: fillPoly fills several contours even-odd (overlaps would be holes)
-                cv2.fillPoly(grid, [self._px(c)], 1, lineType=cv2.LINE_8, shift=RASTER_SHIFT)
+    def _grown_px(self, poses: np.ndarray, dims: np.ndarray) -> list[np.ndarray]:
+        """The rectangles grown by ``grow``, as the rasteriser's vertices (one (4, 2) array each)."""
+        g = self.grow
+        return [self._px(c) for c in rect_corners(poses, dims[:, 0] + 2 * g, dims[:, 1] + 2 * g)] if len(poses) else []
+
+    def _raster_rects(self, grid: np.ndarray, poses: np.ndarray, dims: np.ndarray) -> list[np.ndarray]:
+        """Marks the rectangles, grown by ``grow``, occupied in ``grid``; returns their vertices (:meth:`_grown_px`)."""
+        polygons = self._grown_px(poses, dims)
+        for pts in polygons:  # one call each: fillPoly fills several contours even-odd (overlaps would be holes)
+            cv2.fillPoly(grid, [pts], 1, lineType=cv2.LINE_8, shift=RASTER_SHIFT)
+        return polygons
+
+    @functools.cached_property
+    def edt_max(self) -> float:
+        """The largest distance of the distance field (m): no obstacle added to this world is nearer than that to
+        a cell it leaves unchanged (:mod:`avp_collision.world_extend`)."""
+        return float(self.edt.max())
 
     def clearance(self, xy: np.ndarray) -> np.ndarray:
         """Lower bound on the distance (m) from points (..., 2) to the static obstacles (0 off the grid)."""

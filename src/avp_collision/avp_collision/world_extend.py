@@ -17,8 +17,6 @@ import math
 import cv2
 import numpy as np
 
-from avp_world.geometry import rect_corners
-
 RASTER_SHIFT = 8  # fractional bits of the rasteriser's vertex coordinates (StaticWorld's grid and this)
 
 
@@ -34,19 +32,15 @@ def extend_grid(world, base) -> bool:
     world._grid_frame()
     poses, dims = world.rect_poses[n:], world.rect_dims[n:]
     grid = base.grid.copy()
-    world._raster_rects(grid, poses, dims)
+    polygons = world._raster_rects(grid, poses, dims)
     world.grid = grid
     edt, depth, sdf = base.edt.copy(), base.depth.copy(), base._sdf_flat.copy().reshape(grid.shape)
     h, w = grid.shape
     res = world.res
-    if not hasattr(base, "_edt_max"):
-        base._edt_max = float(base.edt.max())
-    reach = int(math.ceil(base._edt_max / res)) + 2  # cells: no old distance is longer
+    reach = int(math.ceil(base.edt_max / res)) + 2  # cells: no old distance is longer
     cap = int(math.ceil(world.depth_cap / res)) + 2
-    g = world.grow
     boxes = []  # per added rectangle: its vertices (raster units) and its cells' bounding box
-    for c in rect_corners(poses, dims[:, 0] + 2 * g, dims[:, 1] + 2 * g):
-        pts = world._px(c)
+    for pts in polygons:
         lo, hi = (pts.min(axis=0) >> RASTER_SHIFT) - 2, (pts.max(axis=0) >> RASTER_SHIFT) + 3  # (col, row)
         r0, r1, c0, c1 = max(int(lo[1]), 0), min(int(hi[1]), h), max(int(lo[0]), 0), min(int(hi[0]), w)
         if r0 < r1 and c0 < c1:  # else off the grid
