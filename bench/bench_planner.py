@@ -38,8 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
+from avp_motion.settings import PlannerSettings
 from avp_planner.core.decision import EgoPlanner
-from avp_planner.core.settings import PlannerSettings
 from avp_world.lot import load_bundled_lot
 from avp_world.types import Observation, ObservedPedestrian, ObservedVehicle
 

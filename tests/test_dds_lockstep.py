@@ -51,8 +51,8 @@ def _inprocess_trajectory(lot, ego, method, planner_overrides=None):
         return np.array(world.log_ego), world, None
     from avp_common.params import dataclass_from_values
     from avp_experiment.inproc import perception_planner
+    from avp_motion.settings import DEFAULT_SETTINGS
     from avp_perception.params import BELIEF_PARAMS, PREDICTION_PARAMS
-    from avp_planner.core.settings import DEFAULT_SETTINGS
     from avp_planner.planner_node import PLANNER_PARAMS
 
     q = load_yaml_params(_share("avp_planner", "config/planner.param.yaml"), "avp_planner", PLANNER_PARAMS)

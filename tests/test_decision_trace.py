@@ -15,8 +15,8 @@ import pytest
 from test_planner_decision import L, W, make_obs, static_car
 from unhurried import unhurried
 
+from avp_motion.trace import DecisionTrace, agent_motion, cause_key
 from avp_planner.core.decision import EgoPlanner
-from avp_planner.core.trace import DecisionTrace, agent_motion, cause_key
 from avp_world.types import ObservedVehicle, PredictedTrajectory
 
 

@@ -10,8 +10,8 @@ import pytest
 from shapely.geometry import Polygon
 from shapely.ops import unary_union
 
+from avp_motion.planner_types import Decision
 from avp_planner.core.ego_yield import MAX_BEACON_POSES, beacon_of, heard_by, path_zones
-from avp_planner.core.planner_types import Decision
 from avp_world.geometry import rect_corners
 from avp_world.types import Beacon, Observation, ObservedVehicle
 

@@ -12,7 +12,7 @@ from shapely.ops import unary_union
 from unhurried import unhurried
 
 from avp_collision.static import StaticWorld
-from avp_planner.core.control import reference_trajectory, track
+from avp_motion.control import reference_trajectory, track
 from avp_search.hybrid_astar import EgoHeuristic, HybridAStar
 from avp_search.paths import Path
 from avp_search.rs_scalar import rs_candidates, rs_shortest

@@ -184,7 +184,7 @@ def test_a_spot_selector_plugin_chooses_the_spot(toy, tmp_path):
     assert any(far in o and near in o and o.index(far) < o.index(near) for o in
                ([int(s) for s in line] for line in orders))
     code = ("from avp_planner.core.decision import EgoPlanner\n"
-            "from avp_planner.core.settings import PlannerSettings, DecisionSettings\n"
+            "from avp_motion.settings import PlannerSettings, DecisionSettings\n"
             "from avp_world.lot import load_bundled_lot\n"
             "s = PlannerSettings(decision=DecisionSettings(spot_selector='nope'))\n"
             "try:\n    EgoPlanner(load_bundled_lot(), s)\n"

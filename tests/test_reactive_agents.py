@@ -259,13 +259,13 @@ def _stopping_car(speeds: list[float], y_end: float = 16.0, vid: int = 7):
 
 
 def test_evidence_is_a_hard_stop_with_the_ego_ahead(paper_lot):
-    """``collision.reactive_evidence``'s test (avp_planner.core.yielding.ReactionEvidence): a car that stops at once
+    """``collision.reactive_evidence``'s test (avp_motion.yielding.ReactionEvidence): a car that stops at once
     with the ego 9 m ahead is seen to react; one that slows as a planned stop does (1.5 m/s², ParkSim's), one that
     stops with the ego behind it, or one that stops with the ego beyond the look-ahead, is not. A pedestrian is
     judged on the speed remembered from the step before."""
     from test_planner_decision import make_obs
 
-    from avp_planner.core.yielding import ReactionEvidence
+    from avp_motion.yielding import ReactionEvidence
     from avp_world.types import ObservedPedestrian
 
     ego = (21.5, 25.0, -math.pi / 2)

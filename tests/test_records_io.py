@@ -16,7 +16,7 @@ import pytest
 
 from avp_experiment.results import RESULTS_FILE, open_records, read_results, records_file, records_stem
 from avp_experiment.runner import add_arguments, run_experiment
-from avp_planner.core.trace import DecisionTrace
+from avp_motion.trace import DecisionTrace
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))

@@ -3,7 +3,7 @@
 from dataclasses import replace
 
 from avp_experiment.profiles import DETERMINISTIC_PLANNER
-from avp_planner.core.settings import PlannerSettings
+from avp_motion.settings import PlannerSettings
 
 
 def unhurried(s: PlannerSettings | None = None) -> PlannerSettings:

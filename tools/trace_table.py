@@ -1,5 +1,5 @@
 """Why the episodes of a run time out — steps per mode and idle steps per cause of the timeouts,
-per method, from the records' ``decision_trace`` (avp_planner.core.trace).
+per method, from the records' ``decision_trace`` (avp_motion.trace).
 
     python tools/trace_table.py RECORDS.jsonl [RECORDS.jsonl ...] [--status timeout]
 

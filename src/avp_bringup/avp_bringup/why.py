@@ -14,7 +14,7 @@ import json
 import sys
 from pathlib import Path
 
-from avp_planner.core.trace import DecisionTrace, spells_text
+from avp_motion.trace import DecisionTrace, spells_text
 
 TRACE_TOPIC = "/avp/avp_planner/debug/decision"
 

@@ -34,7 +34,7 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
     ego = (OracleEgo if profile.ground_truth else MethodEgo)(
         lot, profile, deterministic=True, intent_weights=cfg.intent_weights, intent_seed=cfg.intent_seed,
         message_precision=cfg.message_precision)
-    from avp_planner.core.trace import DecisionTrace
+    from avp_motion.trace import DecisionTrace
 
     preds: dict[int, list] = {}
     timings: list[dict] = []

@@ -74,7 +74,7 @@ def _holders(world) -> dict[int, str]:
 def waits_for(world, decisions: dict[int, object]) -> dict[Node, set[Node]]:
     """This step's waits-for edges (:mod:`.gridlock`): egos standing for the agent their trace names, agents braking
     for an ego."""
-    from avp_planner.core.trace import step_of
+    from avp_motion.trace import step_of
     from avp_sim.core.egos import EGO_ID_BASE
 
     waits = []
@@ -96,9 +96,9 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
     from avp_experiment.ego import MethodEgo
     from avp_experiment.metrics import episode_record, lot_record
     from avp_experiment.oracle import OracleEgo, ground_truth
+    from avp_motion.trace import DecisionTrace
     from avp_planner.core.ego_yield import beacon_of, with_beacons
     from avp_planner.core.reservation import SpotReservations
-    from avp_planner.core.trace import DecisionTrace
     from avp_sim.core.factory import make_world
 
     t0 = time.perf_counter()

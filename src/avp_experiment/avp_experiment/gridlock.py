@@ -2,7 +2,7 @@
 
 Each step has edges "A waits for B":
 * an ego that stands or waits (its decision trace's mode is idle or a wait) waits for the agent its trace names as
-  blocking it (:mod:`avp_planner.core.trace`; another ego is named by its observed id, ``EGO_ID_BASE + j``);
+  blocking it (:mod:`avp_motion.trace`; another ego is named by its observed id, ``EGO_ID_BASE + j``);
 * an agent that brakes for an ego (§III-B's rule, :attr:`avp_sim.core.world.World.braking_for`) waits for that ego.
 
 A step is gridlocked when those edges hold a cycle (ego 0 waits for car 7, car 7 brakes for ego 0; or two egos each

@@ -85,7 +85,7 @@ def episode_record(*, method: str, seed: int, reactive: bool, status: str, metri
     """One JSON line: identity (with the lot, :func:`lot_record`), the §VI-B metrics, the ego's reversals and
     U-turns (:func:`motion_counts` of ``ego_poses``, its pose per step), and (under ``timings``) what depends on
     compute speed. ``decision_trace``: the planner's per-episode trace summary (steps per mode, idle steps per
-    cause, the longest idle spells; :class:`avp_planner.core.trace.DecisionTrace`)."""
+    cause, the longest idle spells; :class:`avp_motion.trace.DecisionTrace`)."""
     pt = metrics.get("parking_time")
     pt = None if pt is None or (isinstance(pt, float) and math.isnan(pt)) else float(pt)
     sel = [float(t["spot_selection_time"]) for t in step_timings]

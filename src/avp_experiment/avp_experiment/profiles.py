@@ -246,7 +246,7 @@ def planner_values(profile: MethodProfile, deterministic: bool = True) -> dict[s
 def planner_settings(profile: MethodProfile, deterministic: bool = True):
     """(PlannerSettings, use_beliefs, use_predictions) of a profile."""
     from avp_common.params import dataclass_from_values
-    from avp_planner.core.settings import DEFAULT_SETTINGS
+    from avp_motion.settings import DEFAULT_SETTINGS
 
     v = planner_values(profile, deterministic)
     return dataclass_from_values(DEFAULT_SETTINGS, v).validate(), bool(v["use_beliefs"]), bool(v["use_predictions"])

@@ -153,7 +153,7 @@ class EpisodeCollector(Node):
 
     def _trace_summary(self, n: int, dt: float) -> dict | None:
         """The episode's trace summary from the planner's ~/debug/decision (as the in-process runner's)."""
-        from avp_planner.core.trace import DecisionTrace as Trace
+        from avp_motion.trace import DecisionTrace as Trace
 
         if not all(k in self.traces for k in range(n)):
             return None

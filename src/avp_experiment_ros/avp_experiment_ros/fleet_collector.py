@@ -147,7 +147,7 @@ class FleetCollector(Node):
         from avp_experiment.fleet_metrics import SpotLosses, spot_holders, trace_wait, wait_edges
         from avp_experiment.gridlock import GridlockMeter
         from avp_experiment.metrics import episode_record
-        from avp_planner.core.trace import DecisionTrace as Trace
+        from avp_motion.trace import DecisionTrace as Trace
         from avp_sim.core.egos import EGO_ID_BASE
         from avp_world.geometry import rect_corners
 

@@ -1,7 +1,7 @@
 """The planner node's messages of a decision (§V-D): its plan (nav_msgs/Path), the avp_msgs/PlannerDecision and the
 plan's markers; and the one input of the "Implicit" method that is more than a conversion (the ego's own intention).
 
-Plain functions of a :class:`~avp_planner.core.planner_types.Decision` and message fields, no node: the node
+Plain functions of a :class:`~avp_motion.planner_types.Decision` and message fields, no node: the node
 (:mod:`avp_planner.planner_node`) publishes what they build. The decision trace has its own module
 (:mod:`avp_planner.trace_msg`).
 """

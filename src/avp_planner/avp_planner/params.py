@@ -1,5 +1,5 @@
 """The planner node's parameters (ROS-free): the node's own switches and every field of
-:class:`avp_planner.core.settings.PlannerSettings` as a validated, read-only parameter (config/planner.param.yaml).
+:class:`avp_motion.settings.PlannerSettings` as a validated, read-only parameter (config/planner.param.yaml).
 
 Kept apart from the node so that the experiment runner, ``avp params`` and the lifecycle client read them without
 rclpy (the in-process runner runs where no ROS is installed).
@@ -8,7 +8,7 @@ rclpy (the in-process runner runs where no ROS is installed).
 from __future__ import annotations
 
 from avp_common.params import ParamSpec, specs_from_dataclass
-from avp_planner.core.settings import DEFAULT_SETTINGS
+from avp_motion.settings import DEFAULT_SETTINGS
 
 NODE_PARAMS = [
     ParamSpec("autostart", bool, "Lifecycle: configure and activate at start-up; false = stay unconfigured until "

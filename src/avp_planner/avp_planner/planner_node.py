@@ -48,6 +48,8 @@ from avp_common.params import (
 )
 from avp_common.qos import LATCHED, QUIET_READER, QUIET_WRITER, RESEND_ANSWER_INTERVAL, STATUS, STEP, STEP_INPUT
 from avp_common.ratelog import RateLimitedLog
+from avp_motion.settings import DEFAULT_SETTINGS
+from avp_motion.trace import DecisionTrace as DecisionTrace_
 from avp_msgs.msg import (
     DecisionTrace,
     EgoBeaconArray,
@@ -59,9 +61,7 @@ from avp_msgs.msg import (
     PredictedTrajectoryArray,
     SpotBeliefs,
 )
-from avp_planner.core.settings import DEFAULT_SETTINGS
 from avp_planner.core.spot_selection import spot_selector_class
-from avp_planner.core.trace import DecisionTrace as DecisionTrace_
 from avp_planner.decision_msg import decision_msg, ego_priority_from_msg, plan_markers, plan_msg
 from avp_planner.params import PLANNER_PARAMS
 from avp_planner.trace_msg import trace_to_msg

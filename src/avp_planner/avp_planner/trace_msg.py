@@ -1,17 +1,17 @@
 """The planner's decision trace as an avp_msgs/DecisionTrace message, and back.
 
 The node publishes one per decision on ``~/debug/decision``; ``avp why`` reads them back from a bag
-(:func:`trace_from_msg` feeds :class:`avp_planner.core.trace.DecisionTrace`).
+(:func:`trace_from_msg` feeds :class:`avp_motion.trace.DecisionTrace`).
 """
 
 from __future__ import annotations
 
+from avp_motion.trace import cause_key, step_of
 from avp_msgs.msg import DecisionTrace
-from avp_planner.core.trace import cause_key, step_of
 
 
 def trace_to_msg(header, step: int, decision, idle_steps: int) -> DecisionTrace:
-    """Step ``step``'s trace (``decision.trace`` of :class:`~avp_planner.core.planner_types.Decision`)."""
+    """Step ``step``'s trace (``decision.trace`` of :class:`~avp_motion.planner_types.Decision`)."""
     mode, tr, still = step_of(decision)
     msg = DecisionTrace()
     msg.header = header

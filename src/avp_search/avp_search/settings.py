@@ -2,7 +2,7 @@
 
 :class:`SearchConfig` is what :class:`~avp_search.hybrid_astar.HybridAStar` and
 :class:`~avp_collision.static.StaticWorld` read: the vehicle (§II-B), the collision margins and the search knobs.
-The ego planner's :class:`~avp_planner.core.settings.PlannerSettings` extends it with tracking, cost and decision
+The ego planner's :class:`~avp_motion.settings.PlannerSettings` extends it with tracking, cost and decision
 settings; the Hybrid A* predictor passes the same struct. Where a knob is a symbol of the paper it is named in the
 comment; the rest are the usual Hybrid A* settings (docs/planner.md compares them with Nawaz et al., Nav2 and
 Autoware). Units: metres, seconds, radians.

@@ -17,7 +17,7 @@ the spot heading or its opposite (both seeds of one Hybrid A* search). Candidate
 a lower bound of c_park (from the exact obstacle-free Reeds-Shepp length and the 2-D obstacle-aware
 distance), and the loop stops when the next lower bound is not below the best feasible cost found
 (branch and bound: the result is the one of planning every candidate, at a fraction of the cost). A path is
-time-indexed with its speed profile (:mod:`~avp_planner.core.control`) and kept if its footprints avoid
+time-indexed with its speed profile (:mod:`~avp_motion.control`) and kept if its footprints avoid
 every predicted agent at the same time index; if not, starting it after a wait of up to ``max_wait`` is
 tried (wait-and-go, as in Nawaz et al.). The feasible plan of lowest c_park wins:
 
@@ -64,13 +64,12 @@ from collections.abc import Sequence
 import numpy as np
 
 from avp_collision.static import DynamicObstacles, StaticWorld
-from avp_planner.core.ego_yield import EgoYieldMixin
-from avp_planner.core.making_way import MakeWayMixin
-from avp_planner.core.planner_candidates import CandidatesMixin
-from avp_planner.core.planner_inputs import InputsMixin
-from avp_planner.core.planner_safety import SafetyMixin
-from avp_planner.core.planner_search import SearchMixin
-from avp_planner.core.planner_types import (
+from avp_motion.making_way import MakeWayMixin
+from avp_motion.planner_candidates import CandidatesMixin
+from avp_motion.planner_inputs import InputsMixin
+from avp_motion.planner_safety import SafetyMixin
+from avp_motion.planner_search import SearchMixin
+from avp_motion.planner_types import (
     CONTAINED_MARGIN,
     EXPLORE,
     EXPLORE_BACK_AFTER,
@@ -83,10 +82,11 @@ from avp_planner.core.planner_types import (
     _Plan,
     _Step,
 )
-from avp_planner.core.settings import PlannerSettings
+from avp_motion.settings import PlannerSettings
+from avp_motion.trace import blocked_poses, idle_cause
+from avp_motion.yielding import ReactionEvidence
+from avp_planner.core.ego_yield import EgoYieldMixin
 from avp_planner.core.spot_selection import SelectionContext, make_spot_selector
-from avp_planner.core.trace import blocked_poses, idle_cause
-from avp_planner.core.yielding import ReactionEvidence
 from avp_search.hybrid_astar import PlanResult
 from avp_search.paths import wrap
 from avp_world.lot import LotMap

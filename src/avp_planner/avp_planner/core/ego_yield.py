@@ -5,7 +5,7 @@ other cars behave (they stop for the ego), and neither is a car that ever backs 
 the gridlock of seed 29 at K = 4). An ego cannot tell another ego from a person's car by observation alone, so this
 rule reads a **message between egos**: every ego of a fleet announces, each step, a :class:`~avp_world.types.Beacon`
 — its pose, whether it stands waiting, and the path it wants to drive (the plan it drives, or while it waits the plan
-it is blocked on, :attr:`~avp_planner.core.planner_types.Decision.wanted`). The fleet's channel gives an ego the
+it is blocked on, :attr:`~avp_motion.planner_types.Decision.wanted`). The fleet's channel gives an ego the
 beacons of the egos that entered before it (their right of way: first in, first served) as they were one step
 before (:attr:`~avp_world.types.Observation.beacons`). With one ego there are none, and nothing changes.
 
@@ -28,8 +28,8 @@ import time
 import numpy as np
 
 from avp_collision.reactive import rect_gaps
-from avp_planner.core.making_way import RETRY_STEPS
-from avp_planner.core.planner_types import _Plan
+from avp_motion.making_way import RETRY_STEPS
+from avp_motion.planner_types import _Plan
 from avp_world.types import Beacon
 
 MATCH = 1.0  # m: an observed vehicle this close to a beacon's pose is its sender
@@ -119,10 +119,10 @@ MAX_BEACON_POSES = 200  # avp_common.conversions.MAX_BEACON_POSES bounds a recei
 
 def announcement(decision) -> tuple[bool, np.ndarray]:
     """(whether it stands waiting, the path it wants) of a decision: it stands idle or waiting
-    (:func:`~avp_planner.core.trace.step_of`), and the path is its plan's poses, or while waiting the plan it is
-    blocked on (:attr:`Decision.wanted <avp_planner.core.planner_types.Decision.wanted>`), at most
+    (:func:`~avp_motion.trace.step_of`), and the path is its plan's poses, or while waiting the plan it is
+    blocked on (:attr:`Decision.wanted <avp_motion.planner_types.Decision.wanted>`), at most
     ``MAX_BEACON_POSES``. A decision without these fields (a plugin's) announces a path of its poses."""
-    from avp_planner.core.trace import step_of
+    from avp_motion.trace import step_of
 
     waiting = bool(step_of(decision)[2]) if hasattr(decision, "command") else False
     path = getattr(decision, "wanted", None) if waiting else getattr(decision, "poses", None)

@@ -31,10 +31,10 @@ import time
 import numpy as np
 
 from avp_collision.reactive import rect_gaps
-from avp_planner.core.control import track
-from avp_planner.core.planner_inputs import pedestrian_stands, vehicle_stands
-from avp_planner.core.planner_search import start_relaxed_margins
-from avp_planner.core.planner_types import EXPLORE, IDLE, Decision, _Plan
+from avp_motion.control import track
+from avp_motion.planner_inputs import pedestrian_stands, vehicle_stands
+from avp_motion.planner_search import start_relaxed_margins
+from avp_motion.planner_types import EXPLORE, IDLE, Decision, _Plan
 from avp_search.paths import Path
 
 #: the manoeuvres tried: (length of the first arc, length of the second, opposite-curvature arc) in m; 0 = one arc

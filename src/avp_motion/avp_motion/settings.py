@@ -86,7 +86,7 @@ class DecisionSettings:
     # mechanism e (beyond §V-D-3 "the ego would stay put"): after make_way_after s without moving, if a
     # standing car's corridor (its footprint swept make_way_reach m along its travel) holds the ego, drive the shortest
     # short manoeuvre that ends clear of that corridor swept make_way_clear m and meets no prediction, then stand
-    # there until that car has moved 1 m or make_way_hold s have passed (avp_planner.core.making_way)
+    # there until that car has moved 1 m or make_way_hold s have passed (avp_motion.making_way)
     make_way: bool = False  # mechanism e: step out of the way of an agent waiting for the ego (§V-D-3: no)
     make_way_after: float = 2.0  # s stopped (idle or waiting) before making way
     make_way_reach: float = 3.0  # m of a standing car's path in which the ego counts as in its way

@@ -15,8 +15,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from avp_planner.core.control import reference_trajectory, track
-from avp_planner.core.planner_types import (
+from avp_motion.control import reference_trajectory, track
+from avp_motion.planner_types import (
     EXPLORE,
     PARK,
     _Candidate,

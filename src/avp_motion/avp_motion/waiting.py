@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from avp_planner.core.control import reference_trajectory
+from avp_motion.control import reference_trajectory
 from avp_search.paths import Path
 
 

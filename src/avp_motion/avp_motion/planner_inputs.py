@@ -13,12 +13,12 @@ from dataclasses import replace
 import numpy as np
 
 from avp_collision.static import DynamicObstacles, StaticWorld
-from avp_planner.core.planner_types import (
+from avp_motion.planner_types import (
     CONTAINED_MARGIN,
     STILL_SPEED,
     WORLD_CACHE_SIZE,
 )
-from avp_planner.core.yielding import yielding_predictions
+from avp_motion.yielding import yielding_predictions
 from avp_search.paths import wrap
 from avp_world.geometry import rect_corners, rect_inside_rect
 from avp_world.kinematics import step_vehicle

@@ -1,6 +1,6 @@
 """Why the ego is not moving (docs/stuck_ego.md): the decision trace of every step, and its per-episode summary.
 
-Every :class:`~avp_planner.core.planner_types.Decision` carries ``trace``: the step's **mode** —
+Every :class:`~avp_motion.planner_types.Decision` carries ``trace``: the step's **mode** —
 
 * ``park`` / ``explore``: driving a parking / exploration plan (§V-D-1, §V-D-2);
 * ``wait_and_go``: standing at the start of a plan that was found feasible only after a wait (Nawaz et al.'s
@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from avp_planner.core.control import reference_trajectory
+from avp_motion.control import reference_trajectory
 from avp_world.types import Observation
 
 MODES = ("park", "explore", "wait_and_go", "detour", "evasive", "creep", "make_way", "idle", "parked")
@@ -94,7 +94,7 @@ def blocked_poses(st, control) -> np.ndarray | None:
 
 
 def idle_cause(st, control, poses: np.ndarray | None = None) -> dict:
-    """Why a decision step (:class:`~avp_planner.core.planner_types._Step`) ends idle: the blocked plan hit latest
+    """Why a decision step (:class:`~avp_motion.planner_types._Step`) ends idle: the blocked plan hit latest
     (``poses``, :func:`blocked_poses`) names its blocker (``agent``); else ``budget`` (a search hit the time cap, or
     the deadline passed), ``static`` (searches ran, none found a path) or ``no_candidate`` (nothing to search)."""
     if poses is None:

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from avp_collision.static import DynamicObstacles, StaticWorld
-from avp_planner.core.control import Trajectory
+from avp_motion.control import Trajectory
 from avp_search.paths import Path
 from avp_world.types import Observation
 
@@ -35,7 +35,7 @@ class Decision:
     ``path_planning_time``: Hybrid A* searches and tracking; ``total``); n_candidates: |I_can,0|;
     reason: why this mode (or why a plan was dropped); cost: c of the plan; stats: details; trace: the step's
     mode (park, explore, wait_and_go, detour, evasive, idle, parked) and, when idle or waiting, its cause
-    (:mod:`avp_planner.core.trace`); wanted: (N, 3) when idle, the poses of the plan the ego is blocked on (the one
+    (:mod:`avp_motion.trace`); wanted: (N, 3) when idle, the poses of the plan the ego is blocked on (the one
     met latest, whose blocker the trace names) — what a fleet's beacon announces (:mod:`avp_planner.core.ego_yield`).
     """
 
@@ -51,7 +51,7 @@ class Decision:
     cost: float = math.nan
     replanned: bool = False
     stats: dict = field(default_factory=dict)
-    trace: dict = field(default_factory=dict)  # mode and idle cause of this step (avp_planner.core.trace)
+    trace: dict = field(default_factory=dict)  # mode and idle cause of this step (avp_motion.trace)
     wanted: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # idle: the plan it is blocked on
 
 
@@ -69,7 +69,7 @@ class _Plan:
     wait_steps: int = 0  # a wait-and-go plan: the steps it stands (decision trace) ...
     wait_from: int = 0  # ... from this control on (0: at its start; > 0: at a stop on the way, mechanism c)
     kind: str = ""  # "detour" / "evasive": how it was found (the trace's mode); "" = its mode
-    wait_cause: dict = field(default_factory=dict)  # who it waits for (avp_planner.core.trace.blocker_trace)
+    wait_cause: dict = field(default_factory=dict)  # who it waits for (avp_motion.trace.blocker_trace)
 
 
 @dataclass

@@ -12,16 +12,16 @@ import time
 import numpy as np
 
 from avp_collision.static import DynamicObstacles, StaticWorld
-from avp_planner.core.control import Trajectory, track
-from avp_planner.core.planner_types import (
+from avp_motion.control import Trajectory, track
+from avp_motion.planner_types import (
     EXPLORE,
     PARK,
     SEARCH_CACHE,
     _Candidate,
     _Plan,
 )
-from avp_planner.core.trace import blocker_trace
-from avp_planner.core.waiting import insert_wait, stop_index
+from avp_motion.trace import blocker_trace
+from avp_motion.waiting import insert_wait, stop_index
 from avp_search.hybrid_astar import EgoHeuristic, HybridAStar, PlanResult
 from avp_search.paths import wrap
 from avp_world.geometry import rect_corners, rect_inside_rect

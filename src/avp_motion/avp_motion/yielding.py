@@ -14,12 +14,12 @@ import math
 
 import numpy as np
 
-from avp_planner.core.trace import STANDING_SPEED, agent_motion
+from avp_motion.trace import STANDING_SPEED, agent_motion
 from avp_world.types import Observation, PredictedTrajectory
 
 
 def yields_to_ego(obs: Observation, vehicle, lookahead: float) -> bool:
-    """``vehicle`` (observed, dynamic) stands or brakes (:func:`~avp_planner.core.trace.agent_motion`) and the
+    """``vehicle`` (observed, dynamic) stands or brakes (:func:`~avp_motion.trace.agent_motion`) and the
     ego's centre lies ahead of its front, within ``lookahead`` and within a 60° cone of its heading."""
     if vehicle.is_static or agent_motion(obs, int(vehicle.id), False) not in ("standing", "braking"):
         return False

@@ -11,8 +11,8 @@ import math
 import numpy as np
 
 from avp_collision.static import DynamicObstacles, StaticWorld
-from avp_planner.core.control import reference_trajectory
-from avp_planner.core.waiting import stop_and_wait
+from avp_motion.control import reference_trajectory
+from avp_motion.waiting import stop_and_wait
 from avp_search.hybrid_astar import EgoHeuristic
 from avp_search.paths import Path, wrap
 from avp_search.rs_scalar import rs_shortest
@@ -91,7 +91,7 @@ class CandidatesMixin:
         """(cost, wait_steps, first_hit, stop_path) of the path started after the first feasible wait; (inf, -1, k,
         None) when every wait meets a predicted agent, k being the first such time index without waiting. With
         ``wait_anywhere`` (mechanism c) the wait may be at a stop on the way: ``stop_path`` is then the path with
-        that stop (:mod:`avp_planner.core.waiting`), else None."""
+        that stop (:mod:`avp_motion.waiting`), else None."""
         cs, ctl, d = self.settings.cost, self.settings.control, self.settings.decision
         dt = ctl.dt
         poses, speeds = reference_trajectory(path, ctl, v0)

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from avp_planner.core.settings import ControlSettings
+from avp_motion.settings import ControlSettings
 from avp_search.paths import Path, arc_end
 from avp_world.kinematics import brake_speed, rollout_vehicle
 
