@@ -11,7 +11,8 @@ CORE_FILES = [*SRC.glob("avp_world/avp_world/**/*.py"), *SRC.glob("avp_search/av
               *SRC.glob("avp_traffic/avp_traffic/*.py"), *SRC.glob("avp_sensing/avp_sensing/*.py"),
               *SRC.glob("avp_sim/avp_sim/core/*.py"), *SRC.glob("avp_tracking/avp_tracking/core/*.py"),
               *SRC.glob("avp_planner/avp_planner/core/*.py"), *SRC.glob("avp_motion/avp_motion/*.py"),
-              *SRC.glob("avp_perception/avp_perception/core/*.py"),
+              *SRC.glob("avp_perception/avp_perception/core/*.py"), *SRC.glob("avp_belief_map/avp_belief_map/*.py"),
+              *SRC.glob("avp_prediction/avp_prediction/*.py"),
               SRC / "avp_planner/avp_planner/scripted_driver.py",
               *SRC.glob("avp_experiment/avp_experiment/*.py")]  # its DDS transport is avp_experiment_ros
 ROS_IMPORT = re.compile(r"^\s*(import|from)\s+(rclpy|avp_msgs|geometry_msgs|std_msgs|nav_msgs|sensor_msgs|"
@@ -39,8 +40,8 @@ def test_runtime_packages_never_import_training():
     shipped models. Only the `avp` command line reaches it, for `avp train-intent|gen-intent-data|train-trajectory`."""
     allowed = {SRC / "avp_bringup/avp_bringup/cli.py"}
     runtime = ("avp_world", "avp_collision", "avp_search", "avp_common", "avp_sim", "avp_tracking",
-               "avp_perception", "avp_motion", "avp_planner", "avp_experiment", "avp_bag",
-               "avp_viz", "avp_bringup")
+               "avp_belief_map", "avp_prediction", "avp_perception", "avp_motion", "avp_planner", "avp_experiment",
+               "avp_bag", "avp_viz", "avp_bringup")
     offenders = [str(f) for pkg in runtime for f in SRC.glob(f"{pkg}/{pkg}/**/*.py")
                  if f not in allowed
                  and re.search(r"^\s*(from|import)\s+avp_(trajectory_)?training\b", f.read_text(), re.M)]
@@ -67,26 +68,31 @@ ALLOWED = {
     "avp_sim": {"avp_msgs", "avp_world", "avp_common", "avp_scenario", "avp_sensing", "avp_traffic"},
     # between the simulator (or a real detector) and perception: it reads detections, never the simulator
     "avp_tracking": {"avp_msgs", "avp_world", "avp_common"},
-    "avp_perception": {"avp_msgs", "avp_world", "avp_collision", "avp_search", "avp_common"},
+    # perception: the belief of the lot, then the predictions drawn from it, composed by avp_perception's nodes
+    "avp_belief_map": {"avp_world"},
+    "avp_prediction": {"avp_world", "avp_collision", "avp_search", "avp_belief_map"},
+    "avp_perception": {"avp_msgs", "avp_world", "avp_common", "avp_belief_map", "avp_prediction"},
     # the planner's motion layer (plan to a goal, its check, control, waiting) under its spot decision and nodes
     "avp_motion": {"avp_world", "avp_collision", "avp_search"},
     "avp_planner": {"avp_msgs", "avp_world", "avp_collision", "avp_search", "avp_common", "avp_motion"},
-    "avp_training": {"avp_world", "avp_common", "avp_sim", "avp_tracking", "avp_perception",
-                     "avp_scenario", "avp_sensing", "avp_traffic"},
+    "avp_training": {"avp_world", "avp_common", "avp_sim", "avp_tracking", "avp_perception", "avp_belief_map",
+                     "avp_prediction", "avp_scenario", "avp_sensing", "avp_traffic"},
     # the learned trajectory predictor's training shares the intent CNN's data generation
-    "avp_trajectory_training": {"avp_world", "avp_sim", "avp_perception", "avp_training",
+    "avp_trajectory_training": {"avp_world", "avp_sim", "avp_belief_map", "avp_prediction", "avp_training",
                                 "avp_scenario", "avp_sensing", "avp_traffic"},
     # the experiment runs the cores in process; bags and viewers read what the graph publishes; avp_bringup (the `avp`
     # command, the graph) sits on top of everything and alone reaches training
     "avp_experiment": {"avp_msgs", "avp_world", "avp_collision", "avp_search", "avp_common", "avp_sim", "avp_tracking",
-                       "avp_perception", "avp_motion", "avp_planner", "avp_scenario", "avp_sensing"},
+                       "avp_belief_map", "avp_prediction", "avp_perception", "avp_motion", "avp_planner",
+                       "avp_scenario", "avp_sensing"},
     "avp_bag": {"avp_msgs", "avp_world", "avp_common", "avp_sim"},
     "avp_viz": {"avp_msgs", "avp_world", "avp_common", "avp_perception", "avp_bag"},
     # one package per job beside the launcher: the keyboard teleop (as teleop_twist_keyboard), the episode monitor
     "avp_teleop": set(),
     "avp_monitor": {"avp_msgs", "avp_world", "avp_common", "avp_viz"},
     "avp_bringup": {"avp_msgs", "avp_world", "avp_collision", "avp_search", "avp_common", "avp_sim", "avp_tracking",
-                    "avp_perception", "avp_motion", "avp_planner", "avp_training", "avp_trajectory_training",
+                    "avp_belief_map", "avp_prediction", "avp_perception", "avp_motion", "avp_planner",
+                    "avp_training", "avp_trajectory_training",
                     "avp_experiment", "avp_bag", "avp_viz", "avp_teleop", "avp_monitor"},
     # the experiment's DDS transport: the experiment's runs through the launcher's graph (a plugin of avp_experiment,
     # found by its entry point, so neither the experiment nor the launcher imports it)

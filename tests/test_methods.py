@@ -10,10 +10,7 @@ import re
 import numpy as np
 import pytest
 
-from avp_perception.core.belief import BeliefMap
-from avp_perception.core.implicit import EGO_ID, ego_intention, ego_vehicle, spot_priority
-from avp_perception.core.intent_model import IntentPredictor
-from avp_perception.core.intention import Intention
+from avp_belief_map.belief import BeliefMap
 from avp_perception.core.nawaz import (
     AgentPaths,
     NawazConfig,
@@ -22,8 +19,11 @@ from avp_perception.core.nawaz import (
     propagate_covariances,
     spot_agent_probabilities,
 )
-from avp_perception.core.prediction import ConstantVelocityPredictor
 from avp_planner.core.decision import EgoPlanner
+from avp_prediction.implicit import EGO_ID, ego_intention, ego_vehicle, spot_priority
+from avp_prediction.intent_model import IntentPredictor
+from avp_prediction.intention import Intention
+from avp_prediction.prediction import ConstantVelocityPredictor
 from avp_world.types import Observation, ObservedVehicle, PredictedTrajectory
 
 L, W = 4.6, 1.85

@@ -1,4 +1,4 @@
-"""BEV reconstruction of §V-B (``avp_perception.core.bev``).
+"""BEV reconstruction of §V-B (``avp_belief_map.bev``).
 
 Pixel checks use an independent oracle: world points are projected into the crop here with plain
 trigonometry (forward = heading -> +column, left -> +row, ParkPredict+'s convention) and the colour read
@@ -16,8 +16,8 @@ import pytest
 from shapely import affinity
 from shapely.geometry import LineString, Point, Polygon, box
 
-from avp_perception.core.belief import BeliefMap, observation_update, spot_indices
-from avp_perception.core.bev import (
+from avp_belief_map.belief import BeliefMap, observation_update, spot_indices
+from avp_belief_map.bev import (
     COLOR_CANDIDATE,
     COLOR_DYNAMIC,
     COLOR_EMPTY_SPOT,

@@ -1,4 +1,4 @@
-"""Intent model of §V-A (``avp_perception.core.intent_model``) with random weights (no training yet).
+"""Intent model of §V-A (``avp_prediction.intent_model``) with random weights (no training yet).
 
 Oracles: hand arithmetic (layer sizes, parameter count, features, sigmoid-then-normalise), the plain torch
 module (the fused and incremental inference paths must give its logits), and the probability axioms.
@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 import torch
 
-from avp_perception.core.belief import BeliefMap
-from avp_perception.core.bev import BEVConfig
-from avp_perception.core.intent_model import (
+from avp_belief_map.belief import BeliefMap
+from avp_belief_map.bev import BEVConfig
+from avp_perception.core.pipeline import PerceptionCore
+from avp_prediction.intent_model import (
     FEATURE_NAMES,
     N_FEATURES,
     PARKPREDICT_FEATURES,
@@ -31,7 +32,6 @@ from avp_perception.core.intent_model import (
     receptive_field,
     sigmoid_normalise,
 )
-from avp_perception.core.pipeline import PerceptionCore
 from avp_scenario.scenario import ScenarioParams, generate_paper_scenario
 from avp_sim.core.world import World
 from avp_world.lot import load_bundled_lot

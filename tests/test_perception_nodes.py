@@ -42,7 +42,7 @@ from avp_msgs.msg import (  # noqa: E402
     SpotBeliefs,
 )
 from avp_perception.conversions import intentions_to_msg  # noqa: E402
-from avp_perception.core.intention import Intention  # noqa: E402
+from avp_prediction.intention import Intention  # noqa: E402
 
 BELIEF = NodeSpec("avp_belief", "avp_perception", "belief_node", "config/belief.param.yaml")
 PREDICTION = NodeSpec("avp_prediction", "avp_perception", "prediction_node", "config/prediction.param.yaml")
@@ -106,8 +106,8 @@ def _episode_observations(lot, method: str):
     """Observations of N_STEPS consecutive steps of the first seeded episode (ego parked mid-lot, two dynamic
     vehicles) in which the in-process pipeline conditions some prediction on an intention >= mu, and the
     in-process outputs per step: (observations, [(beliefs, intentions, predictions, bevs)])."""
-    from avp_perception.core.prediction import make_predictor
     from avp_perception.params import prediction_config
+    from avp_prediction.prediction import make_predictor
     from avp_scenario.scenario import ScenarioError, ScenarioParams, generate_paper_scenario
     from avp_sim.core.world import World
 
@@ -304,10 +304,10 @@ def test_belief_sources_and_ego_intention_over_dds(paper_lot, ros, tmp_path, sou
     et al.'s occupancy from constant-velocity predictions), against the cores called here one by one: eq. (7)
     written out by hand, NawazOccupancy on the 4 s constant-velocity predictions of the prediction module (the
     node predicts only the 2.5 s the rule samples), ego_intention on an ego history kept here."""
-    from avp_perception.core.belief import BeliefMap
-    from avp_perception.core.implicit import ego_intention
+    from avp_belief_map.belief import BeliefMap
     from avp_perception.core.nawaz import NawazOccupancy
-    from avp_perception.core.prediction import ConstantVelocityPredictor
+    from avp_prediction.implicit import ego_intention
+    from avp_prediction.prediction import ConstantVelocityPredictor
 
     lot = paper_lot
     obs, _ = episode_observations(lot, "bezier")

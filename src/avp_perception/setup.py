@@ -8,7 +8,6 @@ setup(
     name=package_name,
     version="0.17.0",
     packages=find_packages(exclude=["test"]),
-    package_data={package_name: ["models/*"]},
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
@@ -19,7 +18,7 @@ setup(
     zip_safe=True,
     maintainer="AVP stack maintainers",
     maintainer_email="maintainers@avp-stack.org",
-    description="Belief map, BEV reconstruction, intent CNN and trajectory prediction (paper §V-A..C).",
+    description="The ego's perception and prediction nodes and the pipeline that composes them (paper §V-A..C).",
     license="Apache-2.0",
     entry_points={"console_scripts": [
         "belief_node = avp_perception.belief_node:main",

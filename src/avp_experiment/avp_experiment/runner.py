@@ -196,7 +196,7 @@ def run_experiment(args: argparse.Namespace) -> dict:
         raise ValueError(f"--fleet: method(s) {missing} cannot run")
     ident = run_identity(cfg, profiles)
     if cfg.intent_weights:  # one clear error here rather than one per episode in the workers
-        from avp_perception.core.bev import BEVConfig
+        from avp_belief_map.bev import BEVConfig
         from avp_perception.core.pipeline import make_intent_predictor
         from avp_world.lot import load_bundled_lot
 

@@ -1,14 +1,9 @@
-"""ROS-free perception core (paper §V-A..C): belief map, BEV reconstruction, intent CNN, trajectory prediction.
+"""ROS-free perception core (paper §V-A..C): one perception step and the Nawaz et al. baseline.
 
 Modules (never import rclpy or message classes here):
 
-* :mod:`.belief` — the belief map b_t and its two updates, eqs. (7) and (8) (§V-B);
-* :mod:`.bev` — semantic BEV reconstruction of one observed dynamic vehicle, candidate spots and
-  exploration points (§V-A, §V-B);
-* :mod:`.intention` — the :class:`~.intention.Intention` record (eta_k,i and eta_hat_k,q, §V-A);
-* :mod:`.intent_model` — the ParkPredict+ intent CNN and its feature computation (§V-A);
-* :mod:`.prediction` — trajectory predictors (intention-conditioned cubic Bezier and constant velocity, §V-C);
-* :mod:`.prediction_astar` — the Hybrid A* predictor (paths to the intended goals with the planner's search);
-* :mod:`.debug_views` — the belief map as an occupancy grid and the BEVs tiled (the belief node's debug topics);
-* :mod:`.pipeline` — one perception step chaining the above (eq. 7 -> BEV -> CNN -> eq. 8 -> prediction).
+* :mod:`.pipeline` — one perception step: the belief map (avp_belief_map, eq. 7) -> the BEV -> the intent CNN
+  (avp_prediction) -> eq. 8 -> the trajectory predictor (avp_prediction);
+* :mod:`.nawaz` — the Nawaz et al. baseline: spot occupancy predicted from the predictions;
+* :mod:`.debug_views` — the belief map as an occupancy grid and the BEVs tiled (the belief node's debug topics).
 """

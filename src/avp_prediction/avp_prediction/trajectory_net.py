@@ -13,7 +13,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from avp_perception.core.intent_model import CHANNELS, KERNELS, SLOPE, SmallRegularizedCNN, conv_output_size
+from avp_prediction.intent_model import CHANNELS, KERNELS, SLOPE, SmallRegularizedCNN, conv_output_size
 
 MODEL_DT = 0.4  # s between model poses (ParkPredict+'s stride, sheet §2.1)
 N_HIST = 10  # history poses t - 3.6 s ... t
@@ -205,8 +205,8 @@ class TrajectoryTransformer(nn.Module):
 
 
 def default_weights_path() -> Path:
-    """``avp_perception/models/trajectory_transformer.pt`` (made by ``avp train-trajectory``; card beside it)."""
-    return Path(__file__).resolve().parents[1] / "models" / WEIGHTS_FILE
+    """``avp_prediction/models/trajectory_transformer.pt`` (made by ``avp train-trajectory``; card beside it)."""
+    return Path(__file__).resolve().parent / "models" / WEIGHTS_FILE
 
 
 def save_model(model: TrajectoryTransformer, path: str | Path) -> None:

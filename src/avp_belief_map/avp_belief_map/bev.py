@@ -58,7 +58,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from avp_perception.core.exploration import (  # noqa: F401 - re-exported
+from avp_belief_map.exploration import (  # noqa: F401 - re-exported
     exploration_points_circle,
     exploration_points_square,
     rank_exploration_points,

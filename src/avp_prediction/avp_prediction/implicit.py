@@ -19,10 +19,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from avp_perception.core.belief import BeliefMap
-from avp_perception.core.bev import EGO_GROUP
-from avp_perception.core.intent_model import IntentPredictor
-from avp_perception.core.intention import Intention
+from avp_belief_map.belief import BeliefMap
+from avp_belief_map.bev import EGO_GROUP
+from avp_prediction.intent_model import IntentPredictor
+from avp_prediction.intention import Intention
 from avp_world.types import Observation, ObservedVehicle, priority_from_probabilities
 
 EGO_ID = EGO_GROUP  # the ego's id in the BEV scene (its trail group)
