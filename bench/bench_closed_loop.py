@@ -38,8 +38,8 @@ def _seeds(spec: str) -> list[int]:
 
 
 def run_episode(lot, sim: dict, profile, seed: int, reactive: bool) -> tuple[dict, dict[str, list[float]]]:
-    from avp_experiment.ego import MethodEgo
-    from avp_experiment.sensing import sensed_observer
+    from avp_episode.ego import MethodEgo
+    from avp_episode.sensing import sensed_observer
     from avp_sim.core.factory import make_world
 
     world = make_world(lot, sim, seed, reactive)
@@ -95,7 +95,7 @@ def main() -> int:
 
     import torch
 
-    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_episode.run_config import RunConfig, run_profile, sim_values
     from avp_experiment.runner import parse_planner_params, parse_sim_params
     from avp_sim.core.factory import load_lot_param
 

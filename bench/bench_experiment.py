@@ -2,7 +2,7 @@
 """Cost of one Table I episode per method, and the full sweep extrapolated (the target: <= 2 h on 2 cores).
 
 Runs ``--scenarios`` seeds x both modes per method in this process (one torch thread), exactly as
-``avp experiment --transport inproc`` runs them (:class:`~avp_experiment.ego.MethodEgo`, wall-clock caps
+``avp experiment --transport inproc`` runs them (:class:`~avp_episode.ego.MethodEgo`, wall-clock caps
 lifted), and times each step split into the simulator (observe + step), the method's perception (belief
 update, intent CNN, prediction, Nawaz / ego intent) and the planner. The sweep estimate is
 500 scenarios x 2 modes x (runnable methods) x mean CPU time per episode / ``--workers`` (CPU time: on a
@@ -26,7 +26,7 @@ import time
 import numpy as np
 import torch
 
-from avp_experiment.ego import MethodEgo
+from avp_episode.ego import MethodEgo
 from avp_experiment.runner import RunConfig, resolve_methods, sim_values, valid_seeds
 from avp_sim.core.factory import make_world
 from avp_world.lot import load_bundled_lot

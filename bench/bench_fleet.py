@@ -3,7 +3,7 @@
 (:class:`MethodEgo` each: the belief node's core with the intent CNN, the prediction, the planner, wall-clock caps as
 in the live graph) on one thread. Per step it times the **lot step**: every driving ego's observation (ray-cast from
 its own pose) and pipeline, and the simulator's step of all of them. ``--ego-workers 2`` spreads the pipelines over two
-processes (:mod:`avp_experiment.ego_pool`); the simulator stays in this one. Printed: median and p95 per K, with the
+processes (:mod:`avp_episode.ego_pool`); the simulator stays in this one. Printed: median and p95 per K, with the
 episodes' outcomes and the machine's load; K = 1 in the same run is the reference.
 
 Usage:
@@ -28,9 +28,9 @@ from bench_closed_loop import _seeds  # noqa: E402  (bench/ is the script's dire
 
 def run_episode(lot, sim: dict, profile, seed: int, k: int, ego_workers: int = 1) -> tuple[dict, list[float]]:
     """One episode of ``k`` egos of ``profile``: (outcome, per-step wall seconds of the lot step). ``ego_workers``
-    > 1: the pipelines in that many processes (:class:`avp_experiment.ego_pool.EgoPool`), started before the clock."""
-    from avp_experiment.ego import MethodEgo
-    from avp_experiment.ego_pool import EgoPool
+    > 1: the pipelines in that many processes (:class:`avp_episode.ego_pool.EgoPool`), started before the clock."""
+    from avp_episode.ego import MethodEgo
+    from avp_episode.ego_pool import EgoPool
     from avp_planner.core.ego_yield import beacon_of, with_beacons
     from avp_sim.core.factory import make_world
 
@@ -38,7 +38,7 @@ def run_episode(lot, sim: dict, profile, seed: int, k: int, ego_workers: int = 1
     pool = EgoPool(lot, [profile] * k, workers=ego_workers, deterministic=False) if ego_workers > 1 else None
     egos = [] if pool else [MethodEgo(lot, profile, deterministic=False) for _ in range(k)]
     times: list[float] = []
-    beacons: list = []  # the V2V channel, as avp_experiment.fleet hands it over (decision.ego_yield reads it)
+    beacons: list = []  # the V2V channel, as avp_episode.fleet hands it over (decision.ego_yield reads it)
     try:
         while not world.done:
             t0 = time.perf_counter()
@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--t-final", type=float, default=60.0)
     ap.add_argument("--entry-interval", type=float, default=5.0, help="egos.entry_interval [s]")
     ap.add_argument("--ego-workers", type=int, default=1, help="processes the K pipelines are spread over "
-                    "(avp_experiment.ego_pool; 1: one thread, one after the other) [1]")
+                    "(avp_episode.ego_pool; 1: one thread, one after the other) [1]")
     ap.add_argument("--torch-threads", type=int, default=0, help="torch's intra-op threads for the intent CNN (0: "
                     "torch's default, one per core; the experiment's workers use 1) [0]")
     ap.add_argument("--json", type=Path, default=None)
@@ -87,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
         import torch
 
         torch.set_num_threads(args.torch_threads)
-    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_episode.run_config import RunConfig, run_profile, sim_values
     from avp_sim.core.factory import load_lot_param
 
     seeds = _seeds(args.seeds)

@@ -2,7 +2,7 @@
 """CPU seconds of fleet episodes as the fleet grid runs them, and a digest of their records.
 
 Runs each seed's episode in this process exactly as ``avp experiment --suite fleet`` runs a cell
-(:func:`avp_experiment.fleet.run_fleet_inproc`, lock-step, one torch thread, no wall-clock caps) and prints the
+(:func:`avp_episode.fleet.run_fleet_inproc`, lock-step, one torch thread, no wall-clock caps) and prints the
 process CPU time of each episode and a SHA-256 of its records less their ``timings``. To compare two builds, run
 the script in both (the reference in a git worktree, its ``src/*`` first on ``PYTHONPATH``) on the same machine in
 the same sitting: equal digests mean equal episodes, and the CPU ratio is the speed-up (docs/benchmarks.md).
@@ -24,8 +24,8 @@ from pathlib import Path
 import torch
 from bench_closed_loop import _seeds  # noqa: E402  (bench/ is the script's directory: one seed-range parser)
 
-from avp_experiment.fleet import run_fleet_inproc
-from avp_experiment.run_config import RunConfig, run_profile, sim_values
+from avp_episode.fleet import run_fleet_inproc
+from avp_episode.run_config import RunConfig, run_profile, sim_values
 from avp_experiment.runner import parse_planner_params
 from avp_world.lot import load_bundled_lot, load_lot
 

@@ -34,7 +34,7 @@ from pathlib import Path
 
 def run(out: Path, args: argparse.Namespace, *extra: str, env: dict | None = None) -> dict:
     """One ``avp experiment`` invocation; its wall time, the episodes' own wall times and its records."""
-    from avp_experiment.metrics import comparable
+    from avp_episode.metrics import comparable
     from avp_experiment.runner import RESULTS_FILE, read_results, record_key
 
     shutil.rmtree(out, ignore_errors=True)

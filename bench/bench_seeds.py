@@ -25,8 +25,8 @@ def main() -> None:
     ap.add_argument("--t-final", type=float, default=60.0)
     args = ap.parse_args()
 
+    from avp_episode.run_config import RunConfig, sim_values
     from avp_experiment import runner
-    from avp_experiment.run_config import RunConfig, sim_values
     from avp_experiment.seeds import seed_builds, valid_seeds
 
     sim = runner._with_lot(runner.parse_sim_params([f"scenario.family={args.scenario}"]), args.lot or None)

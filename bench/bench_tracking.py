@@ -2,7 +2,7 @@
 """Tracker quality against the simulator's truth (the truth used only for scoring), per sensing model and lot.
 
 Each episode runs the simulator core with the scripted stand-in ego (it drives the lot's lanes; no planner, so the
-figures do not depend on a method), the sensing model and the tracker (avp_experiment.sensing). At every step the
+figures do not depend on a method), the sensing model and the tracker (avp_episode.sensing). At every step the
 tracks the ego receives are scored against the vehicles the rays touch at that step (what an exact sensor reports):
 a track and a vehicle match within 1 m. py-motmetrics (an independent scorer; our own distance matrix, since its
 ``norm2squared_matrix`` uses ``np.asfarray``, gone in NumPy 2) gives MOTA, IDF1 and the id switches; we add the id
@@ -35,7 +35,7 @@ def run_episode(lot, sim: dict, seed: int, steps: int, acc, errs: dict) -> None:
     """One scripted-ego episode scored into the motmetrics accumulator ``acc`` and the error lists ``errs``."""
     from scipy.optimize import linear_sum_assignment
 
-    from avp_experiment.sensing import sensed_observer
+    from avp_episode.sensing import sensed_observer
     from avp_planner.scripted_driver import ScriptedDriver
     from avp_sim.core.factory import make_world
 
@@ -74,7 +74,7 @@ def run_episode(lot, sim: dict, seed: int, steps: int, acc, errs: dict) -> None:
 def score(lot_name: str, model: str, seeds: list[int], steps: int) -> dict:
     import motmetrics as mm
 
-    from avp_experiment.run_config import RunConfig, sim_values
+    from avp_episode.run_config import RunConfig, sim_values
     from avp_sim.core.factory import load_lot_param
 
     lot_file, family = LOTS[lot_name]

@@ -6,7 +6,7 @@ debug/ground_truth with an in-process run of the same cores for the same seed:
 
 * ``scripted``: sim + scripted driver;
 * ``planner``: the full graph — sim, belief node, prediction node (Bezier), planner waiting for beliefs and
-  predictions — against the in-process ego chain (:func:`avp_experiment.inproc.perception_planner`: a MethodEgo);
+  predictions — against the in-process ego chain (:func:`avp_episode.inproc.perception_planner`: a MethodEgo);
 * ``planner-hybrid_astar``: the same with the prediction node's Hybrid A* predictor.
 """
 
@@ -34,7 +34,7 @@ def _share(pkg: str, rel: str) -> str:
 
 def _inprocess_trajectory(lot, ego, method, planner_overrides=None):
     from avp_common.params import load_yaml_params
-    from avp_experiment.inproc import run_episode
+    from avp_episode.inproc import run_episode
     from avp_planner.scripted_driver import ScriptedDriver, ScriptedDriverConfig
     from avp_planner.scripted_driver_node import DRIVER_PARAMS
     from avp_sim.core.factory import make_world
@@ -50,7 +50,7 @@ def _inprocess_trajectory(lot, ego, method, planner_overrides=None):
         run_episode(world, driver.command)
         return np.array(world.log_ego), world, None
     from avp_common.params import dataclass_from_values
-    from avp_experiment.inproc import perception_planner
+    from avp_episode.inproc import perception_planner
     from avp_motion.settings import DEFAULT_SETTINGS
     from avp_perception.params import BELIEF_PARAMS, PREDICTION_PARAMS
     from avp_planner.planner_node import PLANNER_PARAMS

@@ -1,15 +1,15 @@
-"""avp_experiment.ego_pool: K egos' pipelines in worker processes give the same commands and decisions, step for step,
+"""avp_episode.ego_pool: K egos' pipelines in worker processes give the same commands and decisions, step for step,
 as the same pipelines run one after the other in this process (deterministic pipelines, one seed of the paper lot)."""
 
 from __future__ import annotations
 
 import pytest
 
-from avp_experiment.ego import MethodEgo
-from avp_experiment.ego_pool import EgoPool
-from avp_experiment.fleet import ORACLE_HORIZON
-from avp_experiment.oracle import OracleEgo, ground_truth
-from avp_experiment.run_config import RunConfig, run_profile, sim_values
+from avp_episode.ego import MethodEgo
+from avp_episode.ego_pool import EgoPool
+from avp_episode.fleet import ORACLE_HORIZON
+from avp_episode.oracle import OracleEgo, ground_truth
+from avp_episode.run_config import RunConfig, run_profile, sim_values
 from avp_sim.core.factory import make_world
 
 STEPS = 90

@@ -111,8 +111,8 @@ def test_without_ego_yield_the_gridlock_of_seed_29_forms(paper_lot):
     42.8 s, docs/results/fleet/README.md) forms without ego_yield, and nobody collides. With the rule (the shipped
     default) ego 3 gives way and none forms: tests/test_fleet_dds.py's `test_an_ego_gives_way_over_dds_as_in_process`
     asserts that on its in-process run (one run of four egos fewer in `make test`)."""
-    from avp_experiment.fleet import run_fleet_inproc
-    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_episode.fleet import run_fleet_inproc
+    from avp_episode.run_config import RunConfig, run_profile, sim_values
 
     cfg = RunConfig(t_final=50.0, planner_overrides={"decision.ego_yield": False})
     off = run_fleet_inproc(paper_lot, sim_values(cfg), [run_profile("bezier", cfg)] * 4, 29, True, cfg)

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 import yaml
 
-from avp_experiment.metrics import comparable, prediction_errors, wilson
-from avp_experiment.profiles import (
+from avp_episode.metrics import comparable, prediction_errors, wilson
+from avp_episode.profiles import (
     TABLE_ORDER,
     ProfileError,
     available_names,
@@ -80,7 +80,7 @@ def test_profiles_map_onto_the_four_node_graph(tmp_path):
     """One mapping (method_node_params) puts a profile on the same 4 nodes as the default graph: written out here
     for the implicit and Nawaz rows; the Bézier row changes nothing the node defaults do not already say."""
     from avp_bringup.graph import default_graph, method_graph
-    from avp_experiment.profiles import BELIEF_SOURCES, method_node_params
+    from avp_episode.profiles import BELIEF_SOURCES, method_node_params
     from avp_perception.core.pipeline import BELIEF_SOURCES as NODE_SOURCES
 
     assert BELIEF_SOURCES == NODE_SOURCES
@@ -160,7 +160,7 @@ def test_min_ade_and_min_fde_by_hand():
 
 def test_motion_counts_by_hand():
     """Reversals and U-turns on hand-made ego paths."""
-    from avp_experiment.metrics import motion_counts
+    from avp_episode.metrics import motion_counts
 
     straight = np.array([[0.2 * k, 0.0, 0.0] for k in range(50)])
     assert motion_counts(straight) == {"reversals": 0, "u_turns": 0}
@@ -187,7 +187,7 @@ def test_the_demo_seed_no_longer_backs_away_while_a_stopped_car_blocks_the_road_
     (6 reversals of direction, parked after 38.9 s). With ``decision.detour_waits_to_turn_back`` the road ahead must
     stay blocked for 3 s first (§V-D-2), the car moves on and the ego parks ahead of it, sooner. Measured with the
     agents' reaction assumed only once seen (``collision.reactive_evidence: lot``, the planner profile ``wary``)."""
-    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_episode.run_config import RunConfig, run_profile, sim_values
     from avp_experiment.runner import run_episode_inproc
     from avp_sim.core.factory import load_lot_param
 
@@ -248,7 +248,7 @@ def test_resumable_and_summary(tmp_path):
 
 
 def test_summary_lists_every_failed_episode():
-    from avp_experiment.summary import compute_section, failures_section
+    from avp_report.summary import compute_section, failures_section
 
     def rec(method, seed, mode, status, with_="", wall=1.0):
         return {"method": method, "seed": seed, "mode": mode, "status": status, "success": status == "success",
@@ -327,7 +327,7 @@ def test_an_episode_that_raises_is_reported_and_the_others_recorded(tmp_path, mo
 
 
 def test_sim_param_overrides_are_checked_and_part_of_the_run_identity(tmp_path):
-    from avp_experiment.profiles import load_profile
+    from avp_episode.profiles import load_profile
     from avp_experiment.runner import RunConfig, check_run_file, parse_sim_params, run_identity
 
     old = parse_sim_params(["scenario.maneuver_max_speed=2.0", "scenario.outer_row_max=9"])

@@ -1,4 +1,4 @@
-"""Several automated cars in one lot (avp_sim.core.egos, avp_experiment.fleet): hand-built scenes on the paper lot,
+"""Several automated cars in one lot (avp_sim.core.egos, avp_episode.fleet): hand-built scenes on the paper lot,
 shapely as the judge of where the egos end up."""
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon
 
-from avp_experiment.fleet import parse_fleet, run_fleet_inproc, waits_for
-from avp_experiment.gridlock import GridlockMeter, find_cycle
-from avp_experiment.run_config import RunConfig, run_profile, sim_values
+from avp_episode.fleet import parse_fleet, run_fleet_inproc, waits_for
+from avp_episode.gridlock import GridlockMeter, find_cycle
+from avp_episode.run_config import RunConfig, run_profile, sim_values
 from avp_sim.core.egos import EGO_ID_BASE
 from avp_sim.core.scenario_file import scenario_from_dict
 from avp_sim.core.world import SUCCESS, World, WorldConfig
@@ -251,7 +251,7 @@ def test_reserve_hides_the_spots_other_egos_hold_and_one_ego_parks_without_a_fig
 
 
 def test_reserve_needs_several_egos_and_the_fleet_graph_gives_it_the_reservation_node():
-    from avp_experiment.profiles import ProfileError, load_profile, method_node_params
+    from avp_episode.profiles import ProfileError, load_profile, method_node_params
     from avp_experiment.runner import resolve_methods
 
     run, skipped = resolve_methods("bezier,reserve")
@@ -283,7 +283,7 @@ def test_the_simulator_names_which_ego_each_braking_agent_brakes_for(paper_lot):
     pytest.importorskip("rclpy")
     from builtin_interfaces.msg import Time
 
-    from avp_experiment.fleet_metrics import wait_edges
+    from avp_episode.fleet_metrics import wait_edges
     from avp_sim.sim_node import braking_for_msg
 
     w = World(paper_lot, _scene(paper_lot, [17], [{"start": [21.5, 20.0, UP], "enter_at": 0.0}]),
@@ -347,8 +347,8 @@ def _spot_pose(lot, spot_id: int, shift: float = 0.0) -> np.ndarray:
 def test_the_occupancy_with_egos_is_the_stacked_classification(paper_lot):
     """World.occupancy_with (the agents' per-step classification, then the egos alone) gives what classifying
     every agent and ego together gives, and a parked ego holds its spot (shapely judges which ego lies inside)."""
-    from avp_experiment.fleet import _holders
-    from avp_experiment.fleet_metrics import spot_holders
+    from avp_episode.fleet import _holders
+    from avp_episode.fleet_metrics import spot_holders
     from avp_sensing.observation import classify_world
 
     w = World(paper_lot, _scene(paper_lot, [17, 26], []), WorldConfig(n_egos=3))

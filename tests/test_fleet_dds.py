@@ -2,7 +2,7 @@
 /avp/ego<i>, as real processes on a ROS domain of the test's own.
 
 * two egos of the shipped default through the live graph in lock-step equal the in-process fleet
-  (:func:`avp_experiment.fleet.run_fleet_inproc`) bit for bit, ego by ego;
+  (:func:`avp_episode.fleet.run_fleet_inproc`) bit for bit, ego by ego;
 * lock-step waits for every driving ego's command, and after ``lockstep_timeout`` names the egos that did not
   answer; a command for ego 0 tagged with ego 1's key (ego 1's planner, or a copy of its command) is dropped;
 * keys: a node in /avp/ego<i> tags with ego i's key, which verifies on ego i's topics only;
@@ -55,8 +55,8 @@ def test_a_node_in_an_egos_namespace_tags_with_that_egos_key(ros_env, monkeypatc
 
 
 def _inprocess_fleet(lot, cfg, methods):
-    from avp_experiment.fleet import run_fleet_inproc
-    from avp_experiment.run_config import run_profile, sim_values
+    from avp_episode.fleet import run_fleet_inproc
+    from avp_episode.run_config import run_profile, sim_values
 
     keep: dict = {}
     records = run_fleet_inproc(lot, sim_values(cfg), [run_profile(m, cfg) for m in methods], SEED, True, cfg,
@@ -68,7 +68,7 @@ def test_two_egos_over_dds_match_inprocess(paper_lot, ros_env, tmp_path, monkeyp
     """K = 2 over DDS, each ego's pipeline in one process (the default layout): every ego's trajectory bit for bit
     the in-process fleet's."""
     from avp_bringup.graph import Graph, fleet_graph
-    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_episode.run_config import RunConfig, run_profile, sim_values
     from avp_monitor.monitor import EpisodeMonitor
 
     cfg = RunConfig(t_final=T_FINAL)
@@ -116,8 +116,8 @@ def test_fleet_experiment_over_dds_gives_the_inprocess_records(paper_lot, ros_en
     85, through the reservation node (avp_planner.reservation_node), where ego 0 loses a spot to ego 1 and one to an
     agent and times out at t_f = 40 s, and ego 1 parks. (A fleet of the shipped default over DDS is compared pose by
     pose in test_two_egos_over_dds_match_inprocess and parks in test_demo_of_two_egos_parks_both_and_records_both.)"""
-    from avp_experiment.fleet import fleet_label, run_fleet_inproc
-    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_episode.fleet import fleet_label, run_fleet_inproc
+    from avp_episode.run_config import RunConfig, run_profile, sim_values
     from avp_experiment_ros.transport import run_ros
 
     cfg = RunConfig(t_final=40.0)
@@ -141,8 +141,8 @@ def test_an_ego_gives_way_over_dds_as_in_process(paper_lot, ros_env, tmp_path, m
     process, ego 3 (the later) gives way to ego 0's announced path, no gridlock forms and nobody collides; over DDS,
     where ego 3 reads that path from the beacons the V2V node (avp_planner.v2v_node) relays, every ego's record is
     the in-process one."""
-    from avp_experiment.fleet import fleet_label, run_fleet_inproc
-    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_episode.fleet import fleet_label, run_fleet_inproc
+    from avp_episode.run_config import RunConfig, run_profile, sim_values
     from avp_experiment_ros.transport import run_ros
 
     cfg = RunConfig(t_final=46.0)  # ego 3 stands from 39.0 s and makes way for 2 s from 42.9 s

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from avp_episode.metrics import wilson
 from avp_experiment.headline import (
     BEGIN,
     END,
@@ -21,7 +22,6 @@ from avp_experiment.headline import (
     replace_block,
     suite_table,
 )
-from avp_experiment.metrics import wilson
 
 ROOT = Path(__file__).resolve().parents[1]
 

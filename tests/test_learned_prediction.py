@@ -223,7 +223,7 @@ def test_data_labels_and_determinism():
 
 
 def test_min_errors_match_the_runner_definition():
-    from avp_experiment.metrics import prediction_errors
+    from avp_episode.metrics import prediction_errors
     from avp_trajectory_training.train import min_errors
     from avp_world.types import PredictedTrajectory
 

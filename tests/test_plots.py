@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from avp_experiment.metrics import aggregate, wilson
-from avp_experiment.plots import (
+from avp_episode.metrics import aggregate, wilson
+from avp_report.plots import (
     fitted_limits,
     plot_bars,
     plot_sweep,
@@ -111,7 +111,7 @@ def test_table_charts_without_data(tmp_path):
 
 def test_write_summary_draws_the_three_charts(tmp_path):
     """summary.py's call sites: OUT/plots/{success,min_ade,timings}.png, without running any episode."""
-    from avp_experiment.summary import write_summary
+    from avp_report.summary import write_summary
 
     recs = [record(m, mode, s != 1, s) for m in ("nawaz", "implicit") for mode in ("reactive", "non_reactive")
             for s in range(3)]

@@ -55,7 +55,7 @@ class FarthestFirst:
 
 def run_toy_transport(keys, cfg, on_record, log_dir, timeout=600.0):
     """A toy experiment transport: the episodes in this process, each key written to $TOY_TRANSPORT_LOG."""
-    from avp_experiment.episodes import _init_worker, _worker_episode
+    from avp_episode.episodes import _init_worker, _worker_episode
 
     _init_worker(cfg)
     for key in keys:

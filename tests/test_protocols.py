@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from avp_collision.static import DynamicObstacles
-from avp_experiment.oracle import apply_targets, ground_truth
-from avp_experiment.profiles import ProfileError, load_profile, method_node_params
-from avp_experiment.protocols import SAFETY_EXTRAS, ablation_variants, apply_planner, load_protocol
+from avp_episode.oracle import apply_targets, ground_truth
+from avp_episode.profiles import ProfileError, load_profile, method_node_params
+from avp_episode.protocols import SAFETY_EXTRAS, ablation_variants, apply_planner, load_protocol
 from avp_prediction.prediction import make_predictor
 from avp_scenario.scenario import (
     Scenario,

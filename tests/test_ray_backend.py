@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from avp_experiment.metrics import comparable
+from avp_episode.metrics import comparable
 from avp_experiment.ray_backend import LocalRayCluster
 from avp_experiment.runner import RESULTS_FILE, main, read_results, record_key
 

@@ -366,13 +366,13 @@ def test_told_reactions_change_the_decision_and_nothing_else(paper_lot):
 
 @pytest.mark.slow
 def test_the_oracle_is_told_which_agents_react():
-    """avp_experiment.oracle.ground_truth names every dynamic vehicle and pedestrian with n_pass > 0 in the
+    """avp_episode.oracle.ground_truth names every dynamic vehicle and pedestrian with n_pass > 0 in the
     reactive mode, and none in the non-reactive mode (the simulator's passiveness read independently here)."""
     from pathlib import Path
 
     import avp_sim.params
     from avp_common.params import load_yaml_params
-    from avp_experiment.oracle import ground_truth
+    from avp_episode.oracle import ground_truth
     from avp_sim.core.factory import load_lot_param, make_world
 
     root = Path(__file__).resolve().parents[1] / "src"

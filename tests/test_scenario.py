@@ -152,7 +152,7 @@ def test_a_busy_scenario_read_from_the_disk_cache_is_the_one_generated(tmp_path,
     """avp_sim.core.scenario_cache: the busy family's scenario is generated once and read back bit for bit (every
     array, number and type), so the episode is the same; another seed or t_f is another file; a damaged file is
     generated again; with the cache off nothing is written. One real generation: the others are counted."""
-    from avp_experiment.run_config import RunConfig, sim_values
+    from avp_episode.run_config import RunConfig, sim_values
     from avp_sim.core import factory
     from avp_world.lot import load_bundled_lot
 

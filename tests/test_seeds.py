@@ -4,9 +4,9 @@ import json
 
 import pytest
 
+from avp_episode.pool import make_pool
+from avp_episode.run_config import RunConfig, sim_values
 from avp_experiment import seeds as seeds_mod
-from avp_experiment.pool import make_pool
-from avp_experiment.run_config import RunConfig, sim_values
 from avp_scenario.scenario import ScenarioError
 from avp_sim.core.factory import generate_scenario, load_lot_param
 
@@ -44,7 +44,7 @@ def test_a_pool_finds_the_same_seeds_and_a_slow_generator_starts_one(sim_p, tmp_
     started = []
     monkeypatch.setattr(seeds_mod, "SLOW_SEED", 0.0)  # every seed "slow": the rest go to a pool of its own
     real = make_pool
-    monkeypatch.setattr("avp_experiment.pool.make_pool", lambda n: started.append(n) or real(n))
+    monkeypatch.setattr("avp_episode.pool.make_pool", lambda n: started.append(n) or real(n))
     assert seeds_mod.valid_seeds(6, 49, sim_p, tmp_path / "b.json", workers=2) == serial
     assert started == [2]
     assert json.loads((tmp_path / "b.json").read_text()) == json.loads((tmp_path / "a.json").read_text())

@@ -54,7 +54,7 @@ def test_teleop_keys():
 
 
 def test_a_driven_car_in_the_world_moves_by_eq1_collides_with_fault_and_never_holds_the_episode(paper_lot):
-    from avp_experiment.run_config import RunConfig, sim_values
+    from avp_episode.run_config import RunConfig, sim_values
     from avp_sim.core.factory import make_world
 
     p = sim_values(RunConfig(t_final=30.0))
@@ -323,7 +323,7 @@ def test_the_pipeline_never_reads_a_drivers_commands():
     """No ego-side module subscribes to a driver's topic: the driven car is an observed vehicle like any other."""
     src = Path(__file__).resolve().parents[1] / "src"
     ego_side = [*src.glob("avp_planner/avp_planner/**/*.py"), *src.glob("avp_perception/avp_perception/**/*.py"),
-                src / "avp_experiment/avp_experiment/ego.py"]
+                src / "avp_episode/avp_episode/ego.py"]
     assert ego_side
     for f in ego_side:
         text = f.read_text()

@@ -206,8 +206,8 @@ def test_sensing_demo_parks_its_bag_holds_no_simulator_history_and_replays(ros_e
     true_poses = {(round(a.pose.x, 9), round(a.pose.y, 9)) for g in gts for a in g.agents}
     received = [(round(v.history[-1].x, 9), round(v.history[-1].y, 9)) for m in obs for v in m.vehicles]
     assert received and not (set(received) & true_poses), "a vehicle pose the ego received is the true one"
-    from avp_experiment.episodes import run_episode_inproc
-    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_episode.episodes import run_episode_inproc
+    from avp_episode.run_config import RunConfig, run_profile, sim_values
     from avp_sim.core.factory import load_lot_param
     from avp_world.lot import load_bundled_lot
 

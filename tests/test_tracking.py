@@ -134,8 +134,8 @@ def test_tracks_are_deterministic():
 def _episode(paper_lot, model: str, seed: int = 1, steps: int = 150, family: str = "paper", lot=None):
     """(observations through the sensing model and tracker, the world's truth at each step) of a scripted-ego
     episode (the ego drives its scripted stand-in)."""
-    from avp_experiment.run_config import RunConfig, sim_values
-    from avp_experiment.sensing import sensed_observer
+    from avp_episode.run_config import RunConfig, sim_values
+    from avp_episode.sensing import sensed_observer
     from avp_planner.scripted_driver import ScriptedDriver
     from avp_sim.core.factory import make_world
 
@@ -182,7 +182,7 @@ def test_noisy_sensing_gives_no_simulator_id_and_no_exact_history(paper_lot):
     track) and histories that are estimates, not the simulator's poses; the ego's pose is an estimate too."""
     frames = _episode(paper_lot, "realistic")
     assert any(f[0].vehicles for f in frames)
-    from avp_experiment.sensing import truth_ids
+    from avp_episode.sensing import truth_ids
 
     exact_poses = 0
     n = 0
@@ -219,14 +219,14 @@ def test_same_seed_same_noisy_episode(paper_lot):
 def test_exact_sensing_episodes_never_touch_the_sensing_path(paper_lot, monkeypatch):
     """With sensing.model exact an in-process episode observes with world.observe as before: no sensor, no tracker,
     no relabelling of its predictions (a bound method compared with `is` once relabelled every exact episode)."""
-    import avp_experiment.episodes as episodes
-    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    import avp_episode.episodes as episodes
+    from avp_episode.run_config import RunConfig, run_profile, sim_values
 
     def boom(*a, **k):
         raise AssertionError("the sensing path ran under exact sensing")
 
     monkeypatch.setattr(episodes, "relabel_predictions", boom, raising=False)
-    import avp_experiment.sensing as sensing
+    import avp_episode.sensing as sensing
 
     monkeypatch.setattr(sensing, "relabel_predictions", boom)
     monkeypatch.setattr(sensing, "truth_ids", boom)

@@ -2,7 +2,7 @@
 
 from dataclasses import replace
 
-from avp_experiment.profiles import DETERMINISTIC_PLANNER
+from avp_episode.profiles import DETERMINISTIC_PLANNER
 from avp_motion.settings import PlannerSettings
 
 

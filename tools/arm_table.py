@@ -19,7 +19,7 @@ from pathlib import Path
 
 from motion_table import mcnemar
 
-from avp_experiment.metrics import wilson
+from avp_episode.metrics import wilson
 from avp_experiment.results import open_records
 
 

@@ -4,7 +4,7 @@
 
 One live graph (`avp launch --egos K` in lock-step, wall-clock caps lifted, on a ROS domain of its own) runs every
 seed, each episode started with the simulator's ``reset_episode``; the in-process fleet
-(:func:`avp_experiment.fleet.run_fleet_inproc`) runs the same seed. Each ego's poses, step by step from its entry,
+(:func:`avp_episode.fleet.run_fleet_inproc`) runs the same seed. Each ego's poses, step by step from its entry,
 must be equal bit for bit. Prints one line per seed and the count; exit status 1 if any differs.
 """
 
@@ -37,8 +37,8 @@ def main(argv: list[str] | None = None) -> int:
     from avp_bringup.domain import _try_lock
     from avp_bringup.graph import Graph, fleet_graph
     from avp_common.services import call_once
-    from avp_experiment.fleet import run_fleet_inproc
-    from avp_experiment.run_config import RunConfig, run_profile, sim_values
+    from avp_episode.fleet import run_fleet_inproc
+    from avp_episode.run_config import RunConfig, run_profile, sim_values
     from avp_monitor.monitor import EpisodeMonitor
     from avp_msgs.srv import ResetEpisode
     from avp_sim.core.factory import load_lot_param

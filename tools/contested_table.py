@@ -16,7 +16,7 @@ from pathlib import Path
 
 from motion_table import mcnemar
 
-from avp_experiment.metrics import wilson
+from avp_episode.metrics import wilson
 from avp_experiment.results import read_results, records_file
 
 RESULTS = Path(__file__).resolve().parents[1] / "docs/results/contested"

@@ -18,8 +18,8 @@ from pathlib import Path
 
 from motion_table import mcnemar  # noqa: E402  (tools/ is the script's directory)
 
-from avp_experiment.fleet import FLEET_PREFIX
-from avp_experiment.metrics import wilson
+from avp_episode.fleet import FLEET_PREFIX
+from avp_episode.metrics import wilson
 from avp_experiment.results import open_records
 
 

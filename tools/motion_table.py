@@ -17,7 +17,7 @@ import math
 import sys
 from pathlib import Path
 
-from avp_experiment.metrics import wilson
+from avp_episode.metrics import wilson
 from avp_experiment.results import open_records
 
 

@@ -21,8 +21,8 @@ DLP_LOT = ROOT / "src/avp_world/avp_world/maps/dlp_lot.yaml"
 def run_config(t_final: float, planner_params: list[str] = (), sim_params: list[str] = (), lot: str = "busy"):
     """The run configuration of the busy DLP lot's records (``lot`` "busy", as tools/run_seeds.py makes it) or of
     the paper's lot ("paper"), with avp_sim / avp_planner KEY=VALUE overrides."""
+    from avp_episode.run_config import RunConfig
     from avp_experiment import runner
-    from avp_experiment.run_config import RunConfig
 
     if lot == "busy":
         sim = runner._with_lot(runner.parse_sim_params(["scenario.family=busy", *sim_params]), str(DLP_LOT))
@@ -36,9 +36,9 @@ def episodes(method: str, seeds: str, t_final: float, sim_params: list[str] = ()
     """(seed, World, MethodEgo) for each seed of ``seeds`` (``0-49`` or ``2,8,9``) with :func:`run_config`."""
     from run_seeds import seeds_of
 
-    from avp_experiment.ego import MethodEgo
-    from avp_experiment.episodes import _WORKER, _init_worker
-    from avp_experiment.run_config import run_profile
+    from avp_episode.ego import MethodEgo
+    from avp_episode.episodes import _WORKER, _init_worker
+    from avp_episode.run_config import run_profile
     from avp_sim.core.factory import make_world
 
     cfg = run_config(t_final, planner_params, sim_params, lot)

@@ -31,8 +31,8 @@ def seeds_of(spec: str) -> list[int]:
 
 
 def main(argv: list[str]) -> int:
+    from avp_episode.run_config import RunConfig
     from avp_experiment import runner
-    from avp_experiment.run_config import RunConfig
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("out")

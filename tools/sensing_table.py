@@ -19,8 +19,8 @@ from pathlib import Path
 
 from motion_table import mcnemar
 
+from avp_episode.metrics import wilson
 from avp_experiment.headline import committed_records, load_suite
-from avp_experiment.metrics import wilson
 from avp_experiment.results import read_results, records_file
 
 ROOT = Path(__file__).resolve().parents[1]

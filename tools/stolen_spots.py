@@ -42,10 +42,10 @@ def heading_for(world, lot, spot_id: int, steps: int) -> list[dict]:
 
 
 def _ego_view(lot, sim: dict, cfg, method: str, seed: int, spot_id: int) -> dict:
-    """Re-run the episode as the runner does (:func:`avp_experiment.episodes.run_episode_inproc`): the first step
+    """Re-run the episode as the runner does (:func:`avp_episode.episodes.run_episode_inproc`): the first step
     the ego planned to ``spot_id`` and, per car, the first step it had a prediction of it."""
-    from avp_experiment.episodes import run_episode_inproc
-    from avp_experiment.run_config import run_profile
+    from avp_episode.episodes import run_episode_inproc
+    from avp_episode.run_config import run_profile
 
     first_aim, seen = None, {}
 
@@ -65,8 +65,8 @@ def _ego_view(lot, sim: dict, cfg, method: str, seed: int, spot_id: int) -> dict
 def main(argv: list[str]) -> int:
     from probe_episodes import run_config
 
+    from avp_episode.run_config import sim_values
     from avp_experiment.results import open_records
-    from avp_experiment.run_config import sim_values
     from avp_sim.core.factory import load_lot_param, make_world
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -115,7 +115,7 @@ def _fleet_methods(args: argparse.Namespace) -> list[str]:
     option for a bad value."""
     if args.egos == 1 and not args.methods:
         return []
-    from avp_experiment.fleet import parse_fleet
+    from avp_episode.fleet import parse_fleet
 
     if args.ego != "planner":
         raise ValueError("--egos/--methods and --ego scripted exclude each other")

@@ -186,7 +186,7 @@ def _run_episode(args: argparse.Namespace, nodes: list, recorder, lot) -> tuple[
 
     from avp_bringup.graph import Graph
     from avp_common.node_main import freeze_start_up_heap
-    from avp_experiment.metrics import lot_record
+    from avp_episode.metrics import lot_record
     from avp_monitor.monitor import EpisodeMonitor
     from avp_msgs.srv import ResetEpisode
 

@@ -199,7 +199,7 @@ def fleet_graph(methods: list, *, deterministic: bool = False, sim_extra: dict |
 
 
 def _coordination(method) -> str:
-    from avp_experiment.profiles import MethodProfile, load_profile
+    from avp_episode.profiles import MethodProfile, load_profile
 
     return (method if isinstance(method, MethodProfile) else load_profile(method)).coordination
 
@@ -208,12 +208,12 @@ def method_graph(method, *, deterministic: bool = False, intent_weights: str | N
                  intent_seed: int | None = None, sim_extra: dict | None = None, coordinated: bool = False
                  ) -> list[NodeSpec]:
     """The live graph of one Table I method: :func:`default_graph` ("planner") — the same four nodes
-    — with the parameters of the method profile ``method`` (a name of avp_experiment/config/methods/, a profile
-    file or a :class:`~avp_experiment.profiles.MethodProfile`) on its pipeline nodes
-    (:func:`~avp_experiment.profiles.method_node_params`, also for ``deterministic`` and the intent
+    — with the parameters of the method profile ``method`` (a name of avp_episode/config/methods/, a profile
+    file or a :class:`~avp_episode.profiles.MethodProfile`) on its pipeline nodes
+    (:func:`~avp_episode.profiles.method_node_params`, also for ``deterministic`` and the intent
     weights) and ``sim_extra`` on the simulator. ProfileError (a ValueError) for an unknown or unavailable
     method."""
-    from avp_experiment.profiles import MethodProfile, load_profile, method_node_params
+    from avp_episode.profiles import MethodProfile, load_profile, method_node_params
 
     profile = method if isinstance(method, MethodProfile) else load_profile(method)
     params = method_node_params(profile, deterministic=deterministic, intent_weights=intent_weights,

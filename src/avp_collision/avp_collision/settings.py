@@ -38,7 +38,7 @@ class CollisionSettings:
     # which agents reactive_steps applies to: "assumed" (every agent), "agent" (only agents seen to stop hard,
     # harder than reactive_decel, with the ego ahead of them within decision.yield_lookahead; remembered for the
     # episode), "lot" (every agent, once any has been seen to do so), "told" (the agents the caller names with
-    # EgoPlanner.tell_reacting: the oracle bound's ground truth, avp_experiment.oracle)
+    # EgoPlanner.tell_reacting: the oracle bound's ground truth, avp_episode.oracle)
     # shipped: "assumed"; before 0c50a9b "lot", now the planner profile `wary` (drivers may not stop)
     reactive_evidence: str = "assumed"  # whose reaction: assumed (all), agent (seen), lot (once seen), told (caller)
     # when an agent is assumed to brake for the ego: "margin" (its next reactive_steps poses come within the check's

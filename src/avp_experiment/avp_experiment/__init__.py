@@ -1,11 +1,13 @@
-"""The Table I experiment (paper §VI, docs/experiment.md), ROS-free except :mod:`.ros_collector`.
+"""The experiment (paper §VI, docs/experiment.md): the runner over seeds and methods, ROS-free.
 
-* :mod:`.profiles` — method profiles (``src/avp_experiment/config/methods/<name>.yaml``), planner settings;
-* :mod:`.ego` — :class:`~.ego.MethodEgo`: one method's ego pipeline (perception cores + §V-D planner);
-* :mod:`.metrics` — §VI-B metrics of an episode (minADE/minFDE from the ground truth) and their aggregates;
-* :mod:`.runner` — ``avp experiment``: resumable JSONL, summary; :mod:`.episodes` — one episode, the workers;
-* :mod:`.summary` — the Table I Markdown table (with the paper's numbers) and the PNG plots;
-* :mod:`.paper` — Table I of the paper;
-* :mod:`.transports` — ``--transport``: ``ros``, the live DDS graph, is avp_bringup's plugin
-  (``avp_experiment_ros.transport``, with :mod:`.ros_collector`).
+* :mod:`.runner` — ``avp experiment``: valid seeds, episode keys, resumable records, the summary;
+* :mod:`.arguments`, :mod:`.seeds` — its flags; which seeds build a scenario;
+* :mod:`.results` — the records folder (identity, reading, writing, the lock);
+* :mod:`.headline` — the suites behind the results tables; :mod:`.sweep`, :mod:`.failures` — sweeps, ablations,
+  failed episodes replayed;
+* :mod:`.ray_backend` — ``--backend ray``; :mod:`.transports` — ``--transport``: ``ros``, the live DDS graph, is the
+  plugin ``avp_experiment_ros.transport``.
+
+One episode in process (method profiles, protocols, the egos, metrics) is avp_episode's; the run's report beside the
+paper's Table I is avp_report's.
 """

@@ -6,7 +6,7 @@ import argparse
 import os
 from pathlib import Path
 
-from avp_experiment.run_config import DEFAULT_HORIZON
+from avp_episode.run_config import DEFAULT_HORIZON
 from avp_experiment.transports import transport_names
 
 #: --mode -> which agent modes run (reactive: True)

@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from avp_experiment.episodes import _WORKER, _init_worker, run_episode_inproc
-from avp_experiment.metrics import comparable
+from avp_episode.episodes import _WORKER, _init_worker, run_episode_inproc
+from avp_episode.metrics import comparable
+from avp_episode.run_config import RunConfig, run_profile
 from avp_experiment.results import RUN_FILE, read_results, records_file
-from avp_experiment.run_config import RunConfig, run_profile
 
 
 def _config(out: Path) -> RunConfig:
@@ -118,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     failed = sorted((r for r in records if not r["success"]), key=lambda r: (r["seed"], r["mode"], r["method"]))
     seeds = sorted({int(r["seed"]) for r in records})
     if args.workers > 0 and failed:
-        from avp_experiment.pool import make_pool
+        from avp_episode.pool import make_pool
 
         with make_pool(args.workers, _init_worker, (cfg, True)) as pool:
             rows = list(pool.map(_replay, failed))

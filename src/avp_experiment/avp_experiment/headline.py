@@ -26,7 +26,7 @@ from pathlib import Path
 
 import yaml
 
-from avp_experiment.metrics import Z95, wilson
+from avp_episode.metrics import Z95, wilson
 from avp_experiment.results import SEEDS_FILE, being_written, read_results
 
 BEGIN, END = "<!-- headline:begin -->", "<!-- headline:end -->"
@@ -84,8 +84,8 @@ def full_size(col: Mapping, row: Mapping, quick: bool = False) -> int:
     """The records a finished cell holds: ``--scenarios`` x modes (``--mode``) x the egos of every run unit (a
     method, a fleet of ``--egos`` of it or the ``--fleet``; a fleet records each ego, as the runner counts them). A
     folder with fewer is a run that stopped part-way, not a cell."""
+    from avp_episode.fleet import fleet_names, run_units
     from avp_experiment.arguments import MODES, add_arguments
-    from avp_experiment.fleet import fleet_names, run_units
 
     p = argparse.ArgumentParser(add_help=False)
     add_arguments(p)
@@ -107,7 +107,7 @@ def run_suite(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], 
     _check_cells(cells, getattr(args, "transport", "inproc"), resolve)  # before any cell runs, not hours into it
     for col, row, cell in cells:
         for keep in ("workers", "backend", "address", "no_progress", "transport", "intent_weights",
-                     "shared_pool"):  # the last: one pool for every cell (avp_experiment.pool)
+                     "shared_pool"):  # the last: one pool for every cell (avp_episode.pool)
             setattr(cell, keep, getattr(args, keep, None))
         cell.out = str(out / col["id"] / row["id"])
         print(f"[avp experiment] suite {suite['name']}: {col['id']} / {row['id']}", file=sys.stderr, flush=True)

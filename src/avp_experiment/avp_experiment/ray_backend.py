@@ -22,7 +22,7 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
-from avp_experiment.run_config import Key, RunConfig
+from avp_episode.run_config import Key, RunConfig
 
 RAY_REQUIREMENT = "ray==2.60.0"
 INSTALL_HINT = (f"--backend ray needs Ray: pip install -r requirements-ray.txt (it pins {RAY_REQUIREMENT}; "
@@ -43,7 +43,7 @@ def import_ray():
 
 def _episode_task(key: Key, cfg: RunConfig, sources: dict[str, str]) -> dict:
     """The body of one Ray task (:func:`~.episodes.episode_in_worker`)."""
-    from avp_experiment.episodes import episode_in_worker
+    from avp_episode.episodes import episode_in_worker
 
     return episode_in_worker(key, cfg, sources)
 

@@ -20,8 +20,8 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import TextIO
 
-from avp_experiment.profiles import MethodProfile, load_profile
-from avp_experiment.run_config import Key, RunConfig, sim_values
+from avp_episode.profiles import MethodProfile, load_profile
+from avp_episode.run_config import Key, RunConfig, sim_values
 
 LOCK_FILE = ".lock"
 RESULTS_FILE = "episodes.jsonl"
@@ -98,7 +98,7 @@ def run_identity(cfg: RunConfig, profiles: Iterable[MethodProfile]) -> dict:
     """What OUT/run.json must match: the run config, the intent weights, every avp_sim parameter value (so that
     a change of the shipped scenario defaults is not mixed with earlier episodes), the lot (name and file hash)
     and the method profiles."""
-    from avp_experiment.metrics import lot_record
+    from avp_episode.metrics import lot_record
     from avp_sim.core.factory import load_lot_param
 
     sim = sim_values(cfg)
@@ -123,7 +123,7 @@ def check_run_file(out: Path, ident: dict) -> dict:
 
             old["sim"] = {**{s.name: s.default for s in SIM_PARAMS if s.name not in old["sim"]}, **old["sim"]}
         if "lot" not in old:  # results made before records named their lot were made on the bundled paper lot
-            from avp_experiment.metrics import lot_record
+            from avp_episode.metrics import lot_record
             from avp_world.lot import load_bundled_lot
 
             old["lot"] = lot_record(load_bundled_lot())

@@ -29,8 +29,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from avp_experiment.arguments import MODES, add_arguments  # noqa: E402 F401 - re-exported: the runner's API
-from avp_experiment.episodes import (  # noqa: F401 - re-exported: the runner's API
+from avp_episode.episodes import (  # noqa: F401 - re-exported: the runner's API
     _WORKER,
     ORACLE_HORIZON,
     _init_worker,
@@ -38,12 +37,20 @@ from avp_experiment.episodes import (  # noqa: F401 - re-exported: the runner's 
     episode_in_worker,
     run_episode_inproc,
 )
-from avp_experiment.pool import end_workers_on_sigterm
-from avp_experiment.profiles import (
+from avp_episode.pool import end_workers_on_sigterm
+from avp_episode.profiles import (
     MethodProfile,
     ProfileError,
     available_names,
 )
+from avp_episode.run_config import (  # noqa: F401 - re-exported: the runner's API
+    DEFAULT_HORIZON,
+    Key,
+    RunConfig,
+    run_profile,
+    sim_values,
+)
+from avp_experiment.arguments import MODES, add_arguments  # noqa: E402 F401 - re-exported: the runner's API
 from avp_experiment.results import (  # noqa: F401 - re-exported: the runner's API
     RESULTS_FILE,
     RUN_FILE,
@@ -63,13 +70,6 @@ from avp_experiment.results import (  # noqa: F401 - re-exported: the runner's A
     records_file,
     run_identity,
 )
-from avp_experiment.run_config import (  # noqa: F401 - re-exported: the runner's API
-    DEFAULT_HORIZON,
-    Key,
-    RunConfig,
-    run_profile,
-    sim_values,
-)
 from avp_experiment.seeds import valid_seeds  # noqa: F401 - re-exported: the runner's API
 
 # ------------------------------------------------------------------------------------------ episodes
@@ -83,7 +83,7 @@ def run_inproc(keys: list[Key], cfg: RunConfig, workers: int, on_record: Callabl
     An episode that raises is reported on stderr (method, seed, mode and the error, one line) and left out of
     the results, so the same command retries it; the others go on. Returns those error lines.
     """
-    from avp_experiment.pool import collect, make_pool
+    from avp_episode.pool import collect, make_pool
 
     errors: list[str] = []
 
@@ -159,7 +159,7 @@ def run_experiment(args: argparse.Namespace) -> dict:
 
         if getattr(args, "sweep", None) or getattr(args, "ablation", False):
             raise ValueError("--suite runs its own grid: no --sweep or --ablation with it")
-        from avp_experiment.pool import shared_pool
+        from avp_episode.pool import shared_pool
 
         local = getattr(args, "backend", "local") == "local" and args.transport == "inproc"
         with shared_pool(args.workers if local else 0) as pool:  # one pool for every cell (.pool)
@@ -178,7 +178,7 @@ def run_experiment(args: argparse.Namespace) -> dict:
                     intent_seed=args.intent_seed, message_precision=not args.float64_messages,
                     sim_overrides=_with_lot(parse_sim_params(args.sim_param), args.lot), protocol=args.protocol,
                     planner_overrides=parse_planner_params(args.planner_param))
-    from avp_experiment.fleet import fleet_names, parse_fleet, run_units
+    from avp_episode.fleet import fleet_names, parse_fleet, run_units
 
     egos, fleet = getattr(args, "egos", 1), getattr(args, "fleet", "")
     if (egos != 1 or fleet) and args.transport not in ("inproc", "ros"):
@@ -214,8 +214,8 @@ def _run_locked(args: argparse.Namespace, out: Path, cfg: RunConfig, profiles: l
     the keys name — the methods, or fleets of them (:mod:`.fleet`, a record per ego)."""
     from collections import Counter
 
-    from avp_experiment.fleet import fleet_names, fleet_table
-    from avp_experiment.summary import write_summary
+    from avp_episode.fleet import fleet_names, fleet_table
+    from avp_report.summary import write_summary
 
     check_run_file(out, ident)
     path = out / RESULTS_FILE
@@ -335,7 +335,7 @@ def _with_lot(sim_overrides: dict[str, Any], lot: str) -> dict[str, Any]:
 
 def parse_planner_params(items: list[str] | None) -> dict[str, Any]:
     """``--planner-param`` items, checked against the avp_planner specs."""
-    from avp_experiment.profiles import _planner_specs
+    from avp_episode.profiles import _planner_specs
 
     return _parse_params(items, _planner_specs(), "--planner-param", "avp_planner")
 

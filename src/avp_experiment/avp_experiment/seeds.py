@@ -44,7 +44,7 @@ def valid_seeds(n: int, seed_base: int, sim_p: dict, cache: Path | None = None,
     ``cache`` (a JSON file {seed: valid}) saves the generation of a re-run. ``pool`` tries the unknown seeds in
     parallel, as many at a time as are still needed; without one, ``workers`` > 1 starts a pool of its own for the
     rest once a seed has taken longer than :data:`SLOW_SEED` (the busy lot's seconds, not the paper lot's 40 ms)."""
-    from avp_experiment.pool import make_pool
+    from avp_episode.pool import make_pool
 
     known: dict[str, bool] = json.loads(cache.read_text()) if cache is not None and cache.is_file() else {}
 

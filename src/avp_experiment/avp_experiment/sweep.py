@@ -16,14 +16,14 @@ import copy
 from collections.abc import Callable
 from pathlib import Path
 
-from avp_experiment.metrics import mean_std, wilson
+from avp_episode.metrics import mean_std, wilson
 
 RATES = (("success", "success"), ("spot_stolen", "stolen"), ("collision", "collision"))
 
 
 def parse_sweep(spec: str) -> tuple[str, str, list[str]]:
     """'KEY=V1,V2' -> (key, 'sim' | 'planner', raw values); ValueError naming the problem."""
-    from avp_experiment.profiles import _planner_specs
+    from avp_episode.profiles import _planner_specs
     from avp_sim.params import SIM_PARAMS
 
     key, sep, raw = spec.partition("=")
@@ -104,7 +104,7 @@ def _run_settings(args: argparse.Namespace, settings: dict[str, dict[str, list[s
 
 def run_sweep(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], dict]) -> dict:
     """The ``--sweep`` command: see the module docstring."""
-    from avp_experiment.plots import plot_sweep
+    from avp_report.plots import plot_sweep
 
     key, kind, values = parse_sweep(args.sweep)
     flag = "sim_param" if kind == "sim" else "planner_param"
@@ -126,7 +126,7 @@ def run_sweep(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], 
 
 def run_ablation(args: argparse.Namespace, run_one: Callable[[argparse.Namespace], dict]) -> dict:
     """The ``--ablation`` command: see the module docstring."""
-    from avp_experiment.protocols import SAFETY_EXTRAS, ablation_variants
+    from avp_episode.protocols import SAFETY_EXTRAS, ablation_variants
 
     variants = ablation_variants()
     settings = {name: {"planner_param": [f"{k}={str(v).lower()}" for k, v in params.items()]}

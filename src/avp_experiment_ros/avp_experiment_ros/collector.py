@@ -11,7 +11,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from avp_common.conversions import predictions_from_msg
 from avp_common.qos import QUIET_READER, STATUS
-from avp_experiment.metrics import episode_record, prediction_errors
+from avp_episode.metrics import episode_record, prediction_errors
 from avp_msgs.msg import (
     AgentState,
     DecisionTrace,

@@ -5,7 +5,7 @@ It records the lot's ``episode_status`` (when the episode ends), ``debug/ground_
 lot per step), ``debug/braking_for`` (which ego each braking agent brakes for) and, per ego i in ``/avp/ego<i>``,
 its ``episode_status``, its planner's ``decision`` and decision trace, and the DDS source timestamps of its
 ``observation`` and ``predictions``. :meth:`FleetCollector.records` then builds a record per ego with the in-process
-fleet's fields (:func:`avp_experiment.fleet.run_fleet_inproc`), its spots lost and the gridlock metric replayed
+fleet's fields (:func:`avp_episode.fleet.run_fleet_inproc`), its spots lost and the gridlock metric replayed
 step by step with the same functions (:mod:`.fleet_metrics`), so both transports give the same records apart from
 the timings.
 """
@@ -143,10 +143,10 @@ class FleetCollector(Node):
         return with_perception(self.decisions[i][s][2], self.t_obs[i].get(s), self.t_preds[i].get(s))
 
     def records(self, profiles: list, label: str, horizon: float, wall_s: float) -> list[dict]:
-        """A record per ego, as :func:`avp_experiment.fleet.run_fleet_inproc` writes them."""
-        from avp_experiment.fleet_metrics import SpotLosses, spot_holders, trace_wait, wait_edges
-        from avp_experiment.gridlock import GridlockMeter
-        from avp_experiment.metrics import episode_record
+        """A record per ego, as :func:`avp_episode.fleet.run_fleet_inproc` writes them."""
+        from avp_episode.fleet_metrics import SpotLosses, spot_holders, trace_wait, wait_edges
+        from avp_episode.gridlock import GridlockMeter
+        from avp_episode.metrics import episode_record
         from avp_motion.trace import DecisionTrace as Trace
         from avp_sim.core.egos import EGO_ID_BASE
         from avp_world.geometry import rect_corners

@@ -26,8 +26,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from avp_experiment.protocols import load_protocol
-from avp_experiment.run_config import Key, RunConfig, run_profile, sim_values
+from avp_episode.protocols import load_protocol
+from avp_episode.run_config import Key, RunConfig, run_profile, sim_values
 
 #: wall seconds to wait for the next of the last messages after the episode ended: a collector behind a loaded
 #: machine's graph sees the episode's status (a topic of its own) before the backlog of the others
@@ -43,8 +43,8 @@ def run_ros(keys: list[Key], cfg: RunConfig, on_record: Callable, log_dir: Path,
     from rclpy.executors import SingleThreadedExecutor
 
     from avp_bringup.graph import fleet_graph, method_graph
-    from avp_experiment.fleet import fleet_names
-    from avp_experiment.metrics import lot_record
+    from avp_episode.fleet import fleet_names
+    from avp_episode.metrics import lot_record
     from avp_experiment_ros.collector import EpisodeCollector
     from avp_experiment_ros.fleet_collector import FleetCollector
     from avp_sim.core.factory import load_lot_param

@@ -14,7 +14,7 @@ pose, whether it stands waiting, and the path it wants to drive — its planner'
 The planners of a fleet (``use_beacons``) decide step k once they have its beacons, as they wait for its beliefs and
 predictions; the observation itself goes from the simulator to the pipeline untouched. Relayed in lock-step as
 :mod:`avp_planner.lockstep_relay` says, so the same seed gives the in-process fleet's episode
-(:func:`avp_experiment.fleet.run_fleet_inproc` hands the beacons over the same way). A beacon's path is at most
+(:func:`avp_episode.fleet.run_fleet_inproc` hands the beacons over the same way). A beacon's path is at most
 ``MAX_BEACON_POSES`` poses (a planner refuses a longer one, avp_common.conversions).
 """
 

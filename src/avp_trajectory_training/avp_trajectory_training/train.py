@@ -11,7 +11,7 @@ stack starts from the shipped intent CNN; blocks 1-2 stay frozen (their features
 block 3 and everything after are trained.
 
 **Evaluation** (:func:`evaluate`): minADE / minFDE over 4 s at the simulator's dt, the definition of the Table I
-runner (``avp_experiment.metrics.prediction_errors``: per sample the best mode's ADE and, separately, the
+runner (``avp_episode.metrics.prediction_errors``: per sample the best mode's ADE and, separately, the
 best mode's FDE), of the learned, the Bezier (§V-C) and the constant-velocity predictors on the same samples —
 once conditioned on the true goal (one mode: the trajectory model alone) and once on the intent CNN's
 intentions >= mu (all modes, as in closed loop).

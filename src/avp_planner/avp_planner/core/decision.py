@@ -141,7 +141,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
     def tell_reacting(self, keys) -> None:
         """With ``collision.reactive_evidence: told``: the agents that stop for the ego (keys (is a pedestrian,
         id)), as the caller knows them; the rest are checked as §V-D-1 does. Only a reference bound knows this
-        (``avp_experiment.oracle``: the simulator's n_pass > 0); it holds until told again."""
+        (``avp_episode.oracle``: the simulator's n_pass > 0); it holds until told again."""
         self._told_reacting = frozenset((bool(p), int(i)) for p, i in keys)
 
     def decide(self, obs: Observation, beliefs: np.ndarray | None = None,

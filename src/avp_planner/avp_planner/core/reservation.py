@@ -5,7 +5,7 @@ First come, first served: an ego claims the spot it is about to park in; the cla
 that spot, and refused otherwise. An ego holds at most one spot: a new claim releases its old one. A hold ends when
 the ego parks, gives up the spot (its decision targets another spot, or it explores), leaves the episode, or has not
 been heard from for ``timeout`` (a dead pipeline's spot goes back to the pool). The method profile ``reserve``
-(avp_experiment/config/methods/reserve.yaml) plans only to spots it holds or that nobody holds: the spots other egos
+(avp_episode/config/methods/reserve.yaml) plans only to spots it holds or that nobody holds: the spots other egos
 hold are shown to its pipeline as occupied (:meth:`SpotReservations.apply`). Every ego plans a step with the holds
 as they stood after the step before (:meth:`SpotReservations.settle`), in process and in the live graph
 (avp_planner.reservation_node).

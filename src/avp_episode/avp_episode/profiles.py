@@ -1,6 +1,6 @@
 """Method profiles of Table I: one YAML file per method, shared by the runner and the live graph.
 
-A profile (``src/avp_experiment/config/methods/<name>.yaml``) says how a method differs from the paper's
+A profile (``src/avp_episode/config/methods/<name>.yaml``) says how a method differs from the paper's
 pipeline — §VI-A: "all compared methods only differ in how they choose the ego's parking spot":
 
 .. code-block:: yaml
@@ -91,8 +91,8 @@ def methods_dir() -> Path:
     """The shipped profiles: the package share directory, else the source tree next to this package."""
     from avp_common.share import SRC, package_share
 
-    d = package_share("avp_experiment") / "config" / "methods"
-    return d if d.is_dir() else SRC / "avp_experiment" / "config" / "methods"
+    d = package_share("avp_episode") / "config" / "methods"
+    return d if d.is_dir() else SRC / "avp_episode" / "config" / "methods"
 
 
 #: directories of user method profiles (``:``-separated, like PATH), searched after the shipped ones: a plugin's

@@ -24,11 +24,11 @@ def run_episode(world: World, controller: Controller, max_steps: int | None = No
 def perception_planner(lot, belief_values: dict, prediction_values: dict, planner_settings):
     """The default live graph's ego side in one process (belief node -> prediction node -> planner), built from
     validated node parameter values as the nodes build theirs: a
-    :class:`avp_experiment.ego.MethodEgo` (the one in-process ego chain) and a controller for
-    :func:`run_episode`; ``.last`` is its latest :class:`~avp_experiment.ego.EgoStep`."""
+    :class:`avp_episode.ego.MethodEgo` (the one in-process ego chain) and a controller for
+    :func:`run_episode`; ``.last`` is its latest :class:`~avp_episode.ego.EgoStep`."""
     import torch
 
-    from avp_experiment.ego import MethodEgo
+    from avp_episode.ego import MethodEgo
     from avp_perception.core.pipeline import PerceptionCore, make_intent_predictor
     from avp_perception.params import bev_config, prediction_config
     from avp_planner.core.decision import EgoPlanner

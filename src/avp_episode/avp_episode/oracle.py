@@ -5,7 +5,7 @@ other vehicle's **true target spot** and **true future trajectory**, read from t
 (:class:`avp_sim.core.world.World`). This module is the one place where ground truth reaches an ego
 (DEVELOPERS: "ground truth reaches the ego only in a method labelled as an oracle bound"); a profile asks for
 it with ``perception.ground_truth: true``, and only ``avp experiment --transport inproc`` can serve it (the live
-graph refuses such a profile: :func:`avp_experiment.profiles.method_node_params`).
+graph refuses such a profile: :func:`avp_episode.profiles.method_node_params`).
 
 What the oracle knows at step t, for every dynamic vehicle (observed or not):
 
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from avp_experiment.ego import MethodEgo
+from avp_episode.ego import MethodEgo
 from avp_world.kinematics import rollout_vehicle
 from avp_world.types import Observation, PredictedTrajectory
 

@@ -16,7 +16,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from concurrent.futures.process import BrokenProcessPool
 from multiprocessing import get_context
 
-from avp_experiment.run_config import Key
+from avp_episode.run_config import Key
 
 
 def worker_signals() -> None:

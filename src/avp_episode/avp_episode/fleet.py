@@ -16,10 +16,10 @@ import time
 
 import numpy as np
 
-from avp_experiment.fleet_metrics import SpotLosses, holders_of, trace_wait, wait_edges
-from avp_experiment.gridlock import GridlockMeter, Node
-from avp_experiment.profiles import MethodProfile
-from avp_experiment.run_config import ORACLE_HORIZON, RunConfig
+from avp_episode.fleet_metrics import SpotLosses, holders_of, trace_wait, wait_edges
+from avp_episode.gridlock import GridlockMeter, Node
+from avp_episode.profiles import MethodProfile
+from avp_episode.run_config import ORACLE_HORIZON, RunConfig
 
 #: s without a decision after which the reservation book frees an ego's spot (avp_planner.core.reservation); in
 #: process every driving ego decides every step, so only a finished ego's hold ends, and at once
@@ -93,9 +93,9 @@ def run_fleet_inproc(lot, sim_p: dict, profiles: list[MethodProfile], seed: int,
     """One episode with ``len(profiles)`` egos (``egos.count`` is set to it; ``scenario``: (name, the parsed scenario
     file) instead of the seed's scenario, its ``egos`` one fewer than the profiles); a record per ego. ``keep``: a
     dict that receives the finished ``world`` (a test's oracle)."""
-    from avp_experiment.ego import MethodEgo
-    from avp_experiment.metrics import episode_record, lot_record
-    from avp_experiment.oracle import OracleEgo, ground_truth
+    from avp_episode.ego import MethodEgo
+    from avp_episode.metrics import episode_record, lot_record
+    from avp_episode.oracle import OracleEgo, ground_truth
     from avp_motion.trace import DecisionTrace
     from avp_planner.core.ego_yield import beacon_of, with_beacons
     from avp_planner.core.reservation import SpotReservations
@@ -178,7 +178,7 @@ def fleet_table(records: list[dict]) -> str:
     """The fleet columns of docs/metrics.md ("Several egos") per fleet and mode, as a Markdown table: ego-episodes,
     success with its 95 % Wilson interval, collisions (at fault; with another ego), spots lost to an ego / an agent,
     episodes with a gridlock, mean parking time, lot throughput (egos parked per minute of simulated time)."""
-    from avp_experiment.metrics import wilson
+    from avp_episode.metrics import wilson
 
     rows = ["| fleet | mode | ego-episodes | success [95 % CI] | collisions (at fault) | ego-ego collisions | "
             "spots lost to an ego / an agent | episodes with a gridlock | mean parking time s | egos parked per min |",

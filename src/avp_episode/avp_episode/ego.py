@@ -33,7 +33,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from avp_belief_map.bev import BEVConfig
-from avp_experiment.profiles import MethodProfile, planner_settings, prediction_config
+from avp_episode.profiles import MethodProfile, planner_settings, prediction_config
 from avp_perception.core.nawaz import NawazConfig, NawazOccupancy
 from avp_perception.core.pipeline import PerceptionCore, float32_beliefs, float32_intention
 from avp_planner.core.decision import Decision, EgoPlanner
@@ -92,7 +92,7 @@ class MethodEgo:
     def from_parts(cls, lot: LotMap, core: PerceptionCore, predictor, planner: EgoPlanner, *,
                    name: str = "graph", message_precision: bool = True) -> MethodEgo:
         """The ego of the default live graph from cores built elsewhere (as the nodes build theirs from their
-        parameter files: :func:`avp_experiment.inproc.perception_planner`): intent beliefs, ``predictor`` (the
+        parameter files: :func:`avp_episode.inproc.perception_planner`): intent beliefs, ``predictor`` (the
         prediction node's, not the core's), the planner using both."""
         ego = cls.__new__(cls)
         profile = MethodProfile(name=name, label=name, group="", available=True, beliefs="intent",
@@ -102,7 +102,7 @@ class MethodEgo:
         return ego
 
     def __call__(self, obs: Observation) -> tuple[float, float]:
-        """A controller for :func:`avp_experiment.inproc.run_episode`: the command of :meth:`step`."""
+        """A controller for :func:`avp_episode.inproc.run_episode`: the command of :meth:`step`."""
         return self.step(obs).command
 
     def reset(self) -> None:
@@ -111,7 +111,7 @@ class MethodEgo:
 
     def predict(self, obs: Observation, b: np.ndarray, intentions: list) -> tuple[np.ndarray, list]:
         """The prediction node's step (§V-C): (b_t, predicted trajectories). A reference bound may replace it
-        (``avp_experiment.oracle.OracleEgo``)."""
+        (``avp_episode.oracle.OracleEgo``)."""
         return b, self.predictor.predict(obs, intentions)
 
     def step(self, obs: Observation) -> EgoStep:

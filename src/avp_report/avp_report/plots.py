@@ -27,8 +27,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from avp_experiment.metrics import Z95, wilson
-from avp_experiment.paper import TABLE_I
+from avp_episode.metrics import Z95, wilson
+from avp_report.paper import TABLE_I
 
 MODES = (("non_reactive", "non-reactive"), ("reactive", "reactive"))
 MODE_COLORS = {"non_reactive": "#2878c8", "reactive": "#e68c3c"}

@@ -1,6 +1,6 @@
 """Experiment protocols: how the episodes of every method are set up (docs/experiment.md "Protocols").
 
-A protocol (``src/avp_experiment/config/protocols/<name>.yaml``) fixes what is *not* the method: avp_sim
+A protocol (``src/avp_episode/config/protocols/<name>.yaml``) fixes what is *not* the method: avp_sim
 parameters (the scenario generator, the agents' reactivity) and avp_planner parameters shared by every method
 (ego speed, idle behaviour, safety extras). It never depends on which method runs — §VI-A: "all compared methods
 only differ in how they choose the ego's parking spot" — and scenario generation never reads the method.
@@ -25,7 +25,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from avp_experiment.profiles import MethodProfile, ProfileError
+from avp_episode.profiles import MethodProfile, ProfileError
 
 #: planner behaviours beyond §V-D, each {parameter: (on value, off value)}; "off" is the paper's rule. The
 #: defaults of planner.param.yaml have the first three on and ``reactive_agents`` (with
@@ -84,7 +84,7 @@ class Protocol:
 
 def protocols_dir() -> Path:
     """The shipped protocols (package share directory, else the source tree)."""
-    from avp_experiment.profiles import methods_dir
+    from avp_episode.profiles import methods_dir
 
     return methods_dir().parent / "protocols"
 
@@ -95,7 +95,7 @@ def protocol_names() -> list[str]:
 
 def load_protocol(name_or_path: str) -> Protocol:
     """A shipped protocol by name or a protocol file; ProfileError names the file and the field."""
-    from avp_experiment.profiles import _flatten, _planner_specs, checked_params, read_config_yaml
+    from avp_episode.profiles import _flatten, _planner_specs, checked_params, read_config_yaml
     from avp_sim.params import SIM_PARAMS
 
     p, data = read_config_yaml(name_or_path, protocols_dir(), "protocol", protocol_names())

@@ -1,11 +1,11 @@
 """K egos' pipelines spread over worker processes, so that a lot of several egos uses every core in one episode.
 
-:func:`avp_experiment.fleet.run_fleet_inproc` steps the K pipelines one after the other on one thread; an experiment
+:func:`avp_episode.fleet.run_fleet_inproc` steps the K pipelines one after the other on one thread; an experiment
 uses the other cores by running several episodes at once (``--workers``). A single live-speed episode (the K = 8
 step-time target of docs/benchmarks.md, "Several egos") has only one lot step at a time, so :class:`EgoPool` runs
 the pipelines of one step side by side: ego ``i`` lives in worker ``i % workers`` for the whole episode (its
 perception memory, its planner's state), the simulator stays in the calling process, and each step sends every
-worker its egos' observations and takes back their :class:`~avp_experiment.ego.EgoStep`. Nothing about an ego's
+worker its egos' observations and takes back their :class:`~avp_episode.ego.EgoStep`. Nothing about an ego's
 inputs changes, so with ``deterministic=True`` the commands equal those of the pipelines run in one thread
 (tests/test_ego_pool.py).
 
@@ -19,8 +19,8 @@ import traceback
 from collections.abc import Callable
 from multiprocessing.connection import Connection
 
-from avp_experiment.ego import EgoStep
-from avp_experiment.profiles import MethodProfile
+from avp_episode.ego import EgoStep
+from avp_episode.profiles import MethodProfile
 from avp_world.lot import LotMap
 from avp_world.types import Observation
 
@@ -35,8 +35,8 @@ def _serve(conn: Connection, lot: LotMap, assigned: dict[int, MethodProfile], kw
         import torch
 
         torch.set_num_threads(1)
-        from avp_experiment.ego import MethodEgo
-        from avp_experiment.oracle import OracleEgo
+        from avp_episode.ego import MethodEgo
+        from avp_episode.oracle import OracleEgo
 
         egos = {i: (OracleEgo if p.ground_truth else MethodEgo)(lot, p, **kwargs) for i, p in assigned.items()}
         conn.send("ready")
@@ -60,7 +60,7 @@ class EgoPool:
         lot: the lot map.
         profiles: one method profile per ego.
         workers: worker processes (at most one per ego).
-        **ego_kwargs: :class:`~avp_experiment.ego.MethodEgo`'s keyword arguments (``deterministic``,
+        **ego_kwargs: :class:`~avp_episode.ego.MethodEgo`'s keyword arguments (``deterministic``,
             ``intent_weights``, ``intent_seed``, ``message_precision``).
     """
 

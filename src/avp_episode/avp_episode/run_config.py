@@ -6,8 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from avp_experiment.profiles import MethodProfile, load_profile
-from avp_experiment.protocols import apply_planner, load_protocol
+from avp_episode.profiles import MethodProfile, load_profile
+from avp_episode.protocols import apply_planner, load_protocol
 
 DEFAULT_HORIZON = 4.0  # s: t_pred of the predictors (ParkPredict+'s horizon; the paper does not state one)
 

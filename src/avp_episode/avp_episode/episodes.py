@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from avp_experiment.profiles import MethodProfile
-from avp_experiment.run_config import ORACLE_HORIZON, Key, RunConfig, run_profile, sim_values
+from avp_episode.profiles import MethodProfile
+from avp_episode.run_config import ORACLE_HORIZON, Key, RunConfig, run_profile, sim_values
 
 
 def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reactive: bool, cfg: RunConfig,
@@ -20,14 +20,14 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
     """One episode on the simulator core with the method's :class:`~.ego.MethodEgo`; returns its record.
 
     ``on_step(world, ego_step)``, if given, is called after every step (the failure analysis watches episodes)."""
-    from avp_experiment.ego import MethodEgo
-    from avp_experiment.metrics import episode_record, lot_record, prediction_errors
-    from avp_experiment.oracle import OracleEgo, ground_truth
+    from avp_episode.ego import MethodEgo
+    from avp_episode.metrics import episode_record, lot_record, prediction_errors
+    from avp_episode.oracle import OracleEgo, ground_truth
     from avp_sim.core.factory import make_world
 
     t0 = time.perf_counter()
     world = make_world(lot, sim_p, seed, reactive)
-    from avp_experiment.sensing import relabel_predictions, sensed_observer, truth_ids
+    from avp_episode.sensing import relabel_predictions, sensed_observer, truth_ids
 
     noisy = sensed_observer(world, sim_p, seed)  # None for exact sensing (the paper): world.observe
     observe = noisy or world.observe
@@ -67,7 +67,7 @@ def _init_worker(cfg: RunConfig, pool_worker: bool = False, sources: dict[str, s
     import torch
 
     if pool_worker:
-        from avp_experiment.pool import worker_signals
+        from avp_episode.pool import worker_signals
 
         worker_signals()
 
@@ -81,7 +81,7 @@ def _init_worker(cfg: RunConfig, pool_worker: bool = False, sources: dict[str, s
 
 def _worker_episode(key: Key) -> dict | list[dict]:
     """One episode's record; a fleet's (a key named ``fleet:M1,M2,...``, :mod:`.fleet`): a record per ego."""
-    from avp_experiment.fleet import fleet_names
+    from avp_episode.fleet import fleet_names
 
     method, seed, mode = key
     profiles = _WORKER["profiles"]
@@ -90,7 +90,7 @@ def _worker_episode(key: Key) -> dict | list[dict]:
         if name not in profiles:
             profiles[name] = run_profile(_WORKER["sources"].get(name, name), _WORKER["cfg"])
     if len(names) > 1 or method != names[0]:
-        from avp_experiment.fleet import run_fleet_inproc
+        from avp_episode.fleet import run_fleet_inproc
 
         return run_fleet_inproc(_WORKER["lot"], _WORKER["sim"], [profiles[n] for n in names], seed,
                                 mode == "reactive", _WORKER["cfg"])

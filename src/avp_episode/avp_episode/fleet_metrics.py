@@ -12,7 +12,7 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 
-from avp_experiment.gridlock import Node
+from avp_episode.gridlock import Node
 
 
 def spot_holders(lot, agent_corners: np.ndarray, ego_corners: np.ndarray, ego_ids: Iterable[int]) -> dict[int, str]:

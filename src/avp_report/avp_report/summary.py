@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from avp_experiment.metrics import aggregate
-from avp_experiment.paper import EPISODES_PER_MODE, TABLE_I
-from avp_experiment.plots import plot_bars, plot_timings
-from avp_experiment.profiles import TABLE_ORDER, ProfileError, load_profile
+from avp_episode.metrics import aggregate
+from avp_episode.profiles import TABLE_ORDER, ProfileError, load_profile
+from avp_report.paper import EPISODES_PER_MODE, TABLE_I
+from avp_report.plots import plot_bars, plot_timings
 
 MODE_ORDER = (("non_reactive", "Non-Reactive Agents"), ("reactive", "Reactive Agents"))
 HEADER = ("| Group | Method | | n | Success (%) ↑ | Spots Stolen (%) ↓ | Interrupted Timesteps ↓ "

@@ -1,0 +1,21 @@
+from setuptools import find_packages, setup
+
+package_name = "avp_report"
+
+setup(
+    name=package_name,
+    version="0.17.0",
+    packages=find_packages(exclude=["test"]),
+    package_data={package_name: ["*.csv"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="AVP stack maintainers",
+    maintainer_email="maintainers@avp-stack.org",
+    description="ROS-free report of one experiment run.",
+    license="Apache-2.0",
+    entry_points={"console_scripts": []},
+)
