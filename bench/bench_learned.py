@@ -29,8 +29,8 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_perception import machine, snapshots, stats  # noqa: E402
 
-from avp_prediction.intention import Intention  # noqa: E402
-from avp_prediction.prediction import BezierPredictor, PredictionConfig, make_predictor  # noqa: E402
+from avp_predictors.intention import Intention  # noqa: E402
+from avp_predictors.prediction import BezierPredictor, PredictionConfig, make_predictor  # noqa: E402
 from avp_world.lot import load_bundled_lot  # noqa: E402
 
 

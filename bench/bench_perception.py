@@ -38,9 +38,9 @@ import torch
 from avp_belief_map.belief import BeliefMap
 from avp_belief_map.bev import BEVConfig, BEVRenderer
 from avp_perception.core.pipeline import make_intent_predictor
-from avp_prediction.intent_model import IntentPredictor, SmallRegularizedCNN
-from avp_prediction.intention import Intention
-from avp_prediction.prediction import BezierPredictor
+from avp_predictors.intent_model import IntentPredictor, SmallRegularizedCNN
+from avp_predictors.intention import Intention
+from avp_predictors.prediction import BezierPredictor
 from avp_scenario.scenario import ScenarioError, ScenarioParams, generate_paper_scenario
 from avp_sim.core.world import World
 from avp_world.lot import load_bundled_lot
@@ -211,7 +211,7 @@ def main() -> None:
           f"(target <= 1 ms: {verdict})")
 
     # Hybrid A* prediction: the same snapshots, with those intentions and with the nearest spots
-    from avp_prediction.prediction import make_predictor
+    from avp_predictors.prediction import make_predictor
 
     consecutive = snapshots(lot, 2, args.snapshots, 1)  # stride 1: the static-world cache works as in an episode
     for label, make, obs_set in (("Bezier bench's intentions", bezier_intentions, sets[2]),

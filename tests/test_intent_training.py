@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import torch
 
-from avp_prediction.intent_model import N_FEATURES, IntentPredictor, default_weights_path
+from avp_predictors.intent_model import N_FEATURES, IntentPredictor, default_weights_path
 from avp_sensing.observation import classify_world
 from avp_traffic.lanes import Path, follow
 from avp_traffic.traffic import PARK, WANDER, TrafficGenerator, TrafficParams
@@ -306,7 +306,7 @@ def test_a_few_training_steps_reduce_the_loss():
 # ---------------------------------------------------------------------------------- shipped weights
 
 
-# Until `avp train-intent` has produced avp_prediction/models/intent_cnn.pt, the two tests of the
+# Until `avp train-intent` has produced avp_predictors/models/intent_cnn.pt, the two tests of the
 # shipped weights cannot run; they run as soon as the file exists.
 _NO_WEIGHTS = pytest.mark.skipif(not default_weights_path().is_file(), reason="no shipped intent weights yet")
 

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 import torch
 
-from avp_prediction.intention import Intention
-from avp_prediction.learned_prediction import (
+from avp_predictors.intention import Intention
+from avp_predictors.learned_prediction import (
     MODEL_DT,
     N_FUT,
     N_HIST,
@@ -31,7 +31,7 @@ from avp_prediction.learned_prediction import (
     to_agent_frame,
     to_world_frame,
 )
-from avp_prediction.prediction import BezierPredictor, PredictionConfig, make_predictor
+from avp_predictors.prediction import BezierPredictor, PredictionConfig, make_predictor
 from avp_world.types import Observation, ObservedPedestrian, ObservedVehicle
 
 _NO_WEIGHTS = pytest.mark.skipif(not default_weights_path().is_file(),
@@ -184,7 +184,7 @@ def test_deterministic_and_reset_by_time(paper_lot):
 def test_make_predictor_and_bad_weights(paper_lot, tmp_path):
     from dataclasses import replace
 
-    from avp_prediction.prediction import LearnedPredictionSettings
+    from avp_predictors.prediction import LearnedPredictionSettings
 
     p = make_predictor("learned", paper_lot)
     assert p.name == "learned" and "trajectory transformer" in p.info
@@ -263,7 +263,7 @@ def test_shipped_weights_card_and_forward_motion(paper_lot):
 def test_shipped_weights_beat_constant_velocity_on_fresh_episodes():
     """Fresh held-out episodes (seeds used by no split) generated here; minADE with the true goal at least MARGIN
     below constant velocity's on the same samples."""
-    from avp_prediction.learned_prediction import load_model as load
+    from avp_predictors.learned_prediction import load_model as load
     from avp_trajectory_training.train import TRAJ_SEED0, TrajDataSpec, TrajSamples, episode_samples, evaluate
 
     seeds = [TRAJ_SEED0["test"] + 90_000 + i for i in range(8)]  # some episodes see no traffic car

@@ -20,10 +20,10 @@ from avp_perception.core.nawaz import (
     spot_agent_probabilities,
 )
 from avp_planner.core.decision import EgoPlanner
-from avp_prediction.implicit import EGO_ID, ego_intention, ego_vehicle, spot_priority
-from avp_prediction.intent_model import IntentPredictor
-from avp_prediction.intention import Intention
-from avp_prediction.prediction import ConstantVelocityPredictor
+from avp_predictors.implicit import EGO_ID, ego_intention, ego_vehicle, spot_priority
+from avp_predictors.intent_model import IntentPredictor
+from avp_predictors.intention import Intention
+from avp_predictors.prediction import ConstantVelocityPredictor
 from avp_world.types import Observation, ObservedVehicle, PredictedTrajectory
 
 L, W = 4.6, 1.85

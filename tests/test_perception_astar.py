@@ -1,4 +1,4 @@
-"""The Hybrid A* predictor (``avp_prediction.prediction_astar``).
+"""The Hybrid A* predictor (``avp_predictors.prediction_astar``).
 
 Oracles independent of the code under test: shapely polygons for collisions with the spots / static cars
 and for staying in the lot; the spot's own pose and rectangle for "ends in the intended spot"; arc length
@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon
 
-from avp_prediction.intention import Intention
-from avp_prediction.prediction import PredictionConfig, make_predictor
-from avp_prediction.prediction_astar import HybridAStarPredictor, follow_path
+from avp_predictors.intention import Intention
+from avp_predictors.prediction import PredictionConfig, make_predictor
+from avp_predictors.prediction_astar import HybridAStarPredictor, follow_path
 from avp_search.paths import Path
 from avp_world.geometry import rect_corners
 from avp_world.lot import load_bundled_lot

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from avp_belief_map.belief import BELIEF_INIT, BeliefMap, intention_update, observation_update, spot_indices
-from avp_prediction.intention import Intention, split_none_mass
+from avp_predictors.intention import Intention, split_none_mass
 from avp_scenario.scenario import ScenarioParams, generate_paper_scenario
 from avp_sim.core.world import World
 

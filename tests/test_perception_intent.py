@@ -1,4 +1,4 @@
-"""Intent model of §V-A (``avp_prediction.intent_model``) with random weights (no training yet).
+"""Intent model of §V-A (``avp_predictors.intent_model``) with random weights (no training yet).
 
 Oracles: hand arithmetic (layer sizes, parameter count, features, sigmoid-then-normalise), the plain torch
 module (the fused and incremental inference paths must give its logits), and the probability axioms.
@@ -16,7 +16,7 @@ import torch
 from avp_belief_map.belief import BeliefMap
 from avp_belief_map.bev import BEVConfig
 from avp_perception.core.pipeline import PerceptionCore
-from avp_prediction.intent_model import (
+from avp_predictors.intent_model import (
     FEATURE_NAMES,
     N_FEATURES,
     PARKPREDICT_FEATURES,

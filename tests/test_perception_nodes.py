@@ -42,7 +42,7 @@ from avp_msgs.msg import (  # noqa: E402
     SpotBeliefs,
 )
 from avp_perception.conversions import intentions_to_msg  # noqa: E402
-from avp_prediction.intention import Intention  # noqa: E402
+from avp_predictors.intention import Intention  # noqa: E402
 
 BELIEF = NodeSpec("avp_belief", "avp_perception", "belief_node", "config/belief.param.yaml")
 PREDICTION = NodeSpec("avp_prediction", "avp_perception", "prediction_node", "config/prediction.param.yaml")
@@ -107,7 +107,7 @@ def _episode_observations(lot, method: str):
     vehicles) in which the in-process pipeline conditions some prediction on an intention >= mu, and the
     in-process outputs per step: (observations, [(beliefs, intentions, predictions, bevs)])."""
     from avp_perception.params import prediction_config
-    from avp_prediction.prediction import make_predictor
+    from avp_predictors.prediction import make_predictor
     from avp_scenario.scenario import ScenarioError, ScenarioParams, generate_paper_scenario
     from avp_sim.core.world import World
 
@@ -306,8 +306,8 @@ def test_belief_sources_and_ego_intention_over_dds(paper_lot, ros, tmp_path, sou
     node predicts only the 2.5 s the rule samples), ego_intention on an ego history kept here."""
     from avp_belief_map.belief import BeliefMap
     from avp_perception.core.nawaz import NawazOccupancy
-    from avp_prediction.implicit import ego_intention
-    from avp_prediction.prediction import ConstantVelocityPredictor
+    from avp_predictors.implicit import ego_intention
+    from avp_predictors.prediction import ConstantVelocityPredictor
 
     lot = paper_lot
     obs, _ = episode_observations(lot, "bezier")

@@ -1,4 +1,4 @@
-"""Trajectory prediction of §V-C (``avp_prediction.prediction``).
+"""Trajectory prediction of §V-C (``avp_predictors.prediction``).
 
 Oracles: control points worked out by hand from eqs. (9)-(12); the curve length by dense numerical
 integration of |B'(u)| written here; geometry of the predicted poses (spacing, end point, tangents).
@@ -11,8 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from avp_prediction.intention import Intention
-from avp_prediction.prediction import (
+from avp_predictors.intention import Intention
+from avp_predictors.prediction import (
     BezierPredictor,
     ConstantVelocityPredictor,
     PredictionConfig,

@@ -20,7 +20,7 @@ TOY_MODULE = '''
 """A toy predictor: every other vehicle keeps its pose (and each call is counted in $TOY_PREDICTOR_LOG)."""
 import os
 
-from avp_prediction.prediction import StaticPredictor
+from avp_predictors.prediction import StaticPredictor
 
 
 class ToyPredictor(StaticPredictor):
@@ -127,7 +127,7 @@ def toy(tmp_path_factory) -> dict:
 
 
 def test_the_entry_point_makes_the_predictor_and_unknown_names_list_the_plugins(toy):
-    code = ("from avp_prediction.prediction import available_predictors, make_predictor\n"
+    code = ("from avp_predictors.prediction import available_predictors, make_predictor\n"
             "from avp_world.lot import load_bundled_lot\n"
             "print(type(make_predictor('toy', load_bundled_lot())).__name__)\n"
             "print(sorted(available_predictors()))\n"
@@ -138,7 +138,7 @@ def test_the_entry_point_makes_the_predictor_and_unknown_names_list_the_plugins(
     assert lines[0] == "ToyPredictor" and "'toy'" in lines[1] and "'bezier'" in lines[1]
     assert "unknown predictor 'nope'" in lines[2] and "'toy'" in lines[2] and "avp.predictors" in lines[2]
     # without the package on the path the name is unknown: the plugin, not a copy in src/, made it
-    r = subprocess.run([sys.executable, "-c", "from avp_prediction.prediction import available_predictors\n"
+    r = subprocess.run([sys.executable, "-c", "from avp_predictors.prediction import available_predictors\n"
                         "print('toy' in available_predictors())"], capture_output=True, text=True)
     assert r.stdout.strip() == "False"
 

@@ -18,7 +18,7 @@ from avp_collision.static import DynamicObstacles
 from avp_episode.oracle import apply_targets, ground_truth
 from avp_episode.profiles import ProfileError, load_profile, method_node_params
 from avp_episode.protocols import SAFETY_EXTRAS, ablation_variants, apply_planner, load_protocol
-from avp_prediction.prediction import make_predictor
+from avp_predictors.prediction import make_predictor
 from avp_scenario.scenario import (
     Scenario,
     ScenarioError,

@@ -1,7 +1,7 @@
 """The ego's recent poses (t_hist of §III-A) for the ego's trail in the reconstructed BEVs (§V-B).
 
 Shared by the belief node's core (:class:`~avp_perception.core.pipeline.PerceptionCore`) and the learned trajectory
-predictor (:class:`~avp_prediction.learned_prediction.LearnedPredictor`), which both draw BEVs.
+predictor (:class:`~avp_predictors.learned_prediction.LearnedPredictor`), which both draw BEVs.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Exploration points (§V-A, defined in §V-D), ROS-free: the crossings of the road centre lines with the boundary
 of a circle (the sensing disc) or of the BEV crop square around a vehicle, as poses facing away from its centre,
-and their ranking. The intent model (:mod:`avp_prediction.intent_model`) scores them beside the spots.
+and their ranking. The intent model (:mod:`avp_predictors.intent_model`) scores them beside the spots.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ Per step, following the method profile (:mod:`.profiles`):
    intent CNN of §V-A on every observed dynamic vehicle's reconstructed BEV (§V-B) and eq. (8); ``nawaz``:
    Nawaz et al.'s occupancy from constant-velocity predictions on the observed vacant spots
    (:mod:`avp_perception.core.nawaz`); ``observation``: nothing more — and with ``ego_intent`` the intent CNN
-   on the ego's own BEV (:mod:`avp_prediction.implicit`);
+   on the ego's own BEV (:mod:`avp_predictors.implicit`);
 2. the prediction node's step: the other agents' trajectories (§V-C) with the profile's predictor, conditioned
    on the intentions of step 1 (none for ``observation`` / ``nawaz``);
 3. the planner's decision (:meth:`EgoPlanner.decide`; ``ego_intent``: candidate spots tried in decreasing
@@ -37,7 +37,7 @@ from avp_episode.profiles import MethodProfile, planner_settings, prediction_con
 from avp_perception.core.nawaz import NawazConfig, NawazOccupancy
 from avp_perception.core.pipeline import PerceptionCore, float32_beliefs, float32_intention
 from avp_planner.core.decision import Decision, EgoPlanner
-from avp_prediction.implicit import spot_priority
+from avp_predictors.implicit import spot_priority
 from avp_world.lot import LotMap
 from avp_world.types import Observation, PredictedTrajectory
 

@@ -32,7 +32,7 @@ def perception_planner(lot, belief_values: dict, prediction_values: dict, planne
     from avp_perception.core.pipeline import PerceptionCore, make_intent_predictor
     from avp_perception.params import bev_config, prediction_config
     from avp_planner.core.decision import EgoPlanner
-    from avp_prediction.prediction import make_predictor
+    from avp_predictors.prediction import make_predictor
 
     torch.set_num_threads(belief_values["torch_threads"])
     cfg = bev_config(belief_values)

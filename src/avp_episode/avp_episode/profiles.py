@@ -255,7 +255,7 @@ def planner_settings(profile: MethodProfile, deterministic: bool = True):
 def prediction_config(deterministic: bool = True):
     """The §V-C prediction settings (library defaults; the Hybrid A* predictor's wall-clock cap lifted)."""
     from avp_common.params import dataclass_from_values
-    from avp_prediction.prediction import PredictionConfig
+    from avp_predictors.prediction import PredictionConfig
 
     cfg = PredictionConfig()
     if deterministic:

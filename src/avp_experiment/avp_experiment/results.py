@@ -56,7 +56,7 @@ def check_method(profile: MethodProfile) -> str:
     """'' if the method can run in this build, else why not."""
     if not profile.available:
         return profile.unavailable_reason or "not available"
-    from avp_prediction.prediction import make_predictor
+    from avp_predictors.prediction import make_predictor
     from avp_world.lot import load_bundled_lot
 
     try:
@@ -73,7 +73,7 @@ def profile_digest(profile: MethodProfile) -> str:
     if profile.planner != load_profile(profile.source).planner:  # protocol / --planner-param values on top
         h.update(json.dumps(profile.planner, sort_keys=True).encode())
     if profile.predictor == "learned":
-        from avp_prediction.learned_prediction import default_weights_path
+        from avp_predictors.learned_prediction import default_weights_path
 
         w = default_weights_path()
         h.update(w.read_bytes() if w.is_file() else b"random weights")

@@ -1,4 +1,4 @@
-"""avp_msgs/IntentionArray <-> core :class:`~avp_prediction.intention.Intention` (with validation).
+"""avp_msgs/IntentionArray <-> core :class:`~avp_predictors.intention.Intention` (with validation).
 
 Beliefs and predictions, which the planner reads too, are converted in ``avp_common.conversions``; the
 intentions are perception's own (belief node -> prediction node), so their conversion lives here and
@@ -17,7 +17,7 @@ from geometry_msgs.msg import Pose2D
 from avp_common.conversions import MessageError, check_finite, check_probabilities, step_to_time
 from avp_msgs.msg import Intention as IntentionMsg
 from avp_msgs.msg import IntentionArray
-from avp_prediction.intention import Intention
+from avp_predictors.intention import Intention
 from avp_world.lot import LotMap
 
 

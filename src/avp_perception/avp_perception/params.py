@@ -1,7 +1,7 @@
 """Parameters of the belief and prediction nodes (config/belief.param.yaml, config/prediction.param.yaml).
 
 ROS-free. The core settings dataclasses (:class:`~avp_belief_map.bev.BEVConfig`,
-:class:`~avp_prediction.prediction.PredictionConfig`) are the single source of the defaults and
+:class:`~avp_predictors.prediction.PredictionConfig`) are the single source of the defaults and
 descriptions (``specs_from_dataclass``); this module adds the node-only rows, the paper's symbols and
 sections, and ranges. ``python tools/gen_params.py`` writes the YAML files and the tables of docs/parameters.md.
 """
@@ -15,8 +15,8 @@ from avp_belief_map.belief import BELIEF_INIT, BELIEF_SOURCES
 from avp_belief_map.bev import EXPLORATION_SHAPES, BEVConfig
 from avp_common.params import ParamSpec, dataclass_from_values, specs_from_dataclass
 from avp_perception.core.nawaz import COVARIANCE_MODES, MAHALANOBIS_MODES, NawazConfig
-from avp_prediction.intent_features import INTENT_MODES
-from avp_prediction.prediction import START_TANGENTS, PredictionConfig, available_predictors
+from avp_predictors.intent_features import INTENT_MODES
+from avp_predictors.prediction import START_TANGENTS, PredictionConfig, available_predictors
 
 DEBUG_CHOICES = ("never", "subscribed", "always")
 
@@ -45,7 +45,7 @@ BELIEF_NODE_PARAMS = [
     ParamSpec("t_hist", float, "Ego poses kept for the ego's trail in the other vehicles' BEVs (as the "
               "observed histories).", "t_hist", "§III-A", min=0.0, max=20.0, default=4.0),
     ParamSpec("intent.weights", str, "Intent CNN state-dict file; empty = the shipped weights "
-              "(avp_prediction/models/intent_cnn.pt) if present, else untrained seeded random weights. The "
+              "(avp_predictors/models/intent_cnn.pt) if present, else untrained seeded random weights. The "
               "node logs which.", "", "§V-A", default=""),
     ParamSpec("intent.seed", int, "Seed of the random weights (used only without a weights file).", "", "§V-A",
               min=0, max=2**31 - 1, default=0),

@@ -43,7 +43,7 @@ from avp_common.step_answers import StepAnswers
 from avp_msgs.msg import IntentionArray, LotMap, Observation, PredictedTrajectoryArray
 from avp_perception.conversions import intentions_from_msg
 from avp_perception.params import PREDICTION_PARAMS, prediction_config
-from avp_prediction.prediction import make_predictor
+from avp_predictors.prediction import make_predictor
 
 
 class PredictionNode(Node):

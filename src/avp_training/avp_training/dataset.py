@@ -33,7 +33,7 @@ import numpy as np
 
 from avp_belief_map.bev import BEVConfig
 from avp_perception.core.pipeline import PerceptionCore
-from avp_prediction.intent_model import N_FEATURES, IntentPredictor
+from avp_predictors.intent_model import N_FEATURES, IntentPredictor
 from avp_scenario.scenario import ScenarioError, generate_paper_scenario
 from avp_sensing.observation import SensorConfig
 from avp_sim.core.world import World, WorldConfig

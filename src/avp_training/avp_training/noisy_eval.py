@@ -20,7 +20,7 @@ from pathlib import Path
 
 
 def evaluate_presets(presets: list[str], split: str, episodes: int, workers: int) -> list[dict]:
-    from avp_prediction.intent_model import IntentPredictor
+    from avp_predictors.intent_model import IntentPredictor
     from avp_training.dataset import DataSpec, generate_split
     from avp_training.train import evaluate
 

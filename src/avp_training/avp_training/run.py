@@ -2,7 +2,7 @@
 
 ``avp train-intent`` generates the data (training, validation and test episodes on the DLP-derived and random
 lots, and the paper-lot test set), trains (:mod:`.train`), evaluates on both test sets beside the
-nearest-spot baselines, and writes the weights (``avp_prediction/models/intent_cnn.pt`` unless ``--weights``
+nearest-spot baselines, and writes the weights (``avp_predictors/models/intent_cnn.pt`` unless ``--weights``
 says otherwise) with a JSON card beside them (data, sizes, command, commit, wall times, accuracy). Same seed,
 same thread count and same library versions => the same weights. docs/intent_model.md is the model card.
 """
@@ -172,7 +172,7 @@ def log_wall_time(prog: str, timings: dict[str, float], log) -> None:
 def cmd_train_intent(args: argparse.Namespace) -> int:
     import torch
 
-    from avp_prediction.intent_model import FEATURE_NAMES, default_weights_path
+    from avp_predictors.intent_model import FEATURE_NAMES, default_weights_path
     from avp_training.dataset import DataSpec, Samples, generate_split
     from avp_training.train import TrainConfig, evaluate, train
 

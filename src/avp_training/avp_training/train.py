@@ -1,6 +1,6 @@
 """Training and evaluation of the intent CNN of §V-A (the recipe and its reasons: docs/intent_model.md).
 
-**Model.** :class:`~avp_prediction.intent_model.SmallRegularizedCNN` (ParkPredict+, reference sheet §1.4)
+**Model.** :class:`~avp_predictors.intent_model.SmallRegularizedCNN` (ParkPredict+, reference sheet §1.4)
 on the 100 x 100 px BEVs; one logit per option of an instance (a vehicle at one step): [none, candidates].
 
 **Loss.** The grouped negative log-likelihood of the true option under the probabilities the pipeline uses at
@@ -40,7 +40,7 @@ import torch
 import torch.nn.functional as F
 
 from avp_belief_map.bev import BEVConfig, VehicleBEV
-from avp_prediction.intent_model import IntentPredictor, SmallRegularizedCNN, receptive_field
+from avp_predictors.intent_model import IntentPredictor, SmallRegularizedCNN, receptive_field
 from avp_training.dataset import LOT_NAMES, Samples
 
 

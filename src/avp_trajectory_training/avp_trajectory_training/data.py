@@ -5,7 +5,7 @@ random lots (training, validation, held-out test by seed) and the paper's §VI-A
 run by the intent data's episode runner (:func:`.dataset.run_episode`: the observer's occlusion-aware observation, eq.
 (7), the ego trail). Every ``stride`` steps each observed dynamic traffic car is a sample: its *observed* history, its
 BEV I_k,0 drawn by the inference renderer from the observation-only belief (exactly what
-:class:`~avp_prediction.learned_prediction.LearnedPredictor` renders), and — from ground truth, for labels only —
+:class:`~avp_predictors.learned_prediction.LearnedPredictor` renders), and — from ground truth, for labels only —
 its future over the next 4 s from the simulator's log and its goal:
 
 * the spot the car parks in, if its centre lies in the 40 m crop and the car reaches it (centre within 1.5 m)
@@ -29,14 +29,14 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from avp_prediction.intention import Intention
-from avp_prediction.learned_prediction import (
+from avp_predictors.intention import Intention
+from avp_predictors.learned_prediction import (
     MODEL_DT,
     N_FUT,
     history_poses,
     to_agent_frame,
 )
-from avp_prediction.prediction import BezierPredictor, PredictionConfig
+from avp_predictors.prediction import BezierPredictor, PredictionConfig
 from avp_scenario.scenario import ScenarioError, generate_paper_scenario
 from avp_sensing.observation import SensorConfig
 from avp_sim.core.world import World, WorldConfig
@@ -175,7 +175,7 @@ def episode_samples(args: tuple[str, int, TrajDataSpec]) -> TrajSamples:
     world = World(lot, sc, WorldConfig(t_final=t_final + 1.0 + HORIZON, sensor=SensorConfig()))
     intent = None
     if with_int:
-        from avp_prediction.intent_model import IntentPredictor
+        from avp_predictors.intent_model import IntentPredictor
 
         intent = IntentPredictor.pretrained(lot, es.bev)
     rows: list[dict] = []

@@ -2,7 +2,7 @@
 
 Generates the data (:mod:`.trajectory`: training / validation / held-out test episodes on the DLP-derived and
 random lots, and the paper-lot test set), trains, evaluates learned vs Bezier vs constant velocity on both test
-sets (:func:`~.trajectory.evaluate`) and writes the weights (``avp_prediction/models/trajectory_transformer.pt``
+sets (:func:`~.trajectory.evaluate`) and writes the weights (``avp_predictors/models/trajectory_transformer.pt``
 for ``--scale full`` unless ``--weights`` says otherwise) with a JSON card beside them. Same seed, thread count
 and library versions => the same weights. Model card: docs/trajectory_model.md.
 """
@@ -30,7 +30,7 @@ def cmd_train_trajectory(args: argparse.Namespace) -> int:
     import numpy as np
     import torch
 
-    from avp_prediction.learned_prediction import default_weights_path, save_model
+    from avp_predictors.learned_prediction import default_weights_path, save_model
     from avp_training.run import (
         card_provenance,
         finish_run,

@@ -29,14 +29,14 @@ import numpy as np
 import torch
 
 from avp_belief_map.bev import BEVConfig
-from avp_prediction.intention import Intention
-from avp_prediction.learned_prediction import (
+from avp_predictors.intention import Intention
+from avp_predictors.learned_prediction import (
     N_FUT,
     LearnedPredictor,
     TrajectoryTransformer,
     TransformerConfig,
 )
-from avp_prediction.prediction import BezierPredictor, PredictionConfig, constant_velocity_vehicle
+from avp_predictors.prediction import BezierPredictor, PredictionConfig, constant_velocity_vehicle
 from avp_training.dataset import (
     LOT_NAMES,
 )
@@ -72,7 +72,7 @@ class TrajTrainConfig:
 @torch.no_grad()
 def _tensors(model: TrajectoryTransformer, s: TrajSamples, batch: int = 512) -> tuple[torch.Tensor, ...]:
     """(conv_front features, history, future, goal) of every sample (blocks 1-2 are frozen: computed once)."""
-    from avp_prediction.intent_model import images_to_tensor
+    from avp_predictors.intent_model import images_to_tensor
 
     hist, fut, goal = s.local()
     was = model.training
@@ -106,7 +106,7 @@ def train(train_set: TrajSamples, val_set: TrajSamples, config: TrajTrainConfig 
     file when None, skipped when absent); returns the model of the best validation rollout ADE and the history."""
     from tqdm import tqdm
 
-    from avp_prediction.intent_model import default_weights_path, load_cnn
+    from avp_predictors.intent_model import default_weights_path, load_cnn
 
     torch.set_num_threads(int(config.threads))
     torch.manual_seed(config.seed)

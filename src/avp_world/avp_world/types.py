@@ -101,7 +101,7 @@ class PredictedTrajectory:
 
 def priority_from_probabilities(spot_ids: Sequence[int], probabilities: Sequence[float]) -> np.ndarray:
     """Spot ids in decreasing probability, ties smaller id first: the ``spot_priority`` of the "Implicit" method
-    (§VI-B-3) from the ego's own intention eta_0,i. Perception (avp_prediction.implicit) orders its
+    (§VI-B-3) from the ego's own intention eta_0,i. Perception (avp_predictors.implicit) orders its
     intention with it, the planner node the ``ego_intention`` message."""
     ids = np.asarray(spot_ids, dtype=np.int64).reshape(-1)
     p = np.asarray(probabilities, dtype=float).reshape(-1)

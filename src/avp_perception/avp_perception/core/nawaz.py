@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from avp_belief_map.belief import BeliefMap
-from avp_prediction.prediction import ConstantVelocityPredictor
+from avp_predictors.prediction import ConstantVelocityPredictor
 from avp_world.lot import LotMap
 from avp_world.types import Observation, PredictedTrajectory
 

@@ -25,10 +25,10 @@ from avp_belief_map.belief import BELIEF_INIT, BELIEF_SOURCES, BeliefMap  # noqa
 from avp_belief_map.bev import BEVConfig, VehicleBEV
 from avp_belief_map.ego_trail import EgoTrail
 from avp_perception.core.nawaz import NawazOccupancy
-from avp_prediction.implicit import ego_intention
-from avp_prediction.intent_model import IntentPredictor, default_weights_path
-from avp_prediction.intention import Intention
-from avp_prediction.prediction import PredictionConfig, make_predictor
+from avp_predictors.implicit import ego_intention
+from avp_predictors.intent_model import IntentPredictor, default_weights_path
+from avp_predictors.intention import Intention
+from avp_predictors.prediction import PredictionConfig, make_predictor
 from avp_world.lot import LotMap
 from avp_world.types import Observation, PredictedTrajectory
 
@@ -98,7 +98,7 @@ class PerceptionCore:
         ``source``: ``intent`` — :meth:`perceive` (eq. 7, BEVs, intent CNN, eq. 8); ``nawaz`` — eq. (7), then
         Nawaz et al.'s P_T on the observed vacant spots from constant-velocity predictions (``nawaz``, §VI-B-2);
         ``observation`` — eq. (7) only. ``ego_intent``: then the intent CNN on the ego's own BEV (§VI-B-3,
-        :func:`~avp_prediction.implicit.ego_intention`).
+        :func:`~avp_predictors.implicit.ego_intention`).
         """
         if source not in BELIEF_SOURCES:
             raise ValueError(f"belief source must be one of {BELIEF_SOURCES}, got {source!r}")

@@ -13,7 +13,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from avp_prediction.intent_model import CHANNELS, KERNELS, SLOPE, SmallRegularizedCNN, conv_output_size
+from avp_predictors.intent_model import CHANNELS, KERNELS, SLOPE, SmallRegularizedCNN, conv_output_size
 
 MODEL_DT = 0.4  # s between model poses (ParkPredict+'s stride, sheet §2.1)
 N_HIST = 10  # history poses t - 3.6 s ... t
@@ -205,7 +205,7 @@ class TrajectoryTransformer(nn.Module):
 
 
 def default_weights_path() -> Path:
-    """``avp_prediction/models/trajectory_transformer.pt`` (made by ``avp train-trajectory``; card beside it)."""
+    """``avp_predictors/models/trajectory_transformer.pt`` (made by ``avp train-trajectory``; card beside it)."""
     return Path(__file__).resolve().parent / "models" / WEIGHTS_FILE
 
 

@@ -52,17 +52,17 @@ import torch
 from avp_belief_map.belief import BELIEF_INIT, BeliefMap
 from avp_belief_map.bev import BEVConfig, BEVRenderer
 from avp_belief_map.ego_trail import EgoTrail
-from avp_prediction.intent_model import (
+from avp_predictors.intent_model import (
     images_to_tensor,
 )
-from avp_prediction.intention import Intention
-from avp_prediction.prediction import (
+from avp_predictors.intention import Intention
+from avp_predictors.prediction import (
     BezierPredictor,
     PredictionConfig,
     constant_velocity_pedestrian,
     constant_velocity_vehicle,
 )
-from avp_prediction.trajectory_net import (  # noqa: F401 - re-exported: the predictor's API
+from avp_predictors.trajectory_net import (  # noqa: F401 - re-exported: the predictor's API
     MODEL_DT,
     N_FUT,
     N_HIST,

@@ -1,6 +1,6 @@
 from setuptools import find_packages, setup
 
-package_name = "avp_prediction"
+package_name = "avp_predictors"
 
 setup(
     name=package_name,

@@ -25,10 +25,10 @@ Every predictor has ``predict(obs, intentions=(), horizon=None) -> list[Predicte
   so is the "none" mass >= mu when there is no exploration point to condition on.
 * ``"constant_velocity"`` (:class:`ConstantVelocityPredictor`): every dynamic vehicle keeps its last
   displacement per step (p_t - p_t-dt) and its heading.
-* ``"hybrid_astar"`` (:class:`~avp_prediction.prediction_astar.HybridAStarPredictor`): for
+* ``"hybrid_astar"`` (:class:`~avp_predictors.prediction_astar.HybridAStarPredictor`): for
   every intention >= mu a path from the vehicle to the goal planned with the ego planner's Hybrid A*
   (§V-D), followed at v_hat; constant velocity when no path is found (see that module).
-* ``"learned"`` (:class:`~avp_prediction.learned_prediction.LearnedPredictor`): ParkPredict+'s
+* ``"learned"`` (:class:`~avp_predictors.learned_prediction.LearnedPredictor`): ParkPredict+'s
   trajectory transformer conditioned on the same goals as the Bezier curves (§VI-B-1 "Learned Model").
 
 Pedestrians are always predicted at constant velocity from their two positions, v_hat = |p_t - p_t-dt| / dt
@@ -44,7 +44,7 @@ from typing import Protocol
 
 import numpy as np
 
-from avp_prediction.intention import Intention
+from avp_predictors.intention import Intention
 from avp_world import plugins
 from avp_world.geometry import wrap_angle
 from avp_world.lot import LotMap
@@ -376,11 +376,11 @@ class StaticPredictor(ConstantVelocityPredictor):
 #: The built-in predictors, as "module:attribute" (imported on demand: ``hybrid_astar`` pulls in the planner core,
 #: ``learned`` torch). More come from installed packages through the entry-point group :data:`ENTRY_POINT_GROUP`.
 BUILTIN_PREDICTORS = {
-    "bezier": "avp_prediction.prediction:BezierPredictor",
-    "constant_velocity": "avp_prediction.prediction:ConstantVelocityPredictor",
-    "hybrid_astar": "avp_prediction.prediction_astar:HybridAStarPredictor",
-    "learned": "avp_prediction.learned_prediction:LearnedPredictor",
-    "static": "avp_prediction.prediction:StaticPredictor",
+    "bezier": "avp_predictors.prediction:BezierPredictor",
+    "constant_velocity": "avp_predictors.prediction:ConstantVelocityPredictor",
+    "hybrid_astar": "avp_predictors.prediction_astar:HybridAStarPredictor",
+    "learned": "avp_predictors.learned_prediction:LearnedPredictor",
+    "static": "avp_predictors.prediction:StaticPredictor",
 }
 PREDICTOR_NAMES = tuple(BUILTIN_PREDICTORS)
 #: Python entry-point group of predictor plugins: ``name = "package.module:Class"``, where ``Class(lot, config)``

@@ -45,8 +45,8 @@ from dataclasses import replace
 import numpy as np
 
 from avp_collision.static import StaticWorld
-from avp_prediction.intention import Intention
-from avp_prediction.prediction import (
+from avp_predictors.intention import Intention
+from avp_predictors.prediction import (
     BezierPredictor,
     PredictionConfig,
     _n_steps,

@@ -1,6 +1,6 @@
 """Scalar features of the intent model (ROS-free): ParkPredict+'s five (cos to the target, distance to it, speed,
 distance to the entrance, time in the lot) and our motion features from the observed history (§III-A), which
-:class:`~avp_prediction.intent_model.SmallRegularizedCNN` reads beside the BEV image (docs/intent_model.md).
+:class:`~avp_predictors.intent_model.SmallRegularizedCNN` reads beside the BEV image (docs/intent_model.md).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The intent CNN of §V-A (ROS-free): ParkPredict+'s SmallRegularizedCNN (:class:`SmallRegularizedCNN`, see the
 "Network" part of :mod:`.intent_model`), its inference form :class:`FusedIntentNet` (BatchNorm folded, dropout
 dropped, pooling before the activation: the same function, fewer operations) and its weight files.
-:class:`~avp_prediction.intent_model.IntentPredictor` runs them.
+:class:`~avp_predictors.intent_model.IntentPredictor` runs them.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from avp_prediction.intent_features import N_FEATURES
+from avp_predictors.intent_features import N_FEATURES
 
 KERNELS = (7, 5, 3)
 CHANNELS = (3, 8, 8, 3)
@@ -103,11 +103,11 @@ def load_cnn(path: str | Path, image_size: int = 100) -> SmallRegularizedCNN:
     return model.eval()
 
 
-WEIGHTS_FILE = "intent_cnn.pt"  # the shipped state dict, under avp_prediction/models/ (docs/intent_model.md)
+WEIGHTS_FILE = "intent_cnn.pt"  # the shipped state dict, under avp_predictors/models/ (docs/intent_model.md)
 
 
 def default_weights_path() -> Path:
-    """Where the shipped intent CNN weights live: ``avp_prediction/models/intent_cnn.pt`` (made by
+    """Where the shipped intent CNN weights live: ``avp_predictors/models/intent_cnn.pt`` (made by
     ``avp train-intent``; a JSON card with the same stem records data, command and accuracy)."""
     return Path(__file__).resolve().parent / "models" / WEIGHTS_FILE
 

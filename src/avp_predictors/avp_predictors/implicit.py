@@ -21,8 +21,8 @@ import numpy as np
 
 from avp_belief_map.belief import BeliefMap
 from avp_belief_map.bev import EGO_GROUP
-from avp_prediction.intent_model import IntentPredictor
-from avp_prediction.intention import Intention
+from avp_predictors.intent_model import IntentPredictor
+from avp_predictors.intention import Intention
 from avp_world.types import Observation, ObservedVehicle, priority_from_probabilities
 
 EGO_ID = EGO_GROUP  # the ego's id in the BEV scene (its trail group)

@@ -55,7 +55,7 @@ import torch
 
 from avp_belief_map.belief import BeliefMap
 from avp_belief_map.bev import BEVConfig, BEVRenderer, VehicleBEV
-from avp_prediction.intent_features import (  # noqa: F401 - re-exported: the model's API
+from avp_predictors.intent_features import (  # noqa: F401 - re-exported: the model's API
     FEATURE_NAMES,
     INTENT_MODES,
     MOTION_COLUMN,
@@ -68,7 +68,7 @@ from avp_prediction.intent_features import (  # noqa: F401 - re-exported: the mo
     intent_features,
     motion_features,
 )
-from avp_prediction.intent_net import (  # noqa: F401 - re-exported: the model's API
+from avp_predictors.intent_net import (  # noqa: F401 - re-exported: the model's API
     CHANNELS,
     KERNELS,
     SLOPE,
@@ -83,7 +83,7 @@ from avp_prediction.intent_net import (  # noqa: F401 - re-exported: the model's
     receptive_field,
     sigmoid_normalise,
 )
-from avp_prediction.intention import Intention, split_none_mass
+from avp_predictors.intention import Intention, split_none_mass
 from avp_world.lot import LotMap
 from avp_world.types import Observation, ObservedVehicle
 
