@@ -49,6 +49,7 @@ from avp_training.dataset import (
     ArrayFile,
     DataSpec,
     _generator,
+    _truth_of,
     run_episode,
 )
 from avp_training.lots import load_dlp_lot, random_lot
@@ -147,8 +148,13 @@ def intention_goals(it: Intention, lot: LotMap, mu: float) -> tuple[np.ndarray, 
     return goals, probs, float(cv)
 
 
-def episode_samples(args: tuple[str, int, TrajDataSpec]) -> TrajSamples:
-    split, seed, spec = args
+def episode_samples(args: tuple) -> TrajSamples:
+    """The samples of one episode: ``(split, seed, spec)`` or ``(split, seed, spec, sensing)``. With noisy
+    ``sensing`` (a preset of avp_sensing.noisy) the observer sees through it and the tracker: a sample is a track
+    that follows a traffic car (:func:`avp_sensing.noisy.truth_ids`), its history the track's, its future and goal
+    the car's (ground truth, labels only)."""
+    split, seed, spec = args[:3]
+    sensing = args[3] if len(args) > 3 else "exact"
     es = spec.episode
     size = es.bev.size_px
     with_int = split in ("test", "paper")
@@ -186,7 +192,8 @@ def episode_samples(args: tuple[str, int, TrajDataSpec]) -> TrajSamples:
                 intent.time_in_lot(obs, v)
         if k % spec.stride:
             return
-        sel = [v for v in dyn if int(v.id) in labels]
+        truth = (lambda v: int(v.id)) if sensing == "exact" else _truth_of(world, obs)
+        sel = [v for v in dyn if truth(v) in labels]
         if not sel:
             return
         if intent is not None:
@@ -195,27 +202,28 @@ def episode_samples(args: tuple[str, int, TrajDataSpec]) -> TrajSamples:
             its = [None] * len(sel)
             bevs = core.intent.renderer().render_all(obs, sel, core.beliefs.b_tilde, core.beliefs.observed_mask, hist)
         for v, bev, it in zip(sel, bevs, its, strict=True):
-            rows.append({"k": k, "v": v, "image": bev.image, "expl": bev.exploration_points.copy(), "it": it})
+            rows.append({"k": k, "v": v, "id": truth(v), "image": bev.image, "expl": bev.exploration_points.copy(),
+                         "it": it})
 
     run_episode(lot, world, labels, kinds, ego_u, ego_x, es, seed, code, t_final + HORIZON, rng,
-                collect=collect)
+                collect=collect, sensing=sensing)
     log = np.asarray(world.log_vehicles)  # (K + 1, N, 3) ground truth: labels only
     col = {int(v): j for j, v in enumerate(world.vehicle_ids)}
     n_h = int(round(HORIZON / world.dt))
     out = []
     for r in rows:
-        k, v = r["k"], r["v"]
-        if k + n_h > len(log) - 1 or int(v.id) not in col:
+        k, v, vid = r["k"], r["v"], r["id"]
+        if k + n_h > len(log) - 1 or vid not in col:
             continue
-        track = log[k:, col[int(v.id)]]
+        track = log[k:, col[vid]]
         if np.hypot(*np.diff(track[: n_h + 1, :2], axis=0).T).max() > spec.max_jump:
             continue
         pose = np.asarray(v.pose, float)
-        goal, kind = _goal(lot, labels[int(v.id)], pose, track, r["expl"], spec, world.dt)
+        goal, kind = _goal(lot, labels[vid], pose, track, r["expl"], spec, world.dt)
         g, p, cv = intention_goals(r["it"], lot, 0.3) if r["it"] is not None else (
             np.zeros((MAX_GOALS, 3)), np.zeros(MAX_GOALS), 0.0)
         out.append((r["image"], np.asarray(v.history, float), track[1: n_h + 1].copy(), goal, kind, g, p, cv,
-                    r["it"] is not None, (v.length, v.width), seed, code, k, int(v.id), KIND_CODES[kinds[int(v.id)]]))
+                    r["it"] is not None, (v.length, v.width), seed, code, k, vid, KIND_CODES[kinds[vid]]))
     if not out:
         return _empty(size, int(round(sc.t_hist / world.dt)) + 1)
     cols = list(zip(*out, strict=True))
@@ -255,11 +263,13 @@ def split_seeds(split: str, n: int) -> list[int]:
 
 
 def generate(split: str, n_episodes: int, spec: TrajDataSpec = TrajDataSpec(), workers: int = 1,
-             progress: bool = True) -> TrajSamples:
-    """All samples of ``n_episodes`` episodes of a split, in seed order whatever the number of workers."""
+             progress: bool = True, sensing: str = "exact") -> TrajSamples:
+    """All samples of ``n_episodes`` episodes of a split, in seed order whatever the number of workers;
+    ``sensing``: the observer's sensing preset (:func:`episode_samples`)."""
     from avp_training.dataset import _bar, _worker_init
 
-    jobs = [(split, s, spec) for s in split_seeds(split, n_episodes)]
+    jobs = [(split, s, spec) if sensing == "exact" else (split, s, spec, sensing)
+            for s in split_seeds(split, n_episodes)]
     bar = _bar(len(jobs), f"episodes {split}", progress)
     parts, n = [], 0
     if workers <= 1:

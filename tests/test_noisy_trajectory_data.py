@@ -1,0 +1,41 @@
+"""The learned predictor's data seen through noisy sensing and the tracker (avp_trajectory_training.data,
+``sensing=``; the open-loop table of docs/results/sensing/README.md): a sample is a track, its future the car's.
+
+The observer drives the same tour whatever it senses (its holds read the world, not the observation), so the world
+and every car's future are the same with and without noise: a (step, car) sampled both ways must have the same
+future and goal, and a different (tracked) history."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from avp_trajectory_training.data import generate
+from avp_trajectory_training.noisy_eval import table
+
+
+@pytest.fixture(scope="module")
+def both():
+    return (generate("paper", 1, workers=1, progress=False),
+            generate("paper", 1, workers=1, progress=False, sensing="realistic"))
+
+
+def test_a_tracked_sample_has_the_future_of_the_car_its_track_follows(both):
+    exact, noisy = both
+    assert len(exact) > 5 and len(noisy) > 5
+    at = {(int(s), int(v)): i for i, (s, v) in enumerate(zip(exact.step, exact.vehicle, strict=True))}
+    pairs = [(at[(int(s), int(v))], j) for j, (s, v) in enumerate(zip(noisy.step, noisy.vehicle, strict=True))
+             if (int(s), int(v)) in at]
+    assert len(pairs) >= 0.5 * len(noisy)  # most tracks follow a car the exact observer samples at that step
+    for i, j in pairs:
+        np.testing.assert_array_equal(noisy.future[j], exact.future[i])
+        np.testing.assert_array_equal(noisy.goal[j], exact.goal[i])
+    moved = [np.abs(noisy.history[j][-1, :2] - exact.history[i][-1, :2]).max() for i, j in pairs]
+    assert 0.0 < float(np.median(moved)) < 1.0  # the tracked pose: near the true one, never equal to it
+
+
+def test_the_table_names_every_predictor_and_sensing_row():
+    row = {"sensing": "realistic", "set": "paper", "episodes": 1, "group": "all", "n": 3,
+           **{k: [1.0, 2.0] for k in ("oracle_learned", "oracle_bezier", "intent_learned", "intent_bezier", "cv")}}
+    text = table([row, {**row, "sensing": "exact", "intent_bezier": None}])
+    assert text.count("1.00 / 2.00") == 9 and "–" in text and "| realistic |" in text
