@@ -1,6 +1,7 @@
 """The shipped intent CNN on samples seen through noisy sensing and the tracker (docs/results/sensing/README.md):
 top-1 / top-3 per sensing preset on the held-out episodes of the model's splits (docs/intent_model.md) — the same
-seeds, traffic and observer tour as the committed figures, only the observer's sensing differs.
+seeds, traffic and observer tour as the committed figures, only the observer's sensing differs — and, on the held-out
+split, the Bayes observer that knows the driver model (:mod:`.oracle`) on the same samples.
 
     python -m avp_training.noisy_eval [--sensing exact,realistic,harsh] [--split test] [--episodes 60]
         [--workers 2] [--json out/noisy_intent.json]
@@ -19,7 +20,9 @@ import time
 from pathlib import Path
 
 
-def evaluate_presets(presets: list[str], split: str, episodes: int, workers: int) -> list[dict]:
+def evaluate_presets(presets: list[str], split: str, episodes: int, workers: int, bayes: bool = True) -> list[dict]:
+    """One row per preset: the CNN's top-1 / top-3 and its baseline; ``bayes`` (held-out split only): the Bayes
+    observer of :mod:`.oracle` beside the CNN on the same samples, per group (docs/intent_model.md)."""
     from avp_predictors.intent_model import IntentPredictor
     from avp_training.dataset import DataSpec, generate_split
     from avp_training.train import evaluate
@@ -30,9 +33,15 @@ def evaluate_presets(presets: list[str], split: str, episodes: int, workers: int
         t0 = time.perf_counter()
         samples = generate_split(split, episodes, DataSpec(), workers=workers, progress=False, sensing=preset)
         m = evaluate(model, samples, with_baselines=True)
-        rows.append({"sensing": preset, "split": split, "episodes": episodes, "n": m["n"], "top1": m["top1"],
-                     "top3": m["top3"], "nearest_ahead_top1": m.get("nearest_ahead", {}).get("top1"),
-                     "by": m.get("by", {}), "wall_s": round(time.perf_counter() - t0, 1)})
+        row = {"sensing": preset, "split": split, "episodes": episodes, "n": m["n"], "top1": m["top1"],
+               "top3": m["top3"], "nearest_ahead_top1": m.get("nearest_ahead", {}).get("top1"),
+               "by": m.get("by", {})}
+        if bayes and split == "test":  # the observer that knows the driver model, on the same (noisy) samples
+            from avp_training.oracle import oracle_table
+            from avp_training.train import model_logits, topk_hits
+
+            row["bayes"] = oracle_table(samples, topk_hits(model_logits(model, samples), samples.labels, 1))
+        rows.append({**row, "wall_s": round(time.perf_counter() - t0, 1)})
     return rows
 
 
@@ -55,6 +64,18 @@ def main(argv: list[str] | None = None) -> int:
         spot, none = (r["by"].get(g, {}).get("top1", float("nan")) for g in ("label_spot", "label_none"))
         print(f"| {r['split']} ({r['episodes']} episodes) | {r['sensing']} | {r['n']} | {r['top1']:.3f} | "
               f"{r['top3']:.3f} | {r['nearest_ahead_top1']:.3f} | {spot:.3f} | {none:.3f} |")
+    bayes = [r for r in rows if "bayes" in r]
+    if bayes:
+        print("\n| sensing | goal-directed parkers' group | n | Bayes observer top-1 | CNN top-1 |")
+        print("|---|---|--:|--:|--:|")
+        for r in bayes:
+            for name, g in r["bayes"]["groups"].items():
+                o = "—" if g["oracle"] is None else f"{g['oracle']:.3f}"
+                c = "—" if g["cnn"] is None else f"{g['cnn']:.3f}"
+                print(f"| {r['sensing']} | {name} | {g['n']} | {o} | {c} |")
+            print(f"| {r['sensing']} | all: the observer on cruising and rolling cars, the CNN elsewhere | "
+                  f"{r['bayes']['n']} | {r['bayes']['oracle_modelled_cnn_elsewhere']:.3f} | "
+                  f"{r['bayes']['cnn_top1']:.3f} |")
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps({"args": vars(args), "rows": rows}, indent=1))
