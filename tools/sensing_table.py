@@ -6,9 +6,9 @@ OUT is a folder of ``avp experiment --suite sensing`` (OUT/<column>/<row>/). Exa
 records the headline suite names for the same setting (config/suites/headline.yaml: contested, paper, busy_dlp).
 Per cell: the rate with its 95 % Wilson interval (failed or stolen on `contested`, parks elsewhere), the same rate
 with exact sensing on the same seeds, the exact McNemar p of the two (paired by seed and mode), blind's rate under
-the same noise on the same seeds and the McNemar p of the row against it, the collisions at fault, and the mean
-minADE / minFDE with its ratio to exact sensing's (the predictions the ego made during the episodes, each scored
-against the vehicle its track follows).
+the same noise on the same seeds and the McNemar p of the row against it, the collisions at fault (and with exact
+sensing on the same seeds), and the mean minADE / minFDE with its ratio to exact sensing's (the predictions the ego
+made during the episodes, each scored against the vehicle its track follows).
 """
 
 from __future__ import annotations
@@ -79,7 +79,7 @@ def table(out: Path, columns: list[str] | None = None) -> str:
             continue
         lines += [f"### {col['title']}", "",
                   f"| row | n | {what}, noisy | exact, same seeds | p (noisy vs exact) | blind, noisy, same seeds | "
-                  "p (vs blind) | at fault | minADE / minFDE (m) | minFDE noisy / exact |",
+                  "p (vs blind) | at fault, noisy / exact | minADE / minFDE (m) | minFDE noisy / exact |",
                   "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|"]
         blind = cells.get("blind", (None, {}))[1]
         for rid, (row, recs) in cells.items():
@@ -94,10 +94,12 @@ def table(out: Path, columns: list[str] | None = None) -> str:
             ade_n = _mean(r.get("min_ade") for r in recs.values())
             k_all = sum(_bad(metric, r) for r in recs.values())
             at_fault = sum(bool(r.get("collision_at_fault")) for r in recs.values())
+            fault_x = sum(bool(exact[k].get("collision_at_fault")) for k in keys)  # same seeds, exact sensing
             lines.append(
                 f"| {row['label']} | {len(recs)} | {_rate(k_all, len(recs))} | "
                 f"{_rate(k_exact, n_e) if n_e else '—'} | {p_e:.3f} | "
-                f"{_rate(k_blind, n_b) if n_b else '—'} | {p_b:.3f} | {at_fault} | {ade_n:.2f} / {fde_n:.2f} | "
+                f"{_rate(k_blind, n_b) if n_b else '—'} | {p_b:.3f} | {at_fault} / {fault_x if keys else '—'} | "
+                f"{ade_n:.2f} / {fde_n:.2f} | "
                 f"{fde_n / fde_x:.2f} |".replace("nan", "—"))
         lines.append("")
     return "\n".join(lines)
