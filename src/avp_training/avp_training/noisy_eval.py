@@ -68,11 +68,10 @@ def main(argv: list[str] | None = None) -> int:
     if bayes:
         print("\n| sensing | goal-directed parkers' group | n | Bayes observer top-1 | CNN top-1 |")
         print("|---|---|--:|--:|--:|")
+        from avp_training.oracle import group_rows
+
         for r in bayes:
-            for name, g in r["bayes"]["groups"].items():
-                o = "—" if g["oracle"] is None else f"{g['oracle']:.3f}"
-                c = "—" if g["cnn"] is None else f"{g['cnn']:.3f}"
-                print(f"| {r['sensing']} | {name} | {g['n']} | {o} | {c} |")
+            print("\n".join(group_rows(r["bayes"], r["sensing"])))
             print(f"| {r['sensing']} | all: the observer on cruising and rolling cars, the CNN elsewhere | "
                   f"{r['bayes']['n']} | {r['bayes']['oracle_modelled_cnn_elsewhere']:.3f} | "
                   f"{r['bayes']['cnn_top1']:.3f} |")

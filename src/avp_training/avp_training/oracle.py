@@ -136,6 +136,14 @@ def oracle_table(samples: Samples, cnn_hits: np.ndarray, spec: DataSpec = DataSp
                                                             cnn_hits).mean())}
 
 
+def group_rows(t: dict, first: str = "") -> list[str]:
+    """The Markdown rows of :func:`oracle_table`'s groups: name, n, the oracle's top-1, the CNN's (``first``: a
+    leading cell)."""
+    lead = f"| {first} " if first else ""
+    return [f"{lead}| {name} | {r['n']} | {'—' if r['oracle'] is None else format(r['oracle'], '.3f')} | "
+            f"{'—' if r['cnn'] is None else format(r['cnn'], '.3f')} |" for name, r in t["groups"].items()]
+
+
 def main(argv: list[str] | None = None) -> int:
     from avp_training.analysis import load_split_and_logits
     from avp_training.train import topk_hits
@@ -147,10 +155,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{info}; {t['n']} samples, CNN top-1 {t['cnn_top1']:.3f}")
     print("| goal-directed parkers' samples | n | oracle top-1 | CNN top-1 |")
     print("|---|--:|--:|--:|")
-    for name, r in t["groups"].items():
-        oracle = "—" if r["oracle"] is None else f"{r['oracle']:.3f}"
-        cnn = "—" if r["cnn"] is None else f"{r['cnn']:.3f}"
-        print(f"| {name} | {r['n']} | {oracle} | {cnn} |")
+    print("\n".join(group_rows(t)))
     print(f"top-1 of all with the oracle on cruising and rolling cars, the CNN elsewhere: "
           f"{t['oracle_modelled_cnn_elsewhere']:.3f} ({t['unexplained']} samples the model could not explain, "
           f"counted right)")
