@@ -23,6 +23,7 @@ def both():
 def test_a_tracked_sample_has_the_future_of_the_car_its_track_follows(both):
     exact, noisy = both
     assert len(exact) > 5 and len(noisy) > 5
+    assert noisy.history.shape[1:] == exact.history.shape[1:]  # a young track's history padded to the full t_hist
     at = {(int(s), int(v)): i for i, (s, v) in enumerate(zip(exact.step, exact.vehicle, strict=True))}
     pairs = [(at[(int(s), int(v))], j) for j, (s, v) in enumerate(zip(noisy.step, noisy.vehicle, strict=True))
              if (int(s), int(v)) in at]

@@ -227,7 +227,8 @@ def episode_samples(args: tuple) -> TrajSamples:
     if not out:
         return _empty(size, int(round(sc.t_hist / world.dt)) + 1)
     cols = list(zip(*out, strict=True))
-    hist_len = max(len(h) for h in cols[1])
+    # a tracked history is shorter while its track is young: every episode pads to the full t_hist (as exact does)
+    hist_len = max([int(round(sc.t_hist / world.dt)) + 1] + [len(h) for h in cols[1]])
     hists = np.stack([np.concatenate([np.repeat(h[:1], hist_len - len(h), axis=0), h]) for h in cols[1]])
     return TrajSamples(images=np.stack(cols[0]), history=hists, future=np.stack(cols[2]), goal=np.stack(cols[3]),
                        goal_kind=np.array(cols[4], np.int8), int_goals=np.stack(cols[5]), int_probs=np.stack(cols[6]),
