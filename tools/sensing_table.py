@@ -100,7 +100,7 @@ def table(out: Path, columns: list[str] | None = None) -> str:
                 f"{_rate(k_exact, n_e) if n_e else '—'} | {p_e:.3f} | "
                 f"{_rate(k_blind, n_b) if n_b else '—'} | {p_b:.3f} | {at_fault} / {fault_x if keys else '—'} | "
                 f"{ade_n:.2f} / {fde_n:.2f} | "
-                f"{fde_n / fde_x:.2f} |".replace("nan", "—"))
+                f"{fde_n / fde_x if fde_x else float('nan'):.2f} |".replace("nan", "—"))
         lines.append("")
     return "\n".join(lines)
 
