@@ -244,7 +244,7 @@ def run_episode(lot: LotMap, world: World, labels: dict[int, int], kinds: dict[i
     observe = noisy_observer(lot, world, sensing, episode)
     for k in range(n_steps + 1):
         obs = observe()
-        truth = (lambda v: int(v.id)) if sensing == "exact" else _truth_of(world, obs)
+        truth = _truth_of(world, obs, sensing)
         hist = core.ego_history(obs)
         core.beliefs.observe(obs.vacant_spot_ids, obs.occupied_spot_ids)  # eq. (7)
         dyn = [v for v in obs.vehicles if not v.is_static]
@@ -313,8 +313,11 @@ def noisy_observer(lot: LotMap, world: World, sensing: str, seed: int):
     return lambda: perception.observe(sensor.sense(world))
 
 
-def _truth_of(world: World, obs):
-    """The simulator id a track follows (-1: none), for labels only."""
+def _truth_of(world: World, obs, sensing: str):
+    """The simulator id an observed vehicle is, for labels only: its own id with exact sensing, else the id of the
+    vehicle its track follows (-1: none)."""
+    if sensing == "exact":
+        return lambda v: int(v.id)
     from avp_sensing.noisy import truth_ids
 
     ids = truth_ids(world, obs)

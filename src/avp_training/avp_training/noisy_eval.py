@@ -20,9 +20,9 @@ import time
 from pathlib import Path
 
 
-def evaluate_presets(presets: list[str], split: str, episodes: int, workers: int, bayes: bool = True) -> list[dict]:
-    """One row per preset: the CNN's top-1 / top-3 and its baseline; ``bayes`` (held-out split only): the Bayes
-    observer of :mod:`.oracle` beside the CNN on the same samples, per group (docs/intent_model.md)."""
+def evaluate_presets(presets: list[str], split: str, episodes: int, workers: int) -> list[dict]:
+    """One row per preset: the CNN's top-1 / top-3 and its baseline; on the held-out split also the Bayes observer
+    of :mod:`.oracle` beside the CNN on the same samples, per group (docs/intent_model.md)."""
     from avp_predictors.intent_model import IntentPredictor
     from avp_training.dataset import DataSpec, generate_split
     from avp_training.train import evaluate
@@ -36,7 +36,7 @@ def evaluate_presets(presets: list[str], split: str, episodes: int, workers: int
         row = {"sensing": preset, "split": split, "episodes": episodes, "n": m["n"], "top1": m["top1"],
                "top3": m["top3"], "nearest_ahead_top1": m.get("nearest_ahead", {}).get("top1"),
                "by": m.get("by", {})}
-        if bayes and split == "test":  # the observer that knows the driver model, on the same (noisy) samples
+        if split == "test":  # the observer that knows the driver model, on the same (noisy) samples
             from avp_training.oracle import oracle_table
             from avp_training.train import model_logits, topk_hits
 

@@ -192,7 +192,7 @@ def episode_samples(args: tuple) -> TrajSamples:
                 intent.time_in_lot(obs, v)
         if k % spec.stride:
             return
-        truth = (lambda v: int(v.id)) if sensing == "exact" else _truth_of(world, obs)
+        truth = _truth_of(world, obs, sensing)
         sel = [v for v in dyn if truth(v) in labels]
         if not sel:
             return
@@ -269,8 +269,7 @@ def generate(split: str, n_episodes: int, spec: TrajDataSpec = TrajDataSpec(), w
     ``sensing``: the observer's sensing preset (:func:`episode_samples`)."""
     from avp_training.dataset import _bar, _worker_init
 
-    jobs = [(split, s, spec) if sensing == "exact" else (split, s, spec, sensing)
-            for s in split_seeds(split, n_episodes)]
+    jobs = [(split, s, spec, sensing) for s in split_seeds(split, n_episodes)]
     bar = _bar(len(jobs), f"episodes {split}", progress)
     parts, n = [], 0
     if workers <= 1:
