@@ -17,6 +17,10 @@ class CollisionSettings:
     footprint_margin: float = 0.15  # clearance every searched sample keeps to static obstacles
     verify_margin: float = 0.05  # clearance the executed eq. (1) states keep to static obstacles
     start_relax_distance: float = 0.6  # arc length near the ego's current pose checked with verify_margin only
+    # extra (§V-D asks V ⊆ L of an ego that knows its pose): with a localisation covariance (noisy sensing) the ego
+    # plans inside L shrunk by this many of its standard deviations, spots kept whole (avp_collision.localisation);
+    # exact sensing reports no covariance, so the paper's setting is unchanged
+    localisation_sigmas: float = 2.0  # extra: L shrunk by this many localisation std devs under noisy sensing; 0 = L
     vehicle_margin: float = 0.3  # clearance to predicted vehicle footprints (§V-D, time-indexed)
     pedestrian_margin: float = 0.4  # clearance to predicted pedestrian discs
     keep_current_gap: bool = True  # extra: an agent already nearer than the margin need only keep its gap (§V-D: no)

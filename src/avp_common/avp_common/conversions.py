@@ -101,6 +101,8 @@ def observation_to_msg(obs: Observation, frame_id: str = "map") -> ObservationMs
     msg.step = int(obs.step)
     msg.dt = float(obs.dt)
     msg.ego_pose = Pose2D(x=float(obs.ego_pose[0]), y=float(obs.ego_pose[1]), theta=float(obs.ego_pose[2]))
+    if obs.ego_covariance is not None:
+        msg.ego_pose_covariance = [float(v) for v in np.asarray(obs.ego_covariance, float).reshape(9)]
     msg.ego_length = float(obs.ego_length)
     msg.ego_width = float(obs.ego_width)
     msg.ego_speed = float(obs.ego_speed)
@@ -162,6 +164,8 @@ def observation_from_msg(msg: ObservationMsg) -> Observation:
     pose = np.array([msg.ego_pose.x, msg.ego_pose.y, msg.ego_pose.theta])
     _finite(pose, "ego_pose")
     _finite([msg.ego_length, msg.ego_width, msg.ego_speed], "ego size/speed")
+    cov = np.asarray(msg.ego_pose_covariance, dtype=float).reshape(3, 3)
+    _finite(cov, "ego_pose_covariance")
     vehicles = []
     for v in msg.vehicles:
         hist = np.array([[p.x, p.y, p.theta] for p in v.history]).reshape(-1, 3)
@@ -192,6 +196,7 @@ def observation_from_msg(msg: ObservationMsg) -> Observation:
         ray_angle_min=float(msg.ray_angle_min),
         ray_angle_increment=float(msg.ray_angle_increment),
         ray_ranges=ranges,
+        ego_covariance=cov if cov.any() else None,
     )
 
 

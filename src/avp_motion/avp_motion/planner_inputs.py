@@ -12,6 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from avp_collision.localisation import localisation_margin, localised_lot
 from avp_collision.static import DynamicObstacles, StaticWorld
 from avp_motion.planner_types import (
     CONTAINED_MARGIN,
@@ -98,17 +99,18 @@ class InputsMixin:
             dims.append(extra[:, 3:5])
         poses_a, dims_a = np.concatenate(poses), np.concatenate(dims)
         rp, rd = np.round(poses_a, 6), np.round(dims_a, 6)
-        key = (float(obs.ego_length), float(obs.ego_width), rp.tobytes(), rd.tobytes())
+        lot, margin = self._planning_lot(obs)
+        key = (float(obs.ego_length), float(obs.ego_width), rp.tobytes(), rd.tobytes(), margin)
         build = key
         if stat:  # build from the spots, the vehicles not inside them, and extra
             keep = np.r_[np.ones(len(occ), bool), kept, np.ones(len(poses_a) - len(occ) - len(stat), bool)]
             poses_a, dims_a = poses_a[keep], dims_a[keep]
-            build = (key[0], key[1], rp[keep].tobytes(), rd[keep].tobytes())
+            build = (key[0], key[1], rp[keep].tobytes(), rd[keep].tobytes(), margin)
         world = self._world_cache.get(build)
         if world is None:
             if extra is None or not len(extra):
                 base = self._spots_world(occ, obs) if len(poses_a) > len(occ) else None
-            world = StaticWorld(self.lot, poses_a, dims_a, obs.ego_length, obs.ego_width, self.settings.collision,
+            world = StaticWorld(lot, poses_a, dims_a, obs.ego_length, obs.ego_width, self.settings.collision,
                                 n_base=len(occ), merge_cache=self._merge_cache, base=base)
             self._world_cache[build] = world
             while len(self._world_cache) > WORLD_CACHE_SIZE:
@@ -120,15 +122,30 @@ class InputsMixin:
 
     def _spots_world(self, occ: np.ndarray, obs: Observation) -> StaticWorld:
         """The static world of the believed-occupied spots ``occ`` alone (cached: the last few)."""
-        key = (float(obs.ego_length), float(obs.ego_width), np.asarray(occ).tobytes())
+        lot, margin = self._planning_lot(obs)
+        key = (float(obs.ego_length), float(obs.ego_width), np.asarray(occ).tobytes(), margin)
         world = self._spots_cache.get(key)
         if world is None:
-            world = StaticWorld(self.lot, self.lot.spot_poses[occ], self.lot.spot_dims[occ], obs.ego_length,
+            world = StaticWorld(lot, self.lot.spot_poses[occ], self.lot.spot_dims[occ], obs.ego_length,
                                 obs.ego_width, self.settings.collision, n_base=len(occ), merge_cache=self._merge_cache)
             self._spots_cache[key] = world
             while len(self._spots_cache) > 4:
                 self._spots_cache.pop(next(iter(self._spots_cache)))
         return world
+
+    def _planning_lot(self, obs: Observation):
+        """(lot, m): the lot whose boundary the ego plans against and its localisation margin m
+        (:mod:`avp_collision.localisation`; the lot itself, m = 0, for exact sensing or
+        ``collision.localisation_sigmas`` 0)."""
+        m = localisation_margin(obs.ego_covariance, obs.ego_length, obs.ego_width,
+                                self.settings.collision.localisation_sigmas)
+        if m <= 0:
+            return self.lot, 0.0
+        cache = self.__dict__.setdefault("_localised_lots", {})
+        if m not in cache:
+            cache.clear()  # one margin an episode for a steady localiser
+            cache[m] = localised_lot(self.lot, m)
+        return cache[m], m
 
     def _not_inside_occupied(self, poses: np.ndarray, dims: np.ndarray, occ: np.ndarray) -> np.ndarray:
         """(N,) bool: the vehicle rectangles not inside the nearest believed-occupied spot with

@@ -70,6 +70,7 @@ class SearchConfig:
             ("collision.n_discs", c.n_discs >= 1),
             ("collision.footprint_margin", c.footprint_margin >= 0),
             ("collision.verify_margin", 0 <= c.verify_margin <= c.footprint_margin),
+            ("collision.localisation_sigmas", 0 <= c.localisation_sigmas <= 10),
             ("collision.beyond_horizon", c.beyond_horizon in ("hold", "release")),
             ("collision.beyond_commit", c.beyond_commit in ("risk", "hold")),
             ("collision.reactive_steps", c.reactive_steps >= 0),

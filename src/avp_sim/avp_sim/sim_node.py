@@ -217,7 +217,8 @@ class SimNode(Node):
         frame = Observation(step=f.step, dt=f.dt, ego_pose=f.ego_pose, ego_length=f.ego_length,
                             ego_width=f.ego_width, ego_speed=f.ego_speed, vacant_spot_ids=f.vacant_spot_ids,
                             occupied_spot_ids=f.occupied_spot_ids, ray_angle_min=f.ray_angle_min,
-                            ray_angle_increment=f.ray_angle_increment, ray_ranges=f.ray_ranges)
+                            ray_angle_increment=f.ray_angle_increment, ray_ranges=f.ray_ranges,
+                            ego_covariance=f.ego_covariance)
         frame_id = with_episode("map", self.episode)
         self.pub_detections.publish(detections_to_msg(f.vehicles, f.pedestrians, Header(stamp=stamp,
                                                                                        frame_id=frame_id)))

@@ -161,7 +161,8 @@ class TrackerNode(Node):
             self.get_logger().info(f"{topic}: episode {episode:x} begins at step {step}; tracks reset")
             self.perception.tracker.reset()
         vehicles, peds = dets
-        frame = SensedFrame(step=step, dt=base.dt, ego_pose=base.ego_pose, ego_covariance=np.zeros((3, 3)),
+        frame = SensedFrame(step=step, dt=base.dt, ego_pose=base.ego_pose,
+                            ego_covariance=base.ego_covariance if base.ego_covariance is not None else np.zeros((3, 3)),
                             ego_length=base.ego_length, ego_width=base.ego_width, ego_speed=base.ego_speed,
                             vacant_spot_ids=base.vacant_spot_ids, occupied_spot_ids=base.occupied_spot_ids,
                             vehicles=tuple(vehicles), pedestrians=tuple(peds), ray_angle_min=base.ray_angle_min,

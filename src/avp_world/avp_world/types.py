@@ -67,6 +67,8 @@ class Observation:
     ray_angle_increment: float = 0.0
     ray_ranges: np.ndarray = field(default_factory=lambda: np.zeros(0))
     beacons: tuple[Beacon, ...] = ()  # what egos with the right of way announced at the step before (V2V)
+    # (3, 3) covariance of ego_pose over (x, y, theta), as a localiser reports it; None: exact (the paper's sensor)
+    ego_covariance: np.ndarray | None = None
 
     @property
     def t(self) -> float:

@@ -74,4 +74,5 @@ class TrackingPerception:
                            vacant_spot_ids=np.asarray(vacant, np.int64),
                            occupied_spot_ids=np.asarray(occupied, np.int64),
                            vehicles=vehicles, pedestrians=peds, ray_angle_min=frame.ray_angle_min,
-                           ray_angle_increment=frame.ray_angle_increment, ray_ranges=frame.ray_ranges)
+                           ray_angle_increment=frame.ray_angle_increment, ray_ranges=frame.ray_ranges,
+                           ego_covariance=np.asarray(frame.ego_covariance, float).copy())
