@@ -56,6 +56,23 @@ def test_a_track_unseen_longer_than_max_coast_ends():
     assert out == [] and tr.tracks == []
 
 
+def test_an_unseen_track_brakes_to_a_stop_with_coast_deceleration():
+    """A car driving at 2 m/s goes unseen: by default its track coasts on at 2 m/s; with coast_deceleration 4 m/s^2
+    it stops after 0.5 s, about 0.5 m beyond where it was last seen (v^2 / 2a), and stands there."""
+    ends = {}
+    for decel in (0.0, 4.0):
+        tr = Tracker(TrackerConfig(max_coast=1.5, coast_deceleration=decel))
+        for k in range(20):
+            tr.update(_frame(k, [_det(2.0 * DT * k, 0.0, 0.0, 2.0, sigma=0.02)]))
+        last = float(tr.tracks[0].x[0])
+        for k in range(20, 30):
+            out = tr.update(_frame(k))
+        assert len(out) == 1
+        ends[decel] = (float(out[0].x[0]) - last, float(out[0].x[3]))
+    assert abs(ends[0.0][0] - 2.0) < 0.2 and abs(ends[0.0][1] - 2.0) < 0.2
+    assert abs(ends[4.0][0] - 0.5) < 0.15 and ends[4.0][1] == 0.0
+
+
 def test_a_one_step_false_positive_never_becomes_a_confirmed_track():
     """A box seen once (clutter) is tentative and dies at its first miss; one seen n_init times is confirmed."""
     tr = Tracker(TrackerConfig(n_init=3))

@@ -22,6 +22,9 @@ TRACKER_PARAMS: list[ParamSpec] = [
               _WHY, min=1, max=100, default=_D.n_init),
     ParamSpec("tracking.max_coast", float, "Seconds a confirmed track lives unseen (coasted on its motion model).",
               "", _WHY, min=0.0, max=60.0, default=_D.max_coast),
+    ParamSpec("tracking.coast_deceleration", float, "Rate at which an unseen vehicle track's speed brakes to 0 while "
+              "it coasts [m/s^2]; 0 = off (it coasts at its last speed).", "", _WHY, min=0.0, max=20.0,
+              default=_D.coast_deceleration),
     ParamSpec("tracking.flip_votes", float, "Detections, net, with the heading turned by pi that turn a track "
               "around.", "", _WHY, min=1.0, max=100.0, default=_D.flip_votes),
     ParamSpec("tracking.size_smoothing", float, "Weight of a new box's length and width in the track's.", "", _WHY,
@@ -94,7 +97,8 @@ def tracker_config(values: dict, dt: float = 0.1, t_hist: float = 4.0) -> Tracke
                         lateral_sigma=v["lateral_sigma"], pedestrian_accel_sigma=v["pedestrian_accel_sigma"])
     return TrackerConfig(gate=v["gate"], max_distance=v["max_distance"],
                          pedestrian_max_distance=v["pedestrian_max_distance"], n_init=v["n_init"],
-                         max_coast=v["max_coast"], flip_votes=v["flip_votes"], size_smoothing=v["size_smoothing"],
+                         max_coast=v["max_coast"], coast_deceleration=v["coast_deceleration"],
+                         flip_votes=v["flip_votes"], size_smoothing=v["size_smoothing"],
                          history_steps=int(round(t_hist / dt)) + 1, static_speed=v["static_speed"],
                          publish_coasted=v["publish_coasted"], noise=noise,
                          prune_distance=v["prune_distance"], stationary_after=v["stationary_after"],

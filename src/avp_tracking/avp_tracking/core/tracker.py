@@ -5,7 +5,8 @@ Each step (:meth:`Tracker.update`): every track is predicted to the frame's time
 pedestrians are associated apart by gated global nearest neighbour (:mod:`.association`); a matched track is
 updated (its heading measured modulo a flip, below); an unmatched detection starts a *tentative* track, which is
 *confirmed* after ``n_init`` hits and dropped at its first miss before that; a confirmed track that goes unseen is
-coasted (predicted, its history continued with the predictions) and dropped after ``max_coast`` seconds.
+coasted (predicted, its history continued with the predictions; with ``coast_deceleration`` its speed brakes to a
+stop meanwhile) and dropped after ``max_coast`` seconds.
 
 Heading flips: a detection whose heading differs from the track's by more than 90 degrees is taken as the box's
 other end (a car cannot turn that much in one step) and measured turned by pi; each such detection adds a vote,
@@ -45,6 +46,7 @@ class TrackerConfig:
     pedestrian_max_distance: float = 1.5  # m
     n_init: int = 3  # hits that confirm a track
     max_coast: float = 1.5  # s a confirmed track lives unseen
+    coast_deceleration: float = 0.0  # m/s^2: an unseen vehicle track's speed brakes to 0 at this rate; 0 = off
     flip_votes: float = 3.0  # votes that turn a track around
     size_smoothing: float = 0.2  # weight of a new box's length and width
     history_steps: int = 41  # poses of history a track gives (t_hist / dt + 1)
@@ -94,6 +96,10 @@ class Tracker:
                 predict = predict_pedestrian if t.pedestrian else predict_vehicle
                 if t.stationary:  # held still: a constant-position model (its speed and yaw rate are 0)
                     t.x[3] = t.x[4] = 0.0
+                elif t.misses and cfg.coast_deceleration > 0 and not t.pedestrian:
+                    # unseen since the last step: a car hidden near the ego is as likely to stop as to go on
+                    v = float(t.x[3])
+                    t.x[3] = math.copysign(max(0.0, abs(v) - cfg.coast_deceleration * dt), v)
                 t.x, t.P = predict(t.x, t.P, dt, quiet if t.stationary else cfg.noise)
         vehicles = [t for t in self.tracks if not t.pedestrian]
         peds = [t for t in self.tracks if t.pedestrian]
