@@ -26,6 +26,9 @@ from avp_experiment.results import read_results, records_file
 ROOT = Path(__file__).resolve().parents[1]
 #: the headline column with exact sensing of each sensing column's setting
 EXACT_COLUMN = {"contested": "contested", "paper": "paper", "busy": "busy_dlp"}
+#: the headline row with exact sensing of a sensing row that has none of its own (exact sensing reports no
+#: localisation covariance, so collision.localisation_sigmas changes nothing there: the same records)
+EXACT_ROW = {"bezier_no_loc": "bezier"}
 
 
 def _bad(metric: str, r: dict) -> bool:
@@ -83,7 +86,7 @@ def table(out: Path, columns: list[str] | None = None) -> str:
                   "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|"]
         blind = cells.get("blind", (None, {}))[1]
         for rid, (row, recs) in cells.items():
-            spec = headline.get("committed", {}).get(exact_col, {}).get(rid)
+            spec = headline.get("committed", {}).get(exact_col, {}).get(EXACT_ROW.get(rid, rid))
             exact = _by_key(committed_records(spec, ROOT)[0]) if spec else {}
             n_e, k_noisy_e, k_exact, p_e = _pair(metric, recs, exact) if exact else (0, 0, 0, float("nan"))
             n_b, k_noisy_b, k_blind, p_b = _pair(metric, recs, blind) if blind and rid != "blind" else (0, 0, 0,
