@@ -177,7 +177,7 @@ def test_sensing_demo_parks_its_bag_holds_no_simulator_history_and_replays(ros_e
     """`avp demo --sensing realistic` on seed 1 parks; its bag holds the raw detections and the tracks; no vehicle
     pose the ego received equals a true one (no exact history); the ego's trajectory equals the in-process
     episode's bit for bit (same seed, same noise, over DDS or not); metrics recomputed from the bag equal the live
-    ones; the bag replays."""
+    ones; the bag replays; the ego's pose comes with the localiser's covariance."""
     from rosbags.highlevel import AnyReader
 
     from avp_bag.typestore import make_typestore
@@ -203,6 +203,8 @@ def test_sensing_demo_parks_its_bag_holds_no_simulator_history_and_replays(ros_e
     assert {int(f.step) for f in frames} == set(range(metrics["steps"]))
     assert all(not f.vehicles and not f.pedestrians for f in frames)
     assert sum(len(m.objects) for m in tracks) > 0
+    # the localiser's covariance crosses the graph, from the simulator's frame to the observation the planner reads
+    assert all(np.asarray(m.ego_pose_covariance).reshape(3, 3)[0, 0] > 0 for m in (*frames, *obs))
     true_poses = {(round(a.pose.x, 9), round(a.pose.y, 9)) for g in gts for a in g.agents}
     received = [(round(v.history[-1].x, 9), round(v.history[-1].y, 9)) for m in obs for v in m.vehicles]
     assert received and not (set(received) & true_poses), "a vehicle pose the ego received is the true one"
