@@ -76,7 +76,7 @@ def test_a_cell_agrees_with_its_records_read_independently(committed):
     assert cell["interrupted_steps"]["mean"] == round(sum(r["interrupted_steps"] for r in recs) / n, 1)
 
 
-@pytest.mark.parametrize("name", ["headline", "fleet"])
+@pytest.mark.parametrize("name", ["headline", "fleet", "sensing"])
 def test_every_cell_of_the_suite_is_a_valid_experiment_command(name):
     from avp_experiment.runner import _cell_args
 
@@ -105,7 +105,7 @@ def test_the_fleet_grid_gives_the_last_ego_the_time_the_second_has_in_a_pair():
     assert sizes == {1, 2, 4, 8}
 
 
-@pytest.mark.parametrize("name", ["headline", "fleet"])
+@pytest.mark.parametrize("name", ["headline", "fleet", "sensing"])
 def test_every_cell_of_a_shipped_suite_has_a_method_to_run(name):
     """A cell whose method the runner would skip (say `reserve` with one ego) stops the suite: none may ship."""
     from avp_experiment.headline import runs_in
