@@ -40,6 +40,7 @@ def localised_lot(lot: LotMap, margin: float) -> LotMap:
     if margin <= 0:
         return lot
     from shapely.geometry import Polygon
+    from shapely.geometry.polygon import orient
     from shapely.ops import unary_union
 
     region = Polygon(lot.boundary)
@@ -48,6 +49,5 @@ def localised_lot(lot: LotMap, margin: float) -> LotMap:
     merged = unary_union([shrunk, *spots])
     pieces = list(getattr(merged, "geoms", [merged]))
     biggest = max(pieces, key=lambda g: g.area)  # spots cut off from the rest could not be reached anyway
-    ring = np.asarray(biggest.exterior.coords)[:-1]
-    area2 = float(np.sum(ring[:, 0] * np.roll(ring[:, 1], -1) - np.roll(ring[:, 0], -1) * ring[:, 1]))
-    return replace(lot, boundary=ring if area2 > 0 else ring[::-1].copy(), _index={})
+    ring = np.asarray(orient(biggest, 1.0).exterior.coords)[:-1]  # counter-clockwise, as LotMap.boundary is
+    return replace(lot, boundary=ring, _index={})

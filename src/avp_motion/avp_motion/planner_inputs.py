@@ -23,6 +23,7 @@ from avp_motion.yielding import yielding_predictions
 from avp_search.paths import wrap
 from avp_world.geometry import rect_corners, rect_inside_rect
 from avp_world.kinematics import step_vehicle
+from avp_world.lot import LotMap
 from avp_world.types import Observation, PredictedTrajectory
 
 
@@ -133,7 +134,7 @@ class InputsMixin:
                 self._spots_cache.pop(next(iter(self._spots_cache)))
         return world
 
-    def _planning_lot(self, obs: Observation):
+    def _planning_lot(self, obs: Observation) -> tuple[LotMap, float]:
         """(lot, m): the lot whose boundary the ego plans against and its localisation margin m
         (:mod:`avp_collision.localisation`; the lot itself, m = 0, for exact sensing or
         ``collision.localisation_sigmas`` 0)."""
