@@ -21,7 +21,7 @@ import numpy as np
 from shapely.geometry import LinearRing, Polygon
 
 from avp_episode.ego import MethodEgo
-from avp_episode.run_config import run_profile, sim_values
+from avp_episode.run_config import run_profile, sim_values, tracker_values
 from avp_episode.sensing import sensed_observer, truth_ids
 from avp_experiment.failures import _config
 from avp_sim.core.factory import load_lot_param, make_world
@@ -35,7 +35,7 @@ def replay(out: Path, seed: int, car: int | None, method: str = "bezier", reacti
     sim_p = sim_values(cfg)
     lot = load_lot_param(sim_p["lot_file"])
     world = make_world(lot, sim_p, seed, reactive)
-    observe = sensed_observer(world, sim_p, seed)
+    observe = sensed_observer(world, sim_p, seed, tracker_values(cfg))
     if observe is None:
         raise SystemExit(f"{out}: exact sensing; nothing to replay here")
     ego = MethodEgo(lot, run_profile(method, cfg), deterministic=True, intent_weights=cfg.intent_weights,

@@ -28,7 +28,9 @@ ROOT = Path(__file__).resolve().parents[1]
 EXACT_COLUMN = {"contested": "contested", "paper": "paper", "busy": "busy_dlp"}
 #: the headline row with exact sensing of a sensing row that has none of its own (exact sensing reports no
 #: localisation covariance, so collision.localisation_sigmas changes nothing there: the same records)
-EXACT_ROW = {"bezier_no_loc": "bezier"}
+EXACT_ROW = {"bezier_no_loc": "bezier", "bezier_coast": "bezier"}
+#: rows that ablate one switch of the shipped default: paired with row ``bezier`` under the same noise too
+ABLATIONS = ("bezier_no_loc", "bezier_coast")
 
 
 def _bad(metric: str, r: dict) -> bool:
@@ -105,6 +107,14 @@ def table(out: Path, columns: list[str] | None = None) -> str:
                 f"{ade_n:.2f} / {fde_n:.2f} | "
                 f"{fde_n / fde_x if fde_x else float('nan'):.2f} |".replace("nan", "—"))
         lines.append("")
+        shipped = cells.get("bezier", (None, {}))[1]
+        for rid in (r for r in ABLATIONS if r in cells and shipped):
+            n, k_row, k_shipped, p = _pair(metric, cells[rid][1], shipped)
+            f_row, f_shipped = (sum(bool(recs[k].get("collision_at_fault")) for k in set(recs) & set(shipped))
+                                for recs in (cells[rid][1], shipped))
+            lines += [f"Row `{rid}` against the shipped default under the same noise, {n} paired episodes: {what} "
+                      f"{_rate(k_row, n)} against {_rate(k_shipped, n)} (exact McNemar p = {p:.3f}); at fault "
+                      f"{f_row} against {f_shipped}.", ""]
     return "\n".join(lines)
 
 

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from avp_episode.profiles import MethodProfile
-from avp_episode.run_config import ORACLE_HORIZON, Key, RunConfig, run_profile, sim_values
+from avp_episode.run_config import ORACLE_HORIZON, Key, RunConfig, run_profile, sim_values, tracker_values
 
 
 def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reactive: bool, cfg: RunConfig,
@@ -29,7 +29,7 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
     world = make_world(lot, sim_p, seed, reactive)
     from avp_episode.sensing import relabel_predictions, sensed_observer, truth_ids
 
-    noisy = sensed_observer(world, sim_p, seed)  # None for exact sensing (the paper): world.observe
+    noisy = sensed_observer(world, sim_p, seed, tracker_values(cfg))  # None for exact sensing: world.observe
     observe = noisy or world.observe
     ego = (OracleEgo if profile.ground_truth else MethodEgo)(
         lot, profile, deterministic=True, intent_weights=cfg.intent_weights, intent_seed=cfg.intent_seed,

@@ -24,6 +24,7 @@ class RunConfig:
     sim_overrides: dict = field(default_factory=dict)  # further avp_sim parameters
     protocol: str = "default"  # config/protocols/<name>.yaml (.protocols): shared sim + planner set-up
     planner_overrides: dict = field(default_factory=dict)  # --planner-param: avp_planner values for every method
+    tracker_overrides: dict = field(default_factory=dict)  # --tracker-param: avp_tracking values (noisy sensing)
 
 
 Key = tuple[str, int, str]  # (method, seed, "reactive" | "non_reactive")
@@ -41,6 +42,22 @@ def sim_values(cfg: RunConfig) -> dict[str, Any]:
     p.update(cfg.sim_overrides)
     p["t_final"] = float(cfg.t_final)
     return validate_values(p, SIM_PARAMS, "avp experiment")
+
+
+def tracker_values(cfg: RunConfig) -> dict[str, Any]:
+    """avp_tracking parameters of the episodes' tracker (noisy sensing only): the shipped tracker.param.yaml's
+    values with ``--tracker-param``'s over them."""
+    from avp_common.params import validate_values
+    from avp_tracking.params import TRACKER_PARAMS, default_tracker_values
+
+    return validate_values({**default_tracker_values(), **cfg.tracker_overrides}, TRACKER_PARAMS, "--tracker-param")
+
+
+def tracker_specs() -> dict:
+    """The tracker's parameter specs by name (avp_tracking's, without its node's own)."""
+    from avp_tracking.params import TRACKER_PARAMS
+
+    return {s.name: s for s in TRACKER_PARAMS}
 
 
 def run_profile(name: str, cfg: RunConfig) -> MethodProfile:

@@ -47,6 +47,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "avp_planner values shared by every method (docs/experiment.md)")
     p.add_argument("--planner-param", action="append", metavar="KEY=VALUE",
                    help="override an avp_planner parameter for every method (repeatable), after the protocol's")
+    p.add_argument("--tracker-param", action="append", metavar="KEY=VALUE",
+                   help="override an avp_tracking parameter of the tracker between noisy sensing and the ego "
+                   "(repeatable; `avp params avp_tracker`), e.g. --tracker-param tracking.coast_deceleration=4")
     p.add_argument("--sweep", metavar="KEY=V1,V2,...",
                    help="run the whole table once per value of one avp_sim or avp_planner parameter (into "
                    "OUT/<KEY>=<V>/) and plot the rates against it (OUT/sweep.png, OUT/sweep.md)")

@@ -33,7 +33,8 @@ def _config(out: Path) -> RunConfig:
     return RunConfig(t_final=run["t_final"], ade_horizon=run["ade_horizon"], intent_weights=run["intent_weights"],
                      intent_seed=run["intent_seed"], message_precision=run["message_precision"],
                      sim_overrides=run.get("sim_overrides", {}), protocol=run.get("protocol", "default"),
-                     planner_overrides=run.get("planner_overrides", {}))
+                     planner_overrides=run.get("planner_overrides", {}),
+                     tracker_overrides=run.get("tracker_overrides", {}))
 
 
 def replay_failure(lot, sim_p: dict, record: dict, cfg: RunConfig) -> dict:

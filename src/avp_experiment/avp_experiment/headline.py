@@ -77,6 +77,8 @@ def cell_argv(col: Mapping, row: Mapping, quick: bool) -> list[str]:
     argv += ["--methods", row["methods"]]
     for kv in row.get("planner", []):
         argv += ["--planner-param", kv]
+    for kv in row.get("tracker", []):  # the tracker's settings (noisy sensing columns only)
+        argv += ["--tracker-param", kv]
     return argv
 
 

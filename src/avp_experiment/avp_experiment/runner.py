@@ -177,7 +177,13 @@ def run_experiment(args: argparse.Namespace) -> dict:
     cfg = RunConfig(t_final=args.t_final, ade_horizon=args.ade_horizon, intent_weights=args.intent_weights,
                     intent_seed=args.intent_seed, message_precision=not args.float64_messages,
                     sim_overrides=_with_lot(parse_sim_params(args.sim_param), args.lot), protocol=args.protocol,
-                    planner_overrides=parse_planner_params(args.planner_param))
+                    planner_overrides=parse_planner_params(args.planner_param),
+                    tracker_overrides=parse_tracker_params(getattr(args, "tracker_param", None)))
+    if cfg.tracker_overrides and args.transport != "inproc":
+        raise ValueError(f"--tracker-param: --transport inproc only (not {args.transport!r})")
+    if cfg.tracker_overrides and sim_values(cfg)["sensing.model"] == "exact":
+        raise ValueError("--tracker-param: the tracker runs with noisy sensing only; add --sim-param "
+                         "sensing.model=realistic (or harsh)")
     from avp_episode.fleet import fleet_names, parse_fleet, run_units
 
     egos, fleet = getattr(args, "egos", 1), getattr(args, "fleet", "")
@@ -278,7 +284,8 @@ def _run_locked(args: argparse.Namespace, out: Path, cfg: RunConfig, profiles: l
     summary = write_summary(out, records, skipped,
                             {"ade_horizon": cfg.ade_horizon, "t_final": cfg.t_final, "intent": ident["intent"],
                              "seeds_without_scenario": bad_seeds, "sim_overrides": ident["config"]["sim_overrides"],
-                             "protocol": cfg.protocol, "planner_overrides": cfg.planner_overrides},
+                             "protocol": cfg.protocol, "planner_overrides": cfg.planner_overrides,
+                             "tracker_overrides": cfg.tracker_overrides},
                             {**{p.name: (p.group, p.label) for p in profiles},
                              **{u: ("fleet", u[len("fleet:"):]) for u in units if fleet_names(u)}})
     print(f"[avp experiment] ran {n_run} episodes; summary: {out / 'summary.md'}, plots in {out / 'plots'}/")
@@ -338,6 +345,13 @@ def parse_planner_params(items: list[str] | None) -> dict[str, Any]:
     from avp_episode.profiles import _planner_specs
 
     return _parse_params(items, _planner_specs(), "--planner-param", "avp_planner")
+
+
+def parse_tracker_params(items: list[str] | None) -> dict[str, Any]:
+    """``--tracker-param`` items, checked against the avp_tracking specs (the tracker's, not its node's)."""
+    from avp_episode.run_config import tracker_specs
+
+    return _parse_params(items, tracker_specs(), "--tracker-param", "avp_tracker")
 
 
 def run_command(args: argparse.Namespace) -> int:

@@ -108,7 +108,8 @@ def write_summary(out: Path, records: Sequence[Mapping], skipped: Mapping[str, s
         f"intent CNN: {info.get('intent')}."
         + (f" Seeds without a scenario (skipped): {info['seeds_without_scenario']}."
            if info.get("seeds_without_scenario") else "")
-        + (f" Simulator overrides: {info['sim_overrides']}." if info.get("sim_overrides") else ""),
+        + (f" Simulator overrides: {info['sim_overrides']}." if info.get("sim_overrides") else "")
+        + (f" Tracker overrides: {info['tracker_overrides']}." if info.get("tracker_overrides") else ""),
         "",
         "Rates: % of episodes with a 95 % Wilson interval; other columns mean ± std over episodes (parking time:",
         "successful episodes; minADE/minFDE: episodes with at least one prediction whose ground-truth future",

@@ -1,0 +1,81 @@
+"""``avp experiment --tracker-param`` and a sensing suite row's ``tracker:`` list: the tracker's settings reach the
+episodes' tracker, are part of a run's identity, and are refused where no tracker runs."""
+
+import argparse
+
+import pytest
+
+from avp_episode.run_config import RunConfig, sim_values, tracker_values
+from avp_episode.sensing import sensed_observer
+from avp_experiment.headline import cell_argv, load_suite
+from avp_experiment.runner import _cell_args, parse_tracker_params, run_experiment
+from avp_sim.core.factory import make_world
+from avp_tracking.params import default_tracker_values
+
+
+def test_a_rows_tracker_list_becomes_tracker_params_of_its_cells():
+    suite = load_suite("sensing")
+    row = next(r for r in suite["rows"] if r["id"] == "bezier_coast")
+    col = next(c for c in suite["columns"] if c["id"] == "busy_realistic")
+    args = _cell_args(cell_argv(col, row, False))
+    assert args.tracker_param == ["tracking.coast_deceleration=4.0"]
+    assert parse_tracker_params(args.tracker_param) == {"tracking.coast_deceleration": 4.0}
+
+
+def test_the_override_reaches_the_episodes_tracker_and_nothing_else_changes(paper_lot):
+    cfg = RunConfig(sim_overrides={"sensing.model": "realistic"},
+                    tracker_overrides={"tracking.coast_deceleration": 4.0})
+    values = tracker_values(cfg)
+    assert values == {**default_tracker_values(), "tracking.coast_deceleration": 4.0}
+    world = make_world(paper_lot, sim_values(cfg), 3, False)
+    observe = sensed_observer(world, sim_values(cfg), 3, values)
+    assert observe.tracker.cfg.coast_deceleration == 4.0
+    shipped = sensed_observer(world, sim_values(cfg), 3, tracker_values(RunConfig()))
+    assert shipped.tracker.cfg.coast_deceleration == default_tracker_values()["tracking.coast_deceleration"]
+
+
+@pytest.mark.parametrize("item, match", [
+    ("tracking.nope=1", r"--tracker-param 'tracking.nope=1': expected KEY=VALUE with KEY an avp_tracker parameter"),
+    ("tracking.coast_deceleration=-1", r"--tracker-param 'tracking.coast_deceleration=-1'"),
+    ("sync=latest", r"KEY an avp_tracker parameter"),  # the node's own parameters are not the tracker's
+])
+def test_bad_items_are_refused_by_name(item, match):
+    with pytest.raises(ValueError, match=match):
+        parse_tracker_params([item])
+
+
+def _args(tmp_path, **kw) -> argparse.Namespace:
+    base = _cell_args(["--protocol", "paper", "--scenarios", "1", "--mode", "non-reactive", "--methods", "bezier",
+                       "--workers", "0", "--no-progress", "--out", str(tmp_path / "out")])
+    for k, v in kw.items():
+        setattr(base, k, v)
+    return base
+
+
+def test_refused_with_exact_sensing_and_over_dds_before_anything_is_written(tmp_path):
+    with pytest.raises(ValueError, match=r"--tracker-param: the tracker runs with noisy sensing only"):
+        run_experiment(_args(tmp_path, tracker_param=["tracking.coast_deceleration=4"]))
+    with pytest.raises(ValueError, match=r"--tracker-param: --transport inproc only"):
+        run_experiment(_args(tmp_path, tracker_param=["tracking.coast_deceleration=4"], transport="ros",
+                             sim_param=["sensing.model=realistic"]))
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_folder_run_with_tracker_overrides_is_not_resumed_without_them(tmp_path):
+    """The overrides are part of the run's identity (run.json); a folder written before they existed reads as none."""
+    import json
+
+    from avp_episode.profiles import load_profile
+    from avp_experiment.results import RUN_FILE, check_run_file, run_identity
+
+    noisy = {"sensing.model": "realistic"}
+    with_coast = run_identity(RunConfig(sim_overrides=noisy, tracker_overrides={"tracking.coast_deceleration": 4.0}),
+                              [load_profile("bezier")])
+    check_run_file(tmp_path, with_coast)
+    shipped = run_identity(RunConfig(sim_overrides=noisy), [load_profile("bezier")])
+    with pytest.raises(ValueError, match="tracker_overrides"):
+        check_run_file(tmp_path, shipped)
+    old = json.loads((tmp_path / RUN_FILE).read_text())
+    del old["config"]["tracker_overrides"]  # as written before --tracker-param existed
+    (tmp_path / RUN_FILE).write_text(json.dumps(old))
+    check_run_file(tmp_path, shipped)
