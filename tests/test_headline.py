@@ -17,6 +17,8 @@ from avp_experiment.headline import (
     END,
     cell_argv,
     load_suite,
+    markers,
+    readme_groups,
     render,
     render_narrow,
     replace_block,
@@ -33,8 +35,12 @@ def committed() -> dict:
 
 def test_the_readme_table_is_the_one_the_committed_records_give(committed):
     readme = (ROOT / "README.md").read_text()
-    block = readme.split(BEGIN)[1].split(END)[0]
-    assert block.strip() == render_narrow(committed).strip(), "README.md's table is stale: run `make results-table`"
+    assert readme_groups(committed) == ["main", "sensing"]
+    for group in readme_groups(committed):
+        begin, end = markers(group)
+        block = readme.split(begin)[1].split(end)[0]
+        assert block.strip() == render_narrow(committed, group).strip(), \
+            f"README.md's {group} table is stale: run `make results-table`"
     page = (ROOT / "docs/results/README.md").read_text()
     block = page.split(BEGIN)[1].split(END)[0]
     assert block.strip() == render(committed).strip(), "docs/results/README.md's table is stale: `make results-table`"
@@ -195,6 +201,29 @@ def test_the_readme_markers_are_required():
     with pytest.raises(ValueError, match="headline:begin"):
         replace_block("no markers here", "| a |\n")
     assert replace_block(f"x\n{BEGIN}\nold\n{END}\ny", "new\n") == f"x\n{BEGIN}\nnew\n{END}\ny"
+    begin, end = markers("sensing")
+    with pytest.raises(ValueError, match="headline:sensing:begin"):
+        replace_block(f"x\n{BEGIN}\nold\n{END}\ny", "new\n", "sensing")
+    two = f"{BEGIN}\na\n{END}\n{begin}\nb\n{end}\n"
+    assert replace_block(two, "c\n", "sensing") == f"{BEGIN}\na\n{END}\n{begin}\nc\n{end}\n"
+
+
+def test_a_narrow_table_of_its_own_shows_its_columns_at_fault_and_notes_and_leaves_out_rows_it_lacks():
+    """A column with ``readme: NAME`` leaves the README's main table for narrow table NAME; there a cell says its
+    at-fault collisions and carries its note's number, and a row that runs in none of its columns is left out."""
+    rate = {"k": 3, "n": 100, "percent": 3.0, "ci95": [1.0, 8.5]}
+    table = {"suite": "t", "na": {"a": [], "b": ["r2"]},
+             "columns": [{"id": "a", "title": "A", "short": "A", "metric": "success"},
+                         {"id": "b", "title": "B", "short": "B", "metric": "failed_or_stolen", "readme": "noisy"}],
+             "rows": [{"id": "r1", "label": "r1", "short": "r1"}, {"id": "r2", "label": "r2", "short": "r2"}],
+             "cells": {"a": {"r1": {"success": rate, "notes": []}, "r2": {"success": rate, "notes": []}},
+                       "b": {"r1": {"failed_or_stolen": rate, "at_fault": 2, "notes": ["older code"]}}}}
+    assert readme_groups(table) == ["main", "noisy"]
+    main = render_narrow(table)
+    assert "| A |" in main and "B" not in main and "| r2 | 3.0 [1.0, 8.5] |" in main
+    noisy = render_narrow(table, "noisy").splitlines()
+    assert noisy[:3] == ["| pick | B |", "|:--|--:|", "| r1 | 3.0 [1.0, 8.5]; 2 at fault<sup>1</sup> |"]
+    assert noisy[-1] == "<sup>1</sup> older code." and not any(line.startswith("| r2") for line in noisy)
 
 
 @pytest.mark.slow

@@ -52,10 +52,10 @@ def _args(tmp_path, **kw) -> argparse.Namespace:
     return base
 
 
-def test_refused_with_exact_sensing_and_over_dds_before_anything_is_written(tmp_path):
+def test_refused_with_exact_sensing_and_noisy_sensing_over_dds_before_anything_is_written(tmp_path):
     with pytest.raises(ValueError, match=r"--tracker-param: the tracker runs with noisy sensing only"):
         run_experiment(_args(tmp_path, tracker_param=["tracking.coast_deceleration=4"]))
-    with pytest.raises(ValueError, match=r"--tracker-param: --transport inproc only"):
+    with pytest.raises(ValueError, match=r"sensing.model realistic: --transport inproc only"):
         run_experiment(_args(tmp_path, tracker_param=["tracking.coast_deceleration=4"], transport="ros",
                              sim_param=["sensing.model=realistic"]))
     assert not (tmp_path / "out").exists()

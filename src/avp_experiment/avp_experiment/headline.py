@@ -11,7 +11,9 @@ episode. ``--quick`` runs each column's ``quick`` scenario count (minutes, for a
 
 The table is computed from records only: from a suite's folder, or (``--committed``) from the committed records the
 suite file names per cell. The README holds the committed table between the markers ``<!-- headline:begin -->`` and
-``<!-- headline:end -->``; tests/test_headline.py fails when it and the committed records disagree. Rates carry 95 %
+``<!-- headline:end -->``, and a column with ``readme: NAME`` in a narrow table of its own between
+``<!-- headline:NAME:begin -->`` and ``<!-- headline:NAME:end -->`` (the realistic-sensing columns);
+tests/test_headline.py fails when they and the committed records disagree. Rates carry 95 %
 Wilson intervals, means a normal 95 % interval (1.96 standard errors).
 """
 
@@ -30,6 +32,17 @@ from avp_episode.metrics import Z95, wilson
 from avp_experiment.results import SEEDS_FILE, being_written, read_results
 
 BEGIN, END = "<!-- headline:begin -->", "<!-- headline:end -->"
+MAIN = "main"  # the README's first narrow table; a column's ``readme: NAME`` puts it in another
+
+
+def markers(group: str = MAIN) -> tuple[str, str]:
+    """The README's begin and end markers of narrow table ``group``."""
+    return (BEGIN, END) if group == MAIN else (f"<!-- headline:{group}:begin -->", f"<!-- headline:{group}:end -->")
+
+
+def readme_groups(table: Mapping) -> list[str]:
+    """The narrow tables of ``table``'s columns, in the order they first appear."""
+    return list(dict.fromkeys(c.get("readme", MAIN) for c in table["columns"]))
 METRICS = ("success", "failed_or_stolen", "busy", "fleet")
 
 
@@ -195,7 +208,8 @@ def cell_stats(metric: str, records: Sequence[Mapping]) -> dict | None:
     if metric == "success":
         return {"success": _rate(sum(bool(r["success"]) for r in records), n)}
     if metric == "failed_or_stolen":
-        return {"failed_or_stolen": _rate(sum((not r["success"]) or bool(r["spot_stolen"]) for r in records), n)}
+        return {"failed_or_stolen": _rate(sum((not r["success"]) or bool(r["spot_stolen"]) for r in records), n),
+                "at_fault": sum(bool(r.get("collision_at_fault")) for r in records)}
     if metric == "busy":
         return {"success": _rate(sum(bool(r["success"]) for r in records), n),
                 "spot_stolen": _rate(sum(bool(r["spot_stolen"]) for r in records), n),
@@ -270,7 +284,8 @@ def suite_table(suite: Mapping, out: Path | None = None, root: Path | None = Non
             if stats is not None:
                 cells[col["id"]][row["id"]] = {**stats, "sources": sources, "notes": notes}
     return {"suite": suite["name"],
-            "columns": [{**{k: c[k] for k in ("id", "title", "metric")}, "short": c.get("short", c["title"])}
+            "columns": [{**{k: c[k] for k in ("id", "title", "metric")}, "short": c.get("short", c["title"]),
+                         **({"readme": c["readme"]} if c.get("readme", MAIN) != MAIN else {})}
                         for c in suite["columns"]],
             "rows": [{"id": r["id"], "label": r["label"], "short": r.get("short", r["label"])} for r in suite["rows"]],
             "cells": cells,
@@ -290,7 +305,7 @@ def _cells(metric: str, s: Mapping | None) -> list[str]:
     if s is None:
         return ["not run"] + [""] * (2 if metric == "busy" else 0)
     if metric == "failed_or_stolen":
-        return [_pct(s["failed_or_stolen"])]
+        return [_pct(s["failed_or_stolen"]) + (f"; {s['at_fault']} at fault" if s.get("at_fault") else "")]
     if metric == "success":
         return [_pct(s["success"])]
     if metric == "busy":
@@ -350,14 +365,20 @@ def _num(x: float) -> str:
     return f"{x:.0f}" if x in (0.0, 100.0) else f"{x:.1f}"
 
 
-def render_narrow(table: Mapping) -> str:
-    """The README's table: one rate [95 % interval] a cell (success for the busy and fleet columns), short labels,
-    no counts, no footnotes — :func:`render`'s table, with every figure behind it, is on docs/results/README.md."""
-    head = ["pick"] + [c["short"] for c in table["columns"]]
-    lines = ["| " + " | ".join(head) + " |", "|:--" + "|--:" * len(table["columns"]) + "|"]
+def render_narrow(table: Mapping, group: str = MAIN) -> str:
+    """A README table: the columns of narrow table ``group`` (a column's ``readme``), one rate [95 % interval] a cell
+    (success for the busy and fleet columns), short labels, no counts; a row that runs in none of them is left out. A
+    cell made with other settings than its row's carries its note's number (the notes under the table) —
+    :func:`render`'s table, with every figure behind it, is on docs/results/README.md."""
+    cols = [c for c in table["columns"] if c.get("readme", MAIN) == group]
+    head = ["pick"] + [c["short"] for c in cols]
+    lines = ["| " + " | ".join(head) + " |", "|:--" + "|--:" * len(cols) + "|"]
+    notes: list[str] = []
     for row in table["rows"]:
+        if all(row["id"] in table["na"].get(c["id"], []) for c in cols):
+            continue
         cells = [row["short"]]
-        for c in table["columns"]:
+        for c in cols:
             s = table["cells"][c["id"]].get(row["id"])
             if row["id"] in table["na"].get(c["id"], []):
                 cells.append("–")
@@ -366,8 +387,17 @@ def render_narrow(table: Mapping) -> str:
                 cells.append("not run")
                 continue
             r = s["failed_or_stolen"] if c["metric"] == "failed_or_stolen" else s["success"]
-            cells.append(f"{_num(r['percent'])} [{_num(r['ci95'][0])}, {_num(r['ci95'][1])}]")
+            cell = f"{_num(r['percent'])} [{_num(r['ci95'][0])}, {_num(r['ci95'][1])}]"
+            if group != MAIN and s.get("at_fault") is not None:  # what noise costs in safety, beside the rate
+                cell += f"; {s['at_fault']} at fault"
+            if group != MAIN:  # the main table's notes are on docs/results/README.md (its rows are at their width)
+                for note in s.get("notes", []):
+                    notes += [note] if note not in notes else []
+                    cell += f"<sup>{notes.index(note) + 1}</sup>"
+            cells.append(cell)
         lines.append("| " + " | ".join(cells) + " |")
+    if notes:
+        lines += [""] + [f"<sup>{i + 1}</sup> {n}." for i, n in enumerate(notes)]
     return "\n".join(lines) + "\n"
 
 
@@ -378,13 +408,14 @@ def write_table(table: Mapping, json_path: Path, md_path: Path | None = None) ->
         md_path.write_text(render(table))
 
 
-def replace_block(text: str, block: str) -> str:
-    """``text`` with what lies between the headline markers replaced by ``block``."""
-    if text.count(BEGIN) != 1 or text.count(END) != 1:
-        raise ValueError(f"the README must hold {BEGIN} and {END} once each")
-    head, rest = text.split(BEGIN)
-    _, tail = rest.split(END)
-    return f"{head}{BEGIN}\n{block}{END}{tail}"
+def replace_block(text: str, block: str, group: str = MAIN) -> str:
+    """``text`` with what lies between the markers of narrow table ``group`` replaced by ``block``."""
+    begin, end = markers(group)
+    if text.count(begin) != 1 or text.count(end) != 1:
+        raise ValueError(f"the README must hold {begin} and {end} once each")
+    head, rest = text.split(begin)
+    _, tail = rest.split(end)
+    return f"{head}{begin}\n{block}{end}{tail}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -417,7 +448,10 @@ def main(argv: list[str] | None = None) -> int:
         write_table(table, json_path, json_path.with_suffix(".md"))
     if args.readme:
         p = Path(args.readme)
-        p.write_text(replace_block(p.read_text(), render_narrow(table)))
+        text = p.read_text()
+        for group in readme_groups(table):
+            text = replace_block(text, render_narrow(table, group), group)
+        p.write_text(text)
     if args.results_page:
         p = Path(args.results_page)
         p.write_text(replace_block(p.read_text(), render(table)))

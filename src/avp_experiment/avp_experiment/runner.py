@@ -179,9 +179,12 @@ def run_experiment(args: argparse.Namespace) -> dict:
                     sim_overrides=_with_lot(parse_sim_params(args.sim_param), args.lot), protocol=args.protocol,
                     planner_overrides=parse_planner_params(args.planner_param),
                     tracker_overrides=parse_tracker_params(getattr(args, "tracker_param", None)))
-    if cfg.tracker_overrides and args.transport != "inproc":
-        raise ValueError(f"--tracker-param: --transport inproc only (not {args.transport!r})")
-    if cfg.tracker_overrides and sim_values(cfg)["sensing.model"] == "exact":
+    sensing = sim_values(cfg)["sensing.model"]
+    if sensing != "exact" and args.transport != "inproc":  # the graph runs it (avp demo --sensing), not scored here
+        raise ValueError(f"sensing.model {sensing}: --transport inproc only; over DDS the tracker's ids are not the "
+                         "simulator's, which scoring the predictions needs (run the graph with `avp demo --sensing "
+                         f"{sensing}`)")
+    if cfg.tracker_overrides and sensing == "exact":
         raise ValueError("--tracker-param: the tracker runs with noisy sensing only; add --sim-param "
                          "sensing.model=realistic (or harsh)")
     from avp_episode.fleet import fleet_names, parse_fleet, run_units
