@@ -76,6 +76,33 @@ def test_a_folder_run_with_tracker_overrides_is_not_resumed_without_them(tmp_pat
     with pytest.raises(ValueError, match="tracker_overrides"):
         check_run_file(tmp_path, shipped)
     old = json.loads((tmp_path / RUN_FILE).read_text())
-    del old["config"]["tracker_overrides"]  # as written before --tracker-param existed
+    del old["config"]["tracker_overrides"], old["resolved"]  # as written before either existed
     (tmp_path / RUN_FILE).write_text(json.dumps(old))
     check_run_file(tmp_path, shipped)
+
+
+def test_a_folder_is_not_resumed_after_a_planner_or_tracker_default_changed(tmp_path, monkeypatch):
+    """run.json records every resolved planner and tracker value: a changed code default (not only a changed
+    profile file or override) is refused by name; a folder written before they were recorded is resumed."""
+    import json
+
+    from avp_episode.profiles import load_profile
+    from avp_experiment.results import RUN_FILE, check_run_file, run_identity
+
+    cfg = RunConfig(sim_overrides={"sensing.model": "realistic"})
+    ident = run_identity(cfg, [load_profile("bezier")])
+    assert ident["resolved"]["planner"]["bezier"]["collision.localisation_sigmas"] == 2.0
+    assert ident["resolved"]["tracker"]["tracking.coast_deceleration"] == 0.0
+    check_run_file(tmp_path, ident)
+    check_run_file(tmp_path, run_identity(cfg, [load_profile("bezier")]))  # the same values: resumed
+    for part, name, key in (("planner", "bezier", "collision.localisation_sigmas"),
+                            ("tracker", None, "tracking.coast_deceleration")):
+        changed = json.loads(json.dumps(ident))
+        values = changed["resolved"][part][name] if name else changed["resolved"][part]
+        values[key] = 1.5  # as if the code's default had moved
+        with pytest.raises(ValueError, match=key.replace(".", r"\.")):
+            check_run_file(tmp_path, changed)
+    old = json.loads((tmp_path / RUN_FILE).read_text())
+    del old["resolved"]  # a folder written before run.json held the resolved values
+    (tmp_path / RUN_FILE).write_text(json.dumps(old))
+    assert check_run_file(tmp_path, ident)["resolved"] == ident["resolved"]

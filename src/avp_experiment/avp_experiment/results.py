@@ -97,16 +97,31 @@ def _portable_sim(d: dict) -> dict:
 def run_identity(cfg: RunConfig, profiles: Iterable[MethodProfile]) -> dict:
     """What OUT/run.json must match: the run config, the intent weights, every avp_sim parameter value (so that
     a change of the shipped scenario defaults is not mixed with earlier episodes), the lot (name and file hash)
-    and the method profiles."""
+    and the method profiles; ``resolved``: every planner value each method runs with and, with noisy sensing, every
+    tracker value (so that a change of the code's defaults is not mixed with earlier episodes either)."""
     from avp_episode.metrics import lot_record
+    from avp_episode.profiles import planner_values
+    from avp_episode.run_config import tracker_values
     from avp_sim.core.factory import load_lot_param
 
     sim = sim_values(cfg)
     config = asdict(cfg)
     config["sim_overrides"] = _portable_sim(config["sim_overrides"])
+    profiles = list(profiles)
+    resolved = {"planner": {p.name: planner_values(p) for p in profiles},
+                "tracker": tracker_values(cfg) if sim["sensing.model"] != "exact" else {}}
+    resolved = json.loads(json.dumps(resolved))  # as run.json holds them (tuples as lists)
     return {"config": config, "intent": intent_identity(cfg), "sim": _portable_sim(sim),
             "lot": lot_record(load_lot_param(sim["lot_file"])),
-            "methods": {p.name: profile_digest(p) for p in profiles}}
+            "methods": {p.name: profile_digest(p) for p in profiles}, "resolved": resolved}
+
+
+def _changed_values(old: dict | None, new: dict) -> list[str]:
+    """The keys whose values differ between two resolved-value dicts (none when ``old`` was not recorded: a folder
+    written before run.json held them)."""
+    if not isinstance(old, dict):
+        return []
+    return sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
 
 
 def check_run_file(out: Path, ident: dict) -> dict:
@@ -142,7 +157,19 @@ def check_run_file(out: Path, ident: dict) -> dict:
             if old.get("methods", {}).get(name, digest) != digest:
                 raise ValueError(f"{path}: method profile {name!r} changed since its episodes there were run; "
                                  f"use another --out")
-        ident = {**old, "methods": {**old.get("methods", {}), **ident["methods"]}}
+        before = old.get("resolved") or {}
+        for name, values in ident["resolved"]["planner"].items():
+            changed = _changed_values(before.get("planner", {}).get(name), values)
+            if changed:
+                raise ValueError(f"{path}: method {name!r} ran there with other planner values ({', '.join(changed)})"
+                                 "; a default changed since? use another --out")
+        changed = _changed_values(before.get("tracker") or None, ident["resolved"]["tracker"])
+        if changed:
+            raise ValueError(f"{path}: the tracker ran there with other values ({', '.join(changed)}); use another "
+                             "--out")
+        ident = {**old, "methods": {**old.get("methods", {}), **ident["methods"]},
+                 "resolved": {"planner": {**before.get("planner", {}), **ident["resolved"]["planner"]},
+                              "tracker": before.get("tracker") or ident["resolved"]["tracker"]}}
     out.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(ident, indent=2) + "\n")
     return ident
