@@ -272,7 +272,8 @@ columns:
 def test_a_fleet_cell_counts_gridlocks_and_spot_losses_per_episode():
     """Every ego of a gridlocked episode carries the episode's gridlock: one episode of eight egos is one gridlock, not
     eight; a spot loss counts once per episode however many egos lost one."""
-    from avp_experiment.headline import _cells, cell_stats
+    from avp_experiment.headline import cell_stats
+    from avp_experiment.headline_tables import _cells
 
     def ego(seed, i, success, lost=0, grid=False, hit=""):
         return {"seed": seed, "mode": "reactive", "ego": i, "success": success, "spots_lost_to_ego": lost,
