@@ -306,3 +306,68 @@ def test_spot_readings_are_filtered_by_their_evidence():
     raw = SpotFilter([7, 8], xy, misread_far=0.0, reach=11.5)
     vac, occ = raw.update((0.0, 0.0), [8], [7])
     assert vac.tolist() == [8] and occ.tolist() == [7]
+
+
+def _hold_run(radius: float, ego_xy=(0.0, 4.0), rays=None, unseen=40, hold_max=10.0):
+    """A car drives at 1 m/s for 2 s, 4 m from the ego, then is never seen again; the tracks given each unseen
+    step."""
+    tr = Tracker(TrackerConfig(max_coast=0.5, near_hold_radius=radius, near_hold_max=hold_max))
+    for k in range(20):
+        tr.update(_frame(k, [_det(0.1 * k - 1.0, 0.0, 0.0, 1.0, sigma=0.02)]))
+    out = []
+    for k in range(20, 20 + unseen):
+        f = _frame(k)
+        f = SensedFrame(**{**f.__dict__, "ego_pose": np.array([*ego_xy, 0.0])})
+        if rays is not None:
+            f = SensedFrame(**{**f.__dict__, "ray_angle_min": 0.0, "ray_angle_increment": 2 * math.pi / len(rays),
+                               "ray_ranges": np.asarray(rays, np.float32)})
+        out.append(tr.update(f))
+    return out
+
+
+def test_a_dropped_track_near_the_ego_is_kept_standing_with_near_hold():
+    """Off (the default), the unseen car's track is dropped after max_coast (0.5 s); with near_hold_radius 6 m it is
+    kept, standing (speed 0) where it was when dropped, for near_hold_max (2 s) more, then dropped; 10 m away it is
+    dropped as without the hold."""
+    off = _hold_run(0.0)
+    assert len(off[4]) == 1 and off[6] == []
+    held = _hold_run(6.0, hold_max=2.0)
+    assert all(len(o) == 1 for o in held[:25])
+    xs = [float(o[0].x[0]) for o in held[6:25]]
+    assert max(xs) - min(xs) < 1e-9 and held[10][0].speed == 0.0
+    assert held[6][0].id == held[0][0].id
+    assert held[27] == [] and held[-1] == []
+    far = _hold_run(6.0, ego_xy=(0.0, 10.0))
+    assert far[6] == []
+
+
+def test_a_held_track_goes_when_a_ray_passes_through_it():
+    """With rays from the ego (at (0, 4)) that all reach 20 m, free space where the held track stands: it is
+    dropped at max_coast as without the hold; rays that stop 1 m short of it (something there) keep it."""
+    free = _hold_run(6.0, rays=np.full(360, 20.0))
+    assert free[6] == []
+    blocked = _hold_run(6.0, rays=np.full(360, 2.5))
+    assert len(blocked[10]) == 1
+
+
+def test_box_sigmas_grows_a_coasted_tracks_box_with_its_covariance(paper_lot):
+    """A moving car's track as the ego's observation gives it: with box_sigmas 0 (the default) its box is the
+    detections'; with 2, longer and wider by 4 position sigmas, and the more the longer it coasts unseen; a parked
+    (stationary) car's box is never grown."""
+    from avp_tracking.core.perceive import TrackingPerception
+
+    def boxes(sigmas: float, speed: float):
+        p = TrackingPerception(paper_lot, Tracker(TrackerConfig(max_coast=1.5, box_sigmas=sigmas)))
+        out = []
+        for k in range(40):
+            dets = [_det(speed * DT * k, -30.0, 0.0, speed, sigma=0.1)] if k < 30 else []
+            obs = p.observe(_frame(k, dets))
+            out.append((obs.vehicles[0].length, obs.vehicles[0].width) if obs.vehicles else None)
+        return out
+
+    plain, grown = boxes(0.0, 2.0), boxes(2.0, 2.0)
+    assert abs(plain[29][0] - 4.5) < 1e-6 and abs(plain[35][0] - 4.5) < 1e-6
+    assert grown[29][0] > plain[29][0] + 0.1 and grown[29][1] > plain[29][1] + 0.1
+    assert grown[35][0] > grown[29][0] + 0.2  # coasting: the covariance, and the box, grow
+    parked = boxes(2.0, 0.0)
+    assert abs(parked[29][0] - 4.5) < 1e-6

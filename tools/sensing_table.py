@@ -30,7 +30,7 @@ EXACT_COLUMN = {"contested": "contested", "paper": "paper", "busy": "busy_dlp"}
 #: localisation covariance, so collision.localisation_sigmas changes nothing there: the same records)
 EXACT_ROW = {"bezier_no_loc": "bezier", "bezier_coast": "bezier"}
 #: rows that ablate one switch of the shipped default: paired with row ``bezier`` under the same noise too
-ABLATIONS = ("bezier_no_loc", "bezier_coast")
+ABLATIONS = ("bezier_no_loc", "bezier_coast", "bezier_guards")
 
 
 def _bad(metric: str, r: dict) -> bool:

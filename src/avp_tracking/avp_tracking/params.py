@@ -54,6 +54,16 @@ TRACKER_PARAMS: list[ParamSpec] = [
     ParamSpec("tracking.spot_max_log_odds", float, "A spot's evidence is clamped to +- this many nats, so a spot "
               "that really changes (a car parks or leaves) is followed within a few readings.", "", _WHY, min=0.1,
               default=_D.spot_max_log_odds),
+    ParamSpec("tracking.near_hold_radius", float, "A confirmed vehicle track unseen longer than max_coast whose centre "
+              "is this near the ego's estimate is kept standing (speed 0) until seen again, the ego leaves the "
+              "radius, a ray passes through its centre, or near_hold_max; 0 = off (dropped) [m].", "", _WHY,
+              min=0.0, max=50.0, default=_D.near_hold_radius),
+    ParamSpec("tracking.near_hold_max", float, "Seconds beyond max_coast a track is kept standing near the ego.",
+              "", _WHY, min=0.0, max=120.0, default=_D.near_hold_max),
+    ParamSpec("tracking.box_sigmas", float, "A moving vehicle track's box, as given to the ego, grows by this many "
+              "standard deviations of its position estimate at each side (a coasted track's covers where the car "
+              "may be); stationary tracks are not grown; 0 = off.", "", _WHY, min=0.0, max=10.0,
+              default=_D.box_sigmas),
     ParamSpec("tracking.publish_coasted", bool, "Give the ego coasted (occluded) confirmed tracks too, not only "
               "those detected this step.", "", _WHY, default=_D.publish_coasted),
     ParamSpec("tracking.accel_sigma", float, "Process noise: a vehicle's longitudinal acceleration [m/s^2].", "",
@@ -106,7 +116,8 @@ def tracker_config(values: dict, dt: float = 0.1, t_hist: float = 4.0) -> Tracke
                          stationary_hold=v["stationary_hold"],
                          stationary_hold_heading=v["stationary_hold_heading"],
                          spot_misread_far=v["spot_misread_far"], spot_reach=v["spot_reach"],
-                         spot_max_log_odds=v["spot_max_log_odds"])
+                         spot_max_log_odds=v["spot_max_log_odds"], near_hold_radius=v["near_hold_radius"],
+                         near_hold_max=v["near_hold_max"], box_sigmas=v["box_sigmas"])
 
 
 def default_tracker_values() -> dict:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from avp_tracking.core.guards import grown_dims
 from avp_tracking.core.spots import SpotFilter
 from avp_tracking.core.tracker import Tracker
 from avp_world.detections import SensedFrame
@@ -60,11 +61,12 @@ class TrackingPerception:
             f.reset()
         vacant, occupied = f.update(frame.ego_pose, frame.vacant_spot_ids, frame.occupied_spot_ids)
         static_speed = self.tracker.cfg.static_speed
+        sigmas = self.tracker.cfg.box_sigmas
         vehicles = tuple(
-            ObservedVehicle(id=int(t.id), length=t.dims[0], width=t.dims[1],
+            ObservedVehicle(id=int(t.id), length=dims[0], width=dims[1],
                             is_static=bool(abs(t.speed) < static_speed and self.spots.inside(t.x[:2])),
                             history=t.history_array())
-            for t in tracks if not t.pedestrian)
+            for t in tracks if not t.pedestrian for dims in (grown_dims(t, sigmas),))
         peds = tuple(
             ObservedPedestrian(int(t.id), float(t.radius), t.x[:2].copy(),
                                (t.previous_position if t.previous_position is not None else t.x[:2]).copy())

@@ -6,7 +6,8 @@ pedestrians are associated apart by gated global nearest neighbour (:mod:`.assoc
 updated (its heading measured modulo a flip, below); an unmatched detection starts a *tentative* track, which is
 *confirmed* after ``n_init`` hits and dropped at its first miss before that; a confirmed track that goes unseen is
 coasted (predicted, its history continued with the predictions; with ``coast_deceleration`` its speed brakes to a
-stop meanwhile) and dropped after ``max_coast`` seconds.
+stop meanwhile) and dropped after ``max_coast`` seconds — unless, with ``near_hold_radius``, it is near the ego and
+kept standing a while (:mod:`.guards`).
 
 Heading flips: a detection whose heading differs from the track's by more than 90 degrees is taken as the box's
 other end (a car cannot turn that much in one step) and measured turned by pi; each such detection adds a vote,
@@ -23,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from avp_tracking.core.association import gated_pairs
+from avp_tracking.core.guards import keep_near
 from avp_tracking.core.motion import (
     H_POSE,
     H_POSE_SPEED,
@@ -63,6 +65,9 @@ class TrackerConfig:
     spot_misread_far: float = 0.05  # a spot reading's error probability at spot_reach (the sensor's model); 0 = off
     spot_reach: float = 11.5  # m, the range at which a reading's error is spot_misread_far (it grows as range^2)
     spot_max_log_odds: float = 8.0  # a spot's evidence is clamped to +- this (a real change is followed)
+    near_hold_radius: float = 0.0  # m: a dropped track this near the ego is kept standing (.guards); 0 = off
+    near_hold_max: float = 10.0  # s at most such a track is kept beyond max_coast
+    box_sigmas: float = 0.0  # a moving track's box grows by this many position sigmas at each side (.guards); 0 = off
 
 
 class Tracker:
@@ -94,13 +99,13 @@ class Tracker:
             for t in self.tracks:
                 t.previous_position = t.x[:2].copy() if t.pedestrian else None
                 predict = predict_pedestrian if t.pedestrian else predict_vehicle
-                if t.stationary:  # held still: a constant-position model (its speed and yaw rate are 0)
+                if t.stationary or t.near_held:  # held still: a constant-position model (speed, yaw rate 0)
                     t.x[3] = t.x[4] = 0.0
                 elif t.misses and cfg.coast_deceleration > 0 and not t.pedestrian:
                     # unseen since the last step: a car hidden near the ego is as likely to stop as to go on
                     v = float(t.x[3])
                     t.x[3] = math.copysign(max(0.0, abs(v) - cfg.coast_deceleration * dt), v)
-                t.x, t.P = predict(t.x, t.P, dt, quiet if t.stationary else cfg.noise)
+                t.x, t.P = predict(t.x, t.P, dt, quiet if t.stationary or t.near_held else cfg.noise)
         vehicles = [t for t in self.tracks if not t.pedestrian]
         peds = [t for t in self.tracks if t.pedestrian]
         seen: set[int] = set()
@@ -121,8 +126,12 @@ class Tracker:
         for t in self.tracks:
             if t.id not in seen:
                 t.misses += 1
-                if not t.confirmed or t.misses > max_misses:
+                if not t.confirmed:
                     continue
+                if t.misses > max_misses:
+                    t.near_held = keep_near(t, frame, max_misses, cfg.near_hold_radius, cfg.near_hold_max)
+                    if not t.near_held:
+                        continue
             keep.append(t)
             t.record(frame.step, cfg.history_steps)
         self.tracks = self._prune(keep)
@@ -163,6 +172,7 @@ class Tracker:
         cfg = self.cfg
         t.hits += 1
         t.misses = 0
+        t.near_held = False
         t.last_step = step
         t.existence = 0.7 * t.existence + 0.3 * float(d.existence)
         if t.hits >= cfg.n_init:

@@ -35,6 +35,7 @@ class Track:
     slow_since: int | None = None  # the step since which it has been slower than static_speed
     jumps: int = 0  # detections in a row that say a stationary track moves (Tracker._stationarity)
     held: np.ndarray | None = None  # (x, y, theta, length, width) given while stationary (Tracker._hold)
+    near_held: bool = False  # unseen beyond max_coast, kept standing near the ego (guards.keep_near)
 
     @property
     def position(self) -> np.ndarray:
