@@ -2,6 +2,7 @@
 episodes' tracker, are part of a run's identity, and are refused where no tracker runs."""
 
 import argparse
+import json
 
 import pytest
 
@@ -63,7 +64,6 @@ def test_refused_with_exact_sensing_and_noisy_sensing_over_dds_before_anything_i
 
 def test_a_folder_run_with_tracker_overrides_is_not_resumed_without_them(tmp_path):
     """The overrides are part of the run's identity (run.json); a folder written before they existed reads as none."""
-    import json
 
     from avp_episode.profiles import load_profile
     from avp_experiment.results import RUN_FILE, check_run_file, run_identity
@@ -84,7 +84,6 @@ def test_a_folder_run_with_tracker_overrides_is_not_resumed_without_them(tmp_pat
 def test_a_folder_is_not_resumed_after_a_planner_or_tracker_default_changed(tmp_path, monkeypatch):
     """run.json records every resolved planner and tracker value: a changed code default (not only a changed
     profile file or override) is refused by name; a folder written before they were recorded is resumed."""
-    import json
 
     from avp_episode.profiles import load_profile
     from avp_experiment.results import RUN_FILE, check_run_file, run_identity
@@ -106,3 +105,20 @@ def test_a_folder_is_not_resumed_after_a_planner_or_tracker_default_changed(tmp_
     del old["resolved"]  # a folder written before run.json held the resolved values
     (tmp_path / RUN_FILE).write_text(json.dumps(old))
     assert check_run_file(tmp_path, ident)["resolved"] == ident["resolved"]
+
+
+def test_a_tracker_parameter_added_since_a_run_reads_as_its_default(tmp_path):
+    """A noisy-sensing folder whose run.json lacks a tracker parameter added later (here tracking.box_sigmas) is
+    resumed when the new parameter is at its default (off), and refused by name when the command sets it."""
+    from avp_episode.profiles import load_profile
+    from avp_experiment.results import RUN_FILE, check_run_file, run_identity
+
+    cfg = RunConfig(sim_overrides={"sensing.model": "realistic"})
+    check_run_file(tmp_path, run_identity(cfg, [load_profile("bezier")]))
+    old = json.loads((tmp_path / RUN_FILE).read_text())
+    del old["resolved"]["tracker"]["tracking.box_sigmas"]  # as a folder written before the parameter existed
+    (tmp_path / RUN_FILE).write_text(json.dumps(old))
+    check_run_file(tmp_path, run_identity(cfg, [load_profile("bezier")]))
+    grown = RunConfig(sim_overrides={"sensing.model": "realistic"}, tracker_overrides={"tracking.box_sigmas": 2.0})
+    with pytest.raises(ValueError, match=r"tracking\.box_sigmas"):
+        check_run_file(tmp_path, run_identity(grown, [load_profile("bezier")]))

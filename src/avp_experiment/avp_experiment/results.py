@@ -163,7 +163,14 @@ def check_run_file(out: Path, ident: dict) -> dict:
             if changed:
                 raise ValueError(f"{path}: method {name!r} ran there with other planner values ({', '.join(changed)})"
                                  "; a default changed since? use another --out")
-        changed = _changed_values(before.get("tracker") or None, ident["resolved"]["tracker"])
+        tracker_before = before.get("tracker") or None
+        if isinstance(tracker_before, dict) and tracker_before:  # tracker parameters added since: their defaults
+            from avp_episode.run_config import tracker_values
+
+            tracker_before = {**{k: v for k, v in tracker_values(RunConfig()).items() if k not in tracker_before},
+                              **tracker_before}
+            before = {**before, "tracker": tracker_before}
+        changed = _changed_values(tracker_before, ident["resolved"]["tracker"])
         if changed:
             raise ValueError(f"{path}: the tracker ran there with other values ({', '.join(changed)}); use another "
                              "--out")
