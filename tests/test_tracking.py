@@ -371,3 +371,32 @@ def test_box_sigmas_grows_a_coasted_tracks_box_with_its_covariance(paper_lot):
     assert grown[35][0] > grown[29][0] + 0.2  # coasting: the covariance, and the box, grow
     parked = boxes(2.0, 0.0)
     assert abs(parked[29][0] - 4.5) < 1e-6
+
+
+def test_pedestrian_velocity_filter_keeps_a_standing_pedestrian_still(paper_lot):
+    """A standing pedestrian detected with 0.15 m noise: the velocity the ego reads from the two positions it is
+    given (§V-C) is above the planner's still speed (0.3 m/s) in most steps with `difference` (each correction jump
+    reads as motion), in few with `filter`; a pedestrian walking at 1 m/s reads about 1 m/s with either."""
+    from avp_motion.planner_types import STILL_SPEED
+    from avp_tracking.core.perceive import TrackingPerception
+    from avp_world.detections import PedestrianDetection
+
+    def speeds(mode: str, walk: float) -> np.ndarray:
+        rng = np.random.default_rng(0)
+        p = TrackingPerception(paper_lot, Tracker(TrackerConfig(pedestrian_velocity=mode)))
+        out = []
+        for k in range(300):
+            xy = np.array([walk * DT * k, -30.0])
+            det = PedestrianDetection(position=xy + rng.normal(0, 0.15, 2), radius=0.3,
+                                      covariance=np.diag([0.15 ** 2, 0.15 ** 2]), existence=0.9)
+            f = _frame(k)
+            obs = p.observe(SensedFrame(**{**f.__dict__, "pedestrians": (det,)}))
+            if k > 30:
+                ped = obs.pedestrians[0]
+                out.append(np.hypot(*(ped.position - ped.previous_position)) / DT)
+        return np.array(out)
+
+    assert (speeds("difference", 0.0) > STILL_SPEED).mean() > 0.5
+    assert (speeds("filter", 0.0) > STILL_SPEED).mean() < 0.15
+    for mode in ("difference", "filter"):
+        assert abs(np.median(speeds(mode, 1.0)) - 1.0) < 0.25

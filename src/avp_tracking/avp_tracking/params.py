@@ -64,6 +64,11 @@ TRACKER_PARAMS: list[ParamSpec] = [
               "standard deviations of its position estimate at each side (a coasted track's covers where the car "
               "may be); stationary tracks are not grown; 0 = off.", "", _WHY, min=0.0, max=10.0,
               default=_D.box_sigmas),
+    ParamSpec("tracking.pedestrian_velocity", str, "The previous position given with a pedestrian track, from which "
+              "the ego reads its velocity (§V-C: v = (p_t - p_t-dt) / dt): difference = the track's estimate one "
+              "step before (each step's correction jump reads as motion: a standing pedestrian seems to walk); "
+              "filter = the estimate minus the filter's velocity times dt.", "", "§V-C",
+              choices=("difference", "filter"), default=_D.pedestrian_velocity),
     ParamSpec("tracking.publish_coasted", bool, "Give the ego coasted (occluded) confirmed tracks too, not only "
               "those detected this step.", "", _WHY, default=_D.publish_coasted),
     ParamSpec("tracking.accel_sigma", float, "Process noise: a vehicle's longitudinal acceleration [m/s^2].", "",
@@ -117,7 +122,8 @@ def tracker_config(values: dict, dt: float = 0.1, t_hist: float = 4.0) -> Tracke
                          stationary_hold_heading=v["stationary_hold_heading"],
                          spot_misread_far=v["spot_misread_far"], spot_reach=v["spot_reach"],
                          spot_max_log_odds=v["spot_max_log_odds"], near_hold_radius=v["near_hold_radius"],
-                         near_hold_max=v["near_hold_max"], box_sigmas=v["box_sigmas"])
+                         near_hold_max=v["near_hold_max"], box_sigmas=v["box_sigmas"],
+                         pedestrian_velocity=v["pedestrian_velocity"])
 
 
 def default_tracker_values() -> dict:

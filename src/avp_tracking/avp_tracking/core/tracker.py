@@ -68,6 +68,7 @@ class TrackerConfig:
     near_hold_radius: float = 0.0  # m: a dropped track this near the ego is kept standing (.guards); 0 = off
     near_hold_max: float = 10.0  # s at most such a track is kept beyond max_coast
     box_sigmas: float = 0.0  # a moving track's box grows by this many position sigmas at each side (.guards); 0 = off
+    pedestrian_velocity: str = "difference"  # a pedestrian's previous position: last estimate, or "filter" (.perceive)
 
 
 class Tracker:
