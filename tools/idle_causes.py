@@ -1,0 +1,85 @@
+"""Where the ego's steps went, per results folder: the mean steps of an episode in each planner mode and the mean
+idle steps by their cause, from each record's decision trace (docs/results/sensing/README.md).
+
+    python tools/idle_causes.py NAME=FOLDER[:METHOD] | NAME=headline:COLUMN/ROW ...
+
+FOLDER holds episodes.jsonl or episodes.jsonl.gz (or is one such file); METHOD picks one method's records (default:
+all); headline:COLUMN/ROW reads the records the headline suite commits for that cell (config/suites/headline.yaml:
+exact sensing). Prints a markdown table, one row per item, with the outcomes of its episodes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gzip
+import json
+import sys
+from collections import Counter
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+MODES = ("explore", "park", "idle", "detour", "wait_and_go", "evasive")
+CAUSES = ("vehicle:standing", "vehicle:towards", "vehicle:away", "vehicle:braking", "pedestrian:standing",
+          "pedestrian:towards", "pedestrian:away", "static")
+
+
+def records(folder: Path, method: str | None) -> list[dict]:
+    """The records of a results folder (or of one .jsonl / .jsonl.gz file), of ``method`` only when given."""
+    path = folder if folder.is_file() else folder / "episodes.jsonl.gz"
+    path = path if path.is_file() else folder / "episodes.jsonl"
+    opener = gzip.open if path.suffix == ".gz" else open
+    with opener(path, "rt") as f:
+        return [r for r in map(json.loads, f) if method is None or r["method"] == method]
+
+
+def row(name: str, recs: list[dict]) -> str:
+    status = Counter(r["status"] for r in recs)
+    recs = [r for r in recs if (r.get("decision_trace") or {}).get("steps_by_mode")]  # older records have none
+    modes, idle = Counter(), Counter()
+    for r in recs:
+        trace = r.get("decision_trace") or {}
+        modes.update(trace.get("steps_by_mode", {}))
+        idle.update(trace.get("idle_steps_by_cause", {}))
+    n = max(len(recs), 1)
+    cells = [f"{modes[m] / n:.1f}" for m in MODES] + [f"{idle[c] / n:.1f}" for c in CAUSES]
+    outcome = ", ".join(f"{k} {v}" for k, v in sorted(status.items()))
+    return f"| {name} | {len(recs)} | " + " | ".join(cells) + f" | {outcome} |"
+
+
+def transitions(first: list[dict], other: list[dict]) -> str:
+    """How the outcomes of the seeds both hold changed from ``first`` to ``other``."""
+    a = {(r["seed"], r["mode"]): r["status"] for r in first}
+    moves = Counter(f"{a[k]} -> {r['status']}" for r in other if (k := (r["seed"], r["mode"])) in a
+                    and a[k] != r["status"])
+    shared = sum((r["seed"], r["mode"]) in a for r in other)
+    return f"{shared} shared seeds: " + (", ".join(f"{m} {n}" for m, n in sorted(moves.items())) or "no change")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("folders", nargs="+", help="NAME=FOLDER[:METHOD]")
+    args = ap.parse_args(argv)
+    head = ["folder", "n traced", *(f"{m}" for m in MODES), *(f"idle: {c}" for c in CAUSES), "outcomes"]
+    print("| " + " | ".join(head) + " |")
+    print("|---|" + "--:|" * (len(head) - 2) + "---|")
+    items = []
+    for item in args.folders:
+        name, _, rest = item.partition("=")
+        if rest.startswith("headline:"):
+            from avp_experiment.headline import committed_records, load_suite
+
+            column, _, cell = rest.removeprefix("headline:").partition("/")
+            recs = list(committed_records(load_suite("headline")["committed"][column][cell], ROOT)[0])
+        else:
+            folder, _, method = rest.partition(":")
+            recs = records(Path(folder), method or None)
+        items.append((name, recs))
+        print(row(name, recs))
+    print()
+    for name, recs in items[1:]:
+        print(f"* {items[0][0]} -> {name}, outcomes that changed on the {transitions(items[0][1], recs)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
