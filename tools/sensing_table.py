@@ -111,7 +111,8 @@ def table(out: Path, columns: list[str] | None = None) -> str:
         shipped = cells.get("bezier", (None, {}))[1]
         for rid in (r for r in ABLATIONS if r in cells and shipped):
             n, k_row, k_shipped, p = _pair(metric, cells[rid][1], shipped)
-            f_row, f_shipped = (sum(bool(recs[k].get("collision_at_fault")) for k in set(recs) & set(shipped))
+            shared = set(cells[rid][1]) & set(shipped)
+            f_row, f_shipped = (sum(bool(recs[k].get("collision_at_fault")) for k in shared)
                                 for recs in (cells[rid][1], shipped))
             lines += [f"Row `{rid}` against the shipped default under the same noise, {n} paired episodes: {what} "
                       f"{_rate(k_row, n)} against {_rate(k_shipped, n)} (exact McNemar p = {p:.3f}); at fault "
