@@ -400,3 +400,47 @@ def test_pedestrian_velocity_filter_keeps_a_standing_pedestrian_still(paper_lot)
     assert (speeds("filter", 0.0) > STILL_SPEED).mean() < 0.15
     for mode in ("difference", "filter"):
         assert abs(np.median(speeds(mode, 1.0)) - 1.0) < 0.25
+
+
+def _car_history_run(smoothing: str, speed_at, steps: int = 120, sigma: float = 0.1, seed: int = 0):
+    """A car along x with speed ``speed_at(k)``, detected every step with ``sigma`` noise; per step after 40, the
+    history given to the ego and the true positions of its steps."""
+    from avp_tracking.core.perceive import TrackingPerception
+    from avp_world.lot import load_bundled_lot
+
+    rng = np.random.default_rng(seed)
+    p = TrackingPerception(load_bundled_lot(), Tracker(TrackerConfig(history_smoothing=smoothing)))
+    x, truth, out = 0.0, [], []
+    for k in range(steps):
+        v = speed_at(k)
+        x += v * DT
+        truth.append(x)
+        det = _det(x + rng.normal(0, sigma), -30.0 + rng.normal(0, sigma), 0.0, v + rng.normal(0, 0.26), sigma)
+        obs = p.observe(_frame(k, [det]))
+        if k >= 40:
+            out.append((obs.vehicles[0].history, np.array(truth[-len(obs.vehicles[0].history):])))
+    return out
+
+
+def test_history_smoothing_rts_reads_a_steady_car_steady_and_a_braking_one_braking():
+    """The speed read from a history's last two poses (as the planner reads it): a car at a steady 2 m/s reads as
+    braking (0.3 m/s slower than 0.5 s before) in many steps without smoothing and in few with the RTS smoother, whose
+    revised poses also lie nearer the truth; a car that really brakes (2 m/s to 0 at 2 m/s^2) still reads as braking
+    while it does."""
+
+    def braking_share(runs) -> float:
+        reads = []
+        for h, _ in runs:
+            s = np.hypot(*(h[-1, :2] - h[-2, :2])) / DT
+            before = np.hypot(*(h[-7, :2] - h[-8, :2])) / DT
+            reads.append(s >= 0.3 and before - s > 0.3)
+        return float(np.mean(reads))
+
+    def error(runs) -> float:
+        return float(np.sqrt(np.mean([np.mean((h[-10:-1, 0] - t[-10:-1]) ** 2) for h, t in runs])))
+
+    plain, smooth = (_car_history_run(m, lambda k: 2.0, steps=240) for m in ("none", "rts"))
+    assert braking_share(plain) > 0.12 and braking_share(smooth) < 0.08  # seeds 0-4: 0.16-0.25, 0-0.06
+    assert error(smooth) < 0.85 * error(plain)  # the poses before the last (the last is the filter's own)
+    brakes = _car_history_run("rts", lambda k: 2.0 if k < 60 else max(0.0, 2.0 - 0.2 * (k - 60)), steps=75)
+    assert braking_share(brakes[22:30]) > 0.5  # steps 62-69: slowing from 1.6 to 0.2 m/s

@@ -29,9 +29,9 @@ EXACT_COLUMN = {"contested": "contested", "paper": "paper", "busy": "busy_dlp"}
 #: the headline row with exact sensing of a sensing row that has none of its own (exact sensing reports no
 #: localisation covariance, so collision.localisation_sigmas changes nothing there: the same records)
 EXACT_ROW = {"bezier_no_loc": "bezier", "bezier_coast": "bezier", "bezier_guards": "bezier",
-             "bezier_ped_filter": "bezier"}
+             "bezier_ped_filter": "bezier", "bezier_motion": "bezier"}
 #: rows that ablate one switch of the shipped default: paired with row ``bezier`` under the same noise too
-ABLATIONS = ("bezier_no_loc", "bezier_coast", "bezier_guards", "bezier_ped_filter")
+ABLATIONS = ("bezier_no_loc", "bezier_coast", "bezier_guards", "bezier_ped_filter", "bezier_motion")
 
 
 def _bad(metric: str, r: dict) -> bool:

@@ -69,6 +69,12 @@ TRACKER_PARAMS: list[ParamSpec] = [
               "step before (each step's correction jump reads as motion: a standing pedestrian seems to walk); "
               "filter = the estimate minus the filter's velocity times dt.", "", "§V-C",
               choices=("difference", "filter"), default=_D.pedestrian_velocity),
+    ParamSpec("tracking.history_smoothing", str, "A moving vehicle track's history as given to the ego: none = the "
+              "filter's estimates step by step (each correction jump reads as a change of speed); rts = its last "
+              "smoothing_lag poses smoothed by a fixed-lag Rauch-Tung-Striebel smoother.", "", _WHY,
+              choices=("none", "rts"), default=_D.history_smoothing),
+    ParamSpec("tracking.smoothing_lag", int, "Poses of a moving track's history the smoother revises.", "", _WHY,
+              min=2, max=200, default=_D.smoothing_lag),
     ParamSpec("tracking.publish_coasted", bool, "Give the ego coasted (occluded) confirmed tracks too, not only "
               "those detected this step.", "", _WHY, default=_D.publish_coasted),
     ParamSpec("tracking.accel_sigma", float, "Process noise: a vehicle's longitudinal acceleration [m/s^2].", "",
@@ -123,7 +129,8 @@ def tracker_config(values: dict, dt: float = 0.1, t_hist: float = 4.0) -> Tracke
                          spot_misread_far=v["spot_misread_far"], spot_reach=v["spot_reach"],
                          spot_max_log_odds=v["spot_max_log_odds"], near_hold_radius=v["near_hold_radius"],
                          near_hold_max=v["near_hold_max"], box_sigmas=v["box_sigmas"],
-                         pedestrian_velocity=v["pedestrian_velocity"])
+                         pedestrian_velocity=v["pedestrian_velocity"], history_smoothing=v["history_smoothing"],
+                         smoothing_lag=v["smoothing_lag"])
 
 
 def default_tracker_values() -> dict:

@@ -35,10 +35,7 @@ def predict_vehicle(x: np.ndarray, P: np.ndarray, dt: float, q: MotionNoise) -> 
     px, py, th, v, om = x
     c, s = math.cos(th), math.sin(th)
     xn = np.array([px + v * c * dt, py + v * s * dt, wrap(th + om * dt), v, om])
-    F = np.eye(5)
-    F[0, 2], F[0, 3] = -v * s * dt, c * dt
-    F[1, 2], F[1, 3] = v * c * dt, s * dt
-    F[2, 4] = dt
+    F = vehicle_jacobian(x, dt)
     h = 0.5 * dt * dt
     G = np.array([[h * c, 0.0], [h * s, 0.0], [0.0, h], [dt, 0.0], [0.0, dt]])
     Q = G @ np.diag([q.accel_sigma ** 2, q.yaw_accel_sigma ** 2]) @ G.T
@@ -48,6 +45,17 @@ def predict_vehicle(x: np.ndarray, P: np.ndarray, dt: float, q: MotionNoise) -> 
     Q[0, 1] -= lat * s * c
     Q[1, 0] -= lat * s * c
     return xn, F @ P @ F.T + Q
+
+
+def vehicle_jacobian(x: np.ndarray, dt: float) -> np.ndarray:
+    """The Jacobian F (5, 5) of the CTRV prediction over ``dt`` at state ``x`` (first order in dt)."""
+    th, v = float(x[2]), float(x[3])
+    c, s = math.cos(th), math.sin(th)
+    F = np.eye(5)
+    F[0, 2], F[0, 3] = -v * s * dt, c * dt
+    F[1, 2], F[1, 3] = v * c * dt, s * dt
+    F[2, 4] = dt
+    return F
 
 
 def predict_pedestrian(x: np.ndarray, P: np.ndarray, dt: float, q: MotionNoise) -> tuple[np.ndarray, np.ndarray]:

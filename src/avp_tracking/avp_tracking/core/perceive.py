@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from avp_tracking.core.guards import grown_dims
+from avp_tracking.core.smoother import history_smoothed
 from avp_tracking.core.spots import SpotFilter
 from avp_tracking.core.tracker import Tracker
 from avp_world.detections import SensedFrame
@@ -51,6 +52,13 @@ class TrackingPerception:
         return SpotFilter(self._lot.spot_ids, np.asarray(self._lot.spot_poses, float).reshape(-1, 3)[:, :2],
                           c.spot_misread_far, c.spot_reach, c.spot_max_log_odds)
 
+    def _history(self, t) -> np.ndarray:
+        """The pose history given with vehicle track ``t``: the tracker's estimates, the last ``smoothing_lag`` of a
+        moving track smoothed with ``history_smoothing`` rts (:mod:`.smoother`)."""
+        if self.tracker.cfg.history_smoothing == "rts" and not t.stationary and t.filter_steps:
+            return history_smoothed(t.history, t.filter_steps)
+        return t.history_array()
+
     def _previous(self, t, dt: float) -> np.ndarray:
         """The previous position given with pedestrian track ``t`` (the ego reads its velocity from the two,
         §V-C): its estimate one step before, or with ``pedestrian_velocity`` "filter" its estimate minus the
@@ -74,7 +82,7 @@ class TrackingPerception:
         vehicles = tuple(
             ObservedVehicle(id=int(t.id), length=dims[0], width=dims[1],
                             is_static=bool(abs(t.speed) < static_speed and self.spots.inside(t.x[:2])),
-                            history=t.history_array())
+                            history=self._history(t))
             for t in tracks if not t.pedestrian for dims in (grown_dims(t, sigmas),))
         peds = tuple(ObservedPedestrian(int(t.id), float(t.radius), t.x[:2].copy(), self._previous(t, frame.dt))
                      for t in tracks if t.pedestrian)

@@ -33,8 +33,10 @@ from avp_tracking.core.motion import (
     kalman_update,
     predict_pedestrian,
     predict_vehicle,
+    vehicle_jacobian,
     wrap,
 )
+from avp_tracking.core.smoother import remember
 from avp_tracking.core.tracks import Track
 from avp_world.detections import ORIENTATION_AVAILABLE, PedestrianDetection, SensedFrame, VehicleDetection
 
@@ -69,6 +71,8 @@ class TrackerConfig:
     near_hold_max: float = 10.0  # s at most such a track is kept beyond max_coast
     box_sigmas: float = 0.0  # a moving track's box grows by this many position sigmas at each side (.guards); 0 = off
     pedestrian_velocity: str = "difference"  # a pedestrian's previous position: last estimate, or "filter" (.perceive)
+    history_smoothing: str = "none"  # "rts": a moving vehicle track's last smoothing_lag poses smoothed (.smoother)
+    smoothing_lag: int = 10  # steps
 
 
 class Tracker:
@@ -106,7 +110,11 @@ class Tracker:
                     # unseen since the last step: a car hidden near the ego is as likely to stop as to go on
                     v = float(t.x[3])
                     t.x[3] = math.copysign(max(0.0, abs(v) - cfg.coast_deceleration * dt), v)
+                F = vehicle_jacobian(t.x, dt) if t.filter_steps else None
                 t.x, t.P = predict(t.x, t.P, dt, quiet if t.stationary or t.near_held else cfg.noise)
+                if F is not None:  # links the last remembered step to this one (.smoother)
+                    last = t.filter_steps[-1]
+                    last.F, last.x_next, last.P_next = F, t.x.copy(), t.P.copy()
         vehicles = [t for t in self.tracks if not t.pedestrian]
         peds = [t for t in self.tracks if t.pedestrian]
         seen: set[int] = set()
@@ -135,6 +143,8 @@ class Tracker:
                         continue
             keep.append(t)
             t.record(frame.step, cfg.history_steps)
+            if cfg.history_smoothing == "rts" and not t.pedestrian:
+                remember(t.filter_steps, frame.step, t.x, t.P, cfg.smoothing_lag)
         self.tracks = self._prune(keep)
         #: what the last update gave the ego
         self.tracks_given = [t for t in self.tracks if t.confirmed and (cfg.publish_coasted or t.misses == 0)]

@@ -36,6 +36,7 @@ class Track:
     jumps: int = 0  # detections in a row that say a stationary track moves (Tracker._stationarity)
     held: np.ndarray | None = None  # (x, y, theta, length, width) given while stationary (Tracker._hold)
     near_held: bool = False  # unseen beyond max_coast, kept standing near the ego (guards.keep_near)
+    filter_steps: deque = field(default_factory=deque)  # the filter's last steps, to smooth the history (smoother)
 
     @property
     def position(self) -> np.ndarray:
@@ -80,4 +81,5 @@ class Track:
         self.x[3] = -self.x[3]
         self.flip_votes = 0.0
         self.held = None
+        self.filter_steps.clear()  # estimates of the other heading: nothing to smooth with
         self.history = deque((s, np.array([p[0], p[1], wrap(float(p[2]) + math.pi)])) for s, p in self.history)
