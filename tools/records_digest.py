@@ -85,6 +85,18 @@ def write(folder: Path, out: Path, command: str = "") -> dict:
     return digest
 
 
+def _filled(field: str, value):
+    """A run's ``config`` with the RunConfig fields added since a digest was written at their defaults (as
+    avp_experiment resumes such a folder); other fields as they are."""
+    if field != "config" or not isinstance(value, dict):
+        return value
+    from dataclasses import asdict
+
+    from avp_episode.run_config import RunConfig
+
+    return {**asdict(RunConfig()), **value}
+
+
 def check(folder: Path, ref: Path) -> tuple[int, list[str]]:
     """Compare a run with a digest; returns (exit status, report lines)."""
     try:
@@ -97,7 +109,7 @@ def check(folder: Path, ref: Path) -> tuple[int, list[str]]:
         return 2, [f"{ref}: format {want.get('format')!r}, this tool reads {FORMAT}"]
     run, records = read_run(folder)
     for field in ("config", "intent"):
-        if field in want and run.get(field) != want[field]:
+        if field in want and _filled(field, run.get(field)) != _filled(field, want[field]):
             return 2, [f"{folder}/run.json: {field} differs from the digest's, so the records cannot be compared",
                        f"  digest: {json.dumps(want[field], sort_keys=True)}",
                        f"  run:    {json.dumps(run.get(field), sort_keys=True)}"]
