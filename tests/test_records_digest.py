@@ -84,6 +84,17 @@ def test_a_run_with_another_configuration_is_refused_not_compared(tmp_path, reco
     assert "config differs" in out.stdout and '"protocol": "default"' in out.stdout
 
 
+def test_a_config_field_added_since_the_digest_reads_as_its_default(tmp_path, records):
+    """A run whose config has a RunConfig field the digest's lacks (tracker_overrides, added later) is compared when
+    the field holds its default, and refused when it does not."""
+    digest = tmp_path / "d.json"
+    records_digest.write(_run_dir(tmp_path / "ref", records), digest)
+    newer = _run_dir(tmp_path / "newer", records, {**CONFIG, "tracker_overrides": {}})
+    assert _cli("check", str(newer), str(digest)).returncode == 0
+    other = _run_dir(tmp_path / "other", records, {**CONFIG, "tracker_overrides": {"tracking.box_sigmas": 2.0}})
+    assert _cli("check", str(other), str(digest)).returncode == 2
+
+
 def test_a_folder_without_records_gets_one_error_naming_the_file(tmp_path, records):
     out = _cli("check", str(tmp_path), str(tmp_path / "d.json"))
     assert out.returncode != 0 and f"{tmp_path / 'd.json'} not found" in out.stderr and "Traceback" not in out.stderr
