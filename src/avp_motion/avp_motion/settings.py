@@ -56,6 +56,10 @@ class DecisionSettings:
     max_wait: float = 3.0  # wait-and-go: plans may start after waiting up to this long (Nawaz)
     wait_step: float = 0.5
     replan_pose_tolerance: float = 0.05  # ego further than this from the plan's state => replan
+    # extra (beyond §V-D's re-check, which drops a plan the ego is off): under a localiser's estimate, a driven plan
+    # the estimate has drifted off by less than replan_pose_sigmas standard deviations of its covariance is moved
+    # onto the estimate and kept (avp_motion.reanchor); 0 = the paper. Exact sensing reports no covariance: no change
+    replan_pose_sigmas: float = 0.0  # re-anchor a driven plan within this many localisation std devs (0: the paper)
     fallback_prediction: str = "constant_velocity"  # for observed agents without a prediction: | "static" | "none"
     fallback_horizon: float = 3.0  # seconds of the fallback constant-velocity prediction
     dynamic_as_static_fallback: bool = True  # replan around current agent footprints if all plans are blocked
@@ -142,6 +146,7 @@ class PlannerSettings(SearchConfig):
             ("decision.yield_margin", d.yield_margin >= 0),
             ("decision.make_way_after", d.make_way_after >= 0),
             ("decision.keep_plan_window", d.keep_plan_window >= 0),
+            ("decision.replan_pose_sigmas", d.replan_pose_sigmas >= 0),
             ("decision.make_way_reach", d.make_way_reach > 0),
             ("decision.make_way_clear", d.make_way_clear >= d.make_way_reach),
             ("decision.make_way_hold", d.make_way_hold >= 0),

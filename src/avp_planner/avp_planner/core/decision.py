@@ -60,6 +60,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -82,6 +83,7 @@ from avp_motion.planner_types import (
     _Plan,
     _Step,
 )
+from avp_motion.reanchor import HEADING_TOLERANCE, deviation, follow_tolerance, reanchored
 from avp_motion.settings import PlannerSettings
 from avp_motion.trace import blocked_poses, idle_cause
 from avp_motion.yielding import ReactionEvidence
@@ -223,6 +225,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
                                              trace={"mode": "parked"}), st.timing, st.t_start), None
         if self._plan is None:
             return None, None
+        self._reanchor(self._plan, ego, st.obs)
         ok, st.why = self._still_valid(self._plan, ego, st.world, st.dyn)
         if ok and (self._plan.mode == PARK or self._plan.kind == "make_way"):
             return self._finish(self._execute(self._plan, len(st.cands), "executing"), st.timing, st.t_start), None
@@ -311,13 +314,27 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
                                      trace={"mode": IDLE, **self._last_cause}, wanted=self._wanted.copy()),
                             st.timing, st.t_start, st.stats)
 
+    def _reanchor(self, plan: _Plan, ego: np.ndarray, obs: Observation) -> None:
+        """``decision.replan_pose_sigmas``: a plan the pose estimate has drifted off, within the localiser's
+        tolerance, moved onto the estimate (:mod:`avp_motion.reanchor`); nothing for exact sensing or k = 0."""
+        d, k = self.settings.decision, plan.index
+        if d.replan_pose_sigmas <= 0 or obs.ego_covariance is None or k >= len(plan.traj.controls):
+            return
+        off, off_th = deviation(plan.traj.states[k], ego)
+        if off <= d.replan_pose_tolerance and off_th <= HEADING_TOLERANCE:
+            return  # on the plan: as the paper
+        tol, tol_th = follow_tolerance(obs.ego_covariance, d.replan_pose_sigmas, d.replan_pose_tolerance)
+        if off <= tol and off_th <= tol_th:
+            plan.traj = replace(plan.traj, states=reanchored(plan.traj.states, k, ego))
+
     def _still_valid(self, plan: _Plan, ego: np.ndarray, world: StaticWorld, dyn: DynamicObstacles) -> tuple[bool, str]:
         d = self.settings.decision
         k = plan.index
         if k >= len(plan.traj.controls):
             return False, "plan finished"
         exp = plan.traj.states[k]
-        if math.hypot(*(exp[:2] - ego[:2])) > d.replan_pose_tolerance or abs(float(wrap(exp[2] - ego[2]))) > 0.02:
+        off_th = abs(float(wrap(exp[2] - ego[2])))
+        if math.hypot(*(exp[:2] - ego[:2])) > d.replan_pose_tolerance or off_th > HEADING_TOLERANCE:
             return False, "ego off the plan"
         rest = plan.traj.states[k:]
         r1 = rest[1:]
