@@ -32,6 +32,13 @@ def test_idle_causes_counts_the_committed_records(capsys):
     for status, n in Counter(r["status"] for r in recs).items():
         assert f"{status} {n}" in cells[-1]
     assert "no change" in out
+    drive = next(line for line in out.splitlines() if line.startswith("| a |") and line != row)
+    cells = [c.strip() for c in drive.strip("|").split("|")]
+    assert float(cells[1]) == round(sum(r["reversals"] for r in recs) / len(recs), 2)
+    timeouts = [r for r in recs if r["status"] == "timeout"]
+    frozen = sum(max(r["decision_trace"]["idle_spells"], key=lambda sp: sp["start_step"])["steps"] >= 100
+                 for r in timeouts if r["decision_trace"]["idle_spells"])
+    assert int(cells[3]) == len(timeouts) and int(cells[4]) == frozen
 
 
 def test_motion_from_tracks_reads_a_standing_pedestrian_still_with_the_filter():

@@ -1,5 +1,7 @@
 """Where the ego's steps went, per results folder: the mean steps of an episode in each planner mode and the mean
-idle steps by their cause, from each record's decision trace (docs/results/sensing/README.md).
+idle steps by their cause, from each record's decision trace (docs/results/sensing/README.md); then how the ego drove:
+its reversals and new plans an episode, and how many of its timeouts end frozen (a last idle spell of at least
+FROZEN_STEPS steps) rather than still driving.
 
     python tools/idle_causes.py NAME=FOLDER[:METHOD] | NAME=headline:COLUMN/ROW ...
 
@@ -46,6 +48,20 @@ def row(name: str, recs: list[dict]) -> str:
     return f"| {name} | {len(recs)} | " + " | ".join(cells) + f" | {outcome} |"
 
 
+FROZEN_STEPS = 100  # steps (10 s): a timeout whose last idle spell is this long ended frozen
+
+
+def driving(name: str, recs: list[dict]) -> str:
+    """One row of the second table: reversals and new plans an episode, timeouts, those that ended frozen."""
+    n = max(len(recs), 1)
+    rev = sum(r.get("reversals", 0) for r in recs) / n
+    plans = sum((r.get("timings") or {}).get("planning_steps", 0) for r in recs) / n
+    timeouts = [r for r in recs if r["status"] == "timeout"]
+    frozen = sum(max(((r.get("decision_trace") or {}).get("idle_spells") or [{"start_step": 0, "steps": 0}]),
+                     key=lambda sp: sp["start_step"])["steps"] >= FROZEN_STEPS for r in timeouts)
+    return f"| {name} | {rev:.2f} | {plans:.1f} | {len(timeouts)} | {frozen} |"
+
+
 def transitions(first: list[dict], other: list[dict]) -> str:
     """How the outcomes of the seeds both hold changed from ``first`` to ``other``."""
     a = {(r["seed"], r["mode"]): r["status"] for r in first}
@@ -75,6 +91,11 @@ def main(argv: list[str] | None = None) -> int:
             recs = records(Path(folder), method or None)
         items.append((name, recs))
         print(row(name, recs))
+    print()
+    print("| folder | reversals an episode | new plans an episode | timeouts | of them frozen at the end |")
+    print("|---|--:|--:|--:|--:|")
+    for name, recs in items:
+        print(driving(name, recs))
     print()
     for name, recs in items[1:]:
         print(f"* {items[0][0]} -> {name}, outcomes that changed on the {transitions(items[0][1], recs)}")
