@@ -41,11 +41,12 @@ def test_follow_tolerance_is_k_sigmas_never_below_the_plans_own():
     assert follow_tolerance(COV * 1e-4, 2.0, 0.05) == (0.05, 0.02)
 
 
-def _drive(lot, sigmas: float, shift: float, covariance) -> list:
+def _drive(lot, sigmas: float, shift: float, covariance, near: float = 0.0) -> list:
     """Spot 14 of the paper lot, the ego parking there; from step 5 on the estimate drifts ``shift`` m east of where
     the ego is (it follows its controls exactly). Returns the decisions."""
     s = unhurried()
-    planner = EgoPlanner(lot, replace(s, decision=replace(s.decision, evasive=False, replan_pose_sigmas=sigmas),
+    planner = EgoPlanner(lot, replace(s, decision=replace(s.decision, evasive=False, replan_pose_sigmas=sigmas,
+                                                                    replan_pose_near=near),
                                       collision=replace(s.collision, reactive_steps=0)))
     ego, out = np.array([21.5, 25.0, -math.pi / 2]), []
     for k in range(12):
@@ -70,3 +71,14 @@ def test_a_small_drift_keeps_the_plan_only_with_the_switch(paper_lot):
 def test_exact_sensing_and_a_large_drift_search_again(paper_lot):
     assert _drive(paper_lot, 2.0, 0.10, None)[5].replanned  # no covariance: the paper's re-check
     assert _drive(paper_lot, 2.0, 0.50, COV)[5].replanned  # 0.5 m > 2 x 0.15 m
+
+
+def test_near_the_spot_the_papers_recheck_aims_again(paper_lot):
+    """``decision.replan_pose_near``: with more path left than it the plan is moved (kept), with less it is searched
+    again as the paper does."""
+    from avp_motion.reanchor import remaining_length
+
+    first = _drive(paper_lot, 2.0, 0.10, COV)[0]
+    left = remaining_length(first.controls[5:], 0.1)
+    assert not _drive(paper_lot, 2.0, 0.10, COV, near=left - 1.0)[5].replanned
+    assert _drive(paper_lot, 2.0, 0.10, COV, near=left + 1.0)[5].replanned

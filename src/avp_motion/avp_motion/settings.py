@@ -60,6 +60,7 @@ class DecisionSettings:
     # the estimate has drifted off by less than replan_pose_sigmas standard deviations of its covariance is moved
     # onto the estimate and kept (avp_motion.reanchor); 0 = the paper. Exact sensing reports no covariance: no change
     replan_pose_sigmas: float = 0.0  # re-anchor a driven plan within this many localisation std devs (0: the paper)
+    replan_pose_near: float = 0.0  # m: a parking plan with less path left is not re-anchored (0: to the end)
     fallback_prediction: str = "constant_velocity"  # for observed agents without a prediction: | "static" | "none"
     fallback_horizon: float = 3.0  # seconds of the fallback constant-velocity prediction
     dynamic_as_static_fallback: bool = True  # replan around current agent footprints if all plans are blocked
@@ -147,6 +148,7 @@ class PlannerSettings(SearchConfig):
             ("decision.make_way_after", d.make_way_after >= 0),
             ("decision.keep_plan_window", d.keep_plan_window >= 0),
             ("decision.replan_pose_sigmas", d.replan_pose_sigmas >= 0),
+            ("decision.replan_pose_near", d.replan_pose_near >= 0),
             ("decision.make_way_reach", d.make_way_reach > 0),
             ("decision.make_way_clear", d.make_way_clear >= d.make_way_reach),
             ("decision.make_way_hold", d.make_way_hold >= 0),

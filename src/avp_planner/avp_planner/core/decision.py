@@ -83,7 +83,7 @@ from avp_motion.planner_types import (
     _Plan,
     _Step,
 )
-from avp_motion.reanchor import HEADING_TOLERANCE, deviation, follow_tolerance, reanchored
+from avp_motion.reanchor import HEADING_TOLERANCE, deviation, follow_tolerance, reanchored, remaining_length
 from avp_motion.settings import PlannerSettings
 from avp_motion.trace import blocked_poses, idle_cause
 from avp_motion.yielding import ReactionEvidence
@@ -320,6 +320,8 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
         d, k = self.settings.decision, plan.index
         if d.replan_pose_sigmas <= 0 or obs.ego_covariance is None or k >= len(plan.traj.controls):
             return
+        if plan.mode == PARK and remaining_length(plan.traj.controls[k:], plan.traj.dt) < d.replan_pose_near:
+            return  # near the spot the paper's re-check aims at it again, from a short lever arm
         off, off_th = deviation(plan.traj.states[k], ego)
         if off <= d.replan_pose_tolerance and off_th <= HEADING_TOLERANCE:
             return  # on the plan: as the paper
