@@ -68,7 +68,13 @@ def transitions(first: list[dict], other: list[dict]) -> str:
     moves = Counter(f"{a[k]} -> {r['status']}" for r in other if (k := (r["seed"], r["mode"])) in a
                     and a[k] != r["status"])
     shared = sum((r["seed"], r["mode"]) in a for r in other)
-    return f"{shared} shared seeds: " + (", ".join(f"{m} {n}" for m, n in sorted(moves.items())) or "no change")
+    times = {(r["seed"], r["mode"]): r["parking_time"] for r in first if r["status"] == "success"}
+    both = [(times[k], r["parking_time"]) for r in other if r["status"] == "success" and (k := (r["seed"], r["mode"]))
+            in times]
+    paired = (f"; on the {len(both)} both park, parking time {sum(t for t, _ in both) / len(both):.1f} -> "
+              f"{sum(t for _, t in both) / len(both):.1f} s (longer on {sum(u > t for t, u in both)})" if both else "")
+    return (f"{shared} shared seeds: " + (", ".join(f"{m} {n}" for m, n in sorted(moves.items())) or "no change")
+            + paired)
 
 
 def main(argv: list[str] | None = None) -> int:
