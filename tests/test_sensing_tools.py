@@ -44,3 +44,21 @@ def test_idle_causes_counts_the_committed_records(capsys):
 def test_motion_from_tracks_reads_a_standing_pedestrian_still_with_the_filter():
     fast = {m: motion_from_tracks.run("pedestrian", 0.0, 0.15, m, 160, 0)["flagged"] for m in ("difference", "filter")}
     assert fast["difference"] > 0.5 and fast["filter"] < 0.2
+
+
+def test_plan_drops_reruns_the_recorded_episode_and_counts_drops():
+    """tools/plan_drops.py re-runs an episode of the committed busy-lot records: its outcome, steps and reversals are
+    the record's (under noise and, for the same seed, with exact sensing against the headline's exact record), and
+    under noise it counts plans dropped because the estimate left them."""
+    import plan_drops
+
+    folder = ROOT / "docs/results/sensing/grid/busy_realistic/bezier"
+    with gzip.open(folder / "episodes.jsonl.gz", "rt") as f:
+        rec = next(r for r in map(json.loads, f) if r["seed"] == 112)
+    rows, drops = plan_drops.run(folder, [112])
+    assert rows == [(112, rec["status"], rec["steps"], rec["reversals"])]
+    assert drops["park: ego off the plan"] > 0
+    with gzip.open(ROOT / "docs/results/busy_dlp/default_reaction_assumed/episodes.jsonl.gz", "rt") as f:
+        exact = next(r for r in map(json.loads, f) if r["seed"] == 112 and r["method"] == "bezier")
+    rows, drops = plan_drops.run(folder, [112], exact=True)
+    assert rows == [(112, exact["status"], exact["steps"], exact["reversals"])] and not drops

@@ -1,0 +1,96 @@
+"""Why the ego's driven plans are dropped: episodes of a results folder re-run in process, counting each plan the
+planner drops by the reason its re-check gives (§V-D: off the plan, a static obstacle or a predicted agent on it, an
+exploration plan nearly done), with each episode's outcome, steps and reversals (docs/results/sensing/README.md).
+
+    python tools/plan_drops.py OUT SEEDS [--sensing exact] [--planner-param KEY=VALUE ...] [--method bezier]
+
+OUT is a run's folder (its run.json gives the settings; the reactive episode of each seed), SEEDS a comma list or a
+range a-b. ``--sensing exact`` runs the same episodes with the paper's exact sensor; ``--planner-param`` overrides a
+planner value (as ``avp experiment`` does).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections import Counter
+from pathlib import Path
+
+from avp_episode.ego import MethodEgo
+from avp_episode.run_config import run_profile, sim_values, tracker_values
+from avp_episode.sensing import sensed_observer
+from avp_experiment.failures import _config
+from avp_planner.core.decision import EgoPlanner
+from avp_sim.core.factory import load_lot_param, make_world
+
+
+def seeds_of(text: str) -> list[int]:
+    """``1,5,9`` or ``0-19``."""
+    if "-" in text:
+        a, b = text.split("-")
+        return list(range(int(a), int(b) + 1))
+    return [int(s) for s in text.split(",")]
+
+
+def run(out: Path, seeds: list[int], exact: bool = False, overrides: dict | None = None, method: str = "bezier"
+        ) -> tuple[list[tuple[int, str, int, int]], Counter]:
+    """([(seed, status, steps, reversals)], drops by "mode: reason")."""
+    cfg = _config(out)
+    cfg.planner_overrides.update(overrides or {})
+    sim_p = dict(sim_values(cfg))
+    if exact:
+        sim_p["sensing.model"] = "exact"
+    lot = load_lot_param(sim_p["lot_file"])
+    drops: Counter = Counter()
+    original = EgoPlanner._still_valid
+
+    def counted(self, plan, ego, world, dyn):
+        ok, why = original(self, plan, ego, world, dyn)
+        if not ok:
+            drops[f"{plan.mode}: {why}"] += 1
+        return ok, why
+
+    EgoPlanner._still_valid = counted
+    rows = []
+    try:
+        for seed in seeds:
+            world = make_world(lot, sim_p, seed, True)
+            observe = sensed_observer(world, sim_p, seed, tracker_values(cfg)) or world.observe
+            ego = MethodEgo(lot, run_profile(method, cfg), deterministic=True, intent_weights=cfg.intent_weights,
+                            intent_seed=cfg.intent_seed, message_precision=cfg.message_precision)
+            last, reversals, k = 0.0, 0, 0
+            while not world.done:
+                step = ego.step(observe())
+                v = step.command[0]
+                reversals += v * last < 0
+                last = v if v != 0 else last
+                world.step(*step.command)
+                k += 1
+            rows.append((seed, world.status, k, reversals))
+    finally:
+        EgoPlanner._still_valid = original
+    return rows, drops
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("out", type=Path)
+    ap.add_argument("seeds")
+    ap.add_argument("--sensing", choices=("run", "exact"), default="run", help="exact: the paper's sensor instead")
+    ap.add_argument("--planner-param", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--method", default="bezier")
+    args = ap.parse_args(argv)
+    over = {}
+    for item in args.planner_param:
+        key, _, value = item.partition("=")
+        over[key] = float(value)
+    rows, drops = run(args.out, seeds_of(args.seeds), args.sensing == "exact", over, args.method)
+    print("| seed | outcome | steps | reversals |\n|--:|---|--:|--:|")
+    for seed, status, steps, rev in rows:
+        print(f"| {seed} | {status} | {steps} | {rev} |")
+    print(f"\nplans dropped ({sum(drops.values())}): " + ", ".join(f"{k} {n}" for k, n in drops.most_common()))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
