@@ -1,6 +1,7 @@
 """Why the ego's driven plans are dropped: episodes of a results folder re-run in process, counting each plan the
 planner drops by the reason its re-check gives (§V-D: off the plan, a static obstacle or a predicted agent on it, an
-exploration plan nearly done), with each episode's outcome, steps and reversals (docs/results/sensing/README.md).
+exploration plan nearly done), with each episode's outcome, steps, reversals and spot switches (a parking plan to
+another spot than the last parking plan's) (docs/results/sensing/README.md).
 
     python tools/plan_drops.py OUT SEEDS [--sensing exact] [--planner-param KEY=VALUE ...] [--method bezier]
 
@@ -33,8 +34,8 @@ def seeds_of(text: str) -> list[int]:
 
 
 def run(out: Path, seeds: list[int], exact: bool = False, overrides: dict | None = None, method: str = "bezier"
-        ) -> tuple[list[tuple[int, str, int, int]], Counter]:
-    """([(seed, status, steps, reversals)], drops by "mode: reason")."""
+        ) -> tuple[list[tuple[int, str, int, int, int]], Counter]:
+    """([(seed, status, steps, reversals, spot switches)], drops by "mode: reason")."""
     cfg = _config(out)
     cfg.planner_overrides.update(overrides or {})
     sim_p = dict(sim_values(cfg))
@@ -58,15 +59,18 @@ def run(out: Path, seeds: list[int], exact: bool = False, overrides: dict | None
             observe = sensed_observer(world, sim_p, seed, tracker_values(cfg)) or world.observe
             ego = MethodEgo(lot, run_profile(method, cfg), deterministic=True, intent_weights=cfg.intent_weights,
                             intent_seed=cfg.intent_seed, message_precision=cfg.message_precision)
-            last, reversals, k = 0.0, 0, 0
+            last, reversals, k, spot, switches = 0.0, 0, 0, -1, 0
             while not world.done:
                 step = ego.step(observe())
+                if step.decision.mode == "park":
+                    switches += spot >= 0 and step.decision.spot_id != spot
+                    spot = step.decision.spot_id
                 v = step.command[0]
                 reversals += v * last < 0
                 last = v if v != 0 else last
                 world.step(*step.command)
                 k += 1
-            rows.append((seed, world.status, k, reversals))
+            rows.append((seed, world.status, k, reversals, switches))
     finally:
         EgoPlanner._still_valid = original
     return rows, drops
@@ -85,9 +89,9 @@ def main(argv: list[str] | None = None) -> int:
         key, _, value = item.partition("=")
         over[key] = float(value)
     rows, drops = run(args.out, seeds_of(args.seeds), args.sensing == "exact", over, args.method)
-    print("| seed | outcome | steps | reversals |\n|--:|---|--:|--:|")
-    for seed, status, steps, rev in rows:
-        print(f"| {seed} | {status} | {steps} | {rev} |")
+    print("| seed | outcome | steps | reversals | spot switches |\n|--:|---|--:|--:|--:|")
+    for seed, status, steps, rev, switches in rows:
+        print(f"| {seed} | {status} | {steps} | {rev} | {switches} |")
     print(f"\nplans dropped ({sum(drops.values())}): " + ", ".join(f"{k} {n}" for k, n in drops.most_common()))
     return 0
 
