@@ -61,6 +61,9 @@ class DecisionSettings:
     # onto the estimate and kept (avp_motion.reanchor); 0 = the paper. Exact sensing reports no covariance: no change
     replan_pose_sigmas: float = 0.0  # re-anchor a driven plan within this many localisation std devs (0: the paper)
     replan_pose_near: float = 0.0  # m: a parking plan with less path left is not re-anchored (0: to the end)
+    # extra (§V-D-1 takes the lowest c_park afresh at every search): a plan to the spot the last parking plan aimed at
+    # is priced spot_commitment lower, so a search from a pose a few cm aside does not switch spots over a near tie
+    spot_commitment: float = 0.0  # c_park bonus of the spot the last parking plan aimed at (0: the paper)
     fallback_prediction: str = "constant_velocity"  # for observed agents without a prediction: | "static" | "none"
     fallback_horizon: float = 3.0  # seconds of the fallback constant-velocity prediction
     dynamic_as_static_fallback: bool = True  # replan around current agent footprints if all plans are blocked
@@ -149,6 +152,7 @@ class PlannerSettings(SearchConfig):
             ("decision.keep_plan_window", d.keep_plan_window >= 0),
             ("decision.replan_pose_sigmas", d.replan_pose_sigmas >= 0),
             ("decision.replan_pose_near", d.replan_pose_near >= 0),
+            ("decision.spot_commitment", d.spot_commitment >= 0),
             ("decision.make_way_reach", d.make_way_reach > 0),
             ("decision.make_way_clear", d.make_way_clear >= d.make_way_reach),
             ("decision.make_way_hold", d.make_way_hold >= 0),

@@ -139,6 +139,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
         self._make_way_retry = -(10**9)  # no new search for a way out before this step
         self._ped_heading: dict[int, float] = {}  # make_way: the direction each pedestrian last walked in
         self._wanted = np.zeros((0, 3))  # the plan the last idle decision was blocked on (Decision.wanted)
+        self._committed_spot = -1  # decision.spot_commitment: the spot the last parking plan aimed at
 
     def tell_reacting(self, keys) -> None:
         """With ``collision.reactive_evidence: told``: the agents that stop for the ego (keys (is a pedestrian,
@@ -353,6 +354,8 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
         return True, ""
 
     def _execute(self, plan: _Plan, n_cand: int, reason: str, new: bool = False) -> Decision:
+        if new and plan.mode == PARK:
+            self._committed_spot = plan.spot_id
         k = plan.index
         u = plan.traj.controls[k]
         plan.index += 1
