@@ -3,11 +3,12 @@ planner drops by the reason its re-check gives (§V-D: off the plan, a static ob
 exploration plan nearly done), with each episode's outcome, steps, reversals and spot switches (a parking plan to
 another spot than the last parking plan's) (docs/results/sensing/README.md).
 
-    python tools/plan_drops.py OUT SEEDS [--sensing exact] [--planner-param KEY=VALUE ...] [--method bezier]
+    python tools/plan_drops.py OUT SEEDS [--sensing exact] [--planner-param KEY=VALUE ...]
+        [--tracker-param KEY=VALUE ...] [--method bezier]
 
 OUT is a run's folder (its run.json gives the settings; the reactive episode of each seed), SEEDS a comma list or a
 range a-b. ``--sensing exact`` runs the same episodes with the paper's exact sensor; ``--planner-param`` overrides a
-planner value (as ``avp experiment`` does).
+planner value and ``--tracker-param`` a tracker value (as ``avp experiment`` does).
 """
 
 from __future__ import annotations
@@ -33,11 +34,12 @@ def seeds_of(text: str) -> list[int]:
     return [int(s) for s in text.split(",")]
 
 
-def run(out: Path, seeds: list[int], exact: bool = False, overrides: dict | None = None, method: str = "bezier"
-        ) -> tuple[list[tuple[int, str, int, int, int]], Counter]:
+def run(out: Path, seeds: list[int], exact: bool = False, overrides: dict | None = None, method: str = "bezier",
+        tracker: dict | None = None) -> tuple[list[tuple[int, str, int, int, int]], Counter]:
     """([(seed, status, steps, reversals, spot switches)], drops by "mode: reason")."""
     cfg = _config(out)
     cfg.planner_overrides.update(overrides or {})
+    cfg.tracker_overrides.update(tracker or {})
     sim_p = dict(sim_values(cfg))
     if exact:
         sim_p["sensing.model"] = "exact"
@@ -82,13 +84,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("seeds")
     ap.add_argument("--sensing", choices=("run", "exact"), default="run", help="exact: the paper's sensor instead")
     ap.add_argument("--planner-param", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--tracker-param", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--method", default="bezier")
     args = ap.parse_args(argv)
     over = {}
     for item in args.planner_param:
         key, _, value = item.partition("=")
         over[key] = float(value)
-    rows, drops = run(args.out, seeds_of(args.seeds), args.sensing == "exact", over, args.method)
+    tracker = {k: float(v) for k, _, v in (t.partition("=") for t in args.tracker_param)}
+    rows, drops = run(args.out, seeds_of(args.seeds), args.sensing == "exact", over, args.method, tracker)
     print("| seed | outcome | steps | reversals | spot switches |\n|--:|---|--:|--:|--:|")
     for seed, status, steps, rev, switches in rows:
         print(f"| {seed} | {status} | {steps} | {rev} | {switches} |")

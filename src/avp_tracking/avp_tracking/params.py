@@ -69,6 +69,10 @@ TRACKER_PARAMS: list[ParamSpec] = [
               "step before (each step's correction jump reads as motion: a standing pedestrian seems to walk); "
               "filter = the estimate minus the filter's velocity times dt.", "", "§V-C",
               choices=("difference", "filter"), default=_D.pedestrian_velocity),
+    ParamSpec("tracking.static_until_moved", float, "A vehicle track inside a spot is given to the ego as static "
+              "(no intentions, no prediction) until its estimate has once been this far from where it was born: a "
+              "parked car newly seen starts with a noisy speed; 0 = off (static only when slower than "
+              "static_speed) [m].", "", "§V-A", min=0.0, max=10.0, default=_D.static_until_moved),
     ParamSpec("tracking.history_smoothing", str, "A moving vehicle track's history as given to the ego: none = the "
               "filter's estimates step by step (each correction jump reads as a change of speed); rts = its last "
               "smoothing_lag poses smoothed by a fixed-lag Rauch-Tung-Striebel smoother.", "", _WHY,
@@ -130,7 +134,7 @@ def tracker_config(values: dict, dt: float = 0.1, t_hist: float = 4.0) -> Tracke
                          spot_max_log_odds=v["spot_max_log_odds"], near_hold_radius=v["near_hold_radius"],
                          near_hold_max=v["near_hold_max"], box_sigmas=v["box_sigmas"],
                          pedestrian_velocity=v["pedestrian_velocity"], history_smoothing=v["history_smoothing"],
-                         smoothing_lag=v["smoothing_lag"])
+                         smoothing_lag=v["smoothing_lag"], static_until_moved=v["static_until_moved"])
 
 
 def default_tracker_values() -> dict:

@@ -11,6 +11,8 @@ time (:mod:`.spots`), not by this step's reading alone.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from avp_tracking.core.guards import grown_dims
@@ -68,6 +70,21 @@ class TrackingPerception:
             return t.x[:2] - t.x[2:4] * dt
         return (t.previous_position if t.previous_position is not None else t.x[:2]).copy()
 
+    def _is_static(self, t) -> bool:
+        """A vehicle track given as static (a parked car: no intentions, no prediction, §V-A): slower than
+        ``static_speed`` and inside a spot. With ``static_until_moved`` > 0, a track inside a spot is static too until
+        its estimate has once been that far from where it was born: a parked car newly seen starts with a noisy
+        speed, and as a moving car next to a free spot the intent CNN reads it as about to park there."""
+        cfg = self.tracker.cfg
+        if not self.spots.inside(t.x[:2]):
+            return False
+        if abs(t.speed) < cfg.static_speed:
+            return True
+        if cfg.static_until_moved <= 0 or t.born_position is None:
+            return False
+        t.moved = t.moved or math.hypot(*(t.x[:2] - t.born_position)) >= cfg.static_until_moved
+        return not t.moved
+
     def observe(self, frame: SensedFrame) -> Observation:
         new_episode = self.tracker.step is None or frame.step < self.tracker.step  # as the tracker resets itself
         tracks = self.tracker.update(frame)
@@ -77,11 +94,9 @@ class TrackingPerception:
         elif new_episode:
             f.reset()
         vacant, occupied = f.update(frame.ego_pose, frame.vacant_spot_ids, frame.occupied_spot_ids)
-        static_speed = self.tracker.cfg.static_speed
         sigmas = self.tracker.cfg.box_sigmas
         vehicles = tuple(
-            ObservedVehicle(id=int(t.id), length=dims[0], width=dims[1],
-                            is_static=bool(abs(t.speed) < static_speed and self.spots.inside(t.x[:2])),
+            ObservedVehicle(id=int(t.id), length=dims[0], width=dims[1], is_static=self._is_static(t),
                             history=self._history(t))
             for t in tracks if not t.pedestrian for dims in (grown_dims(t, sigmas),))
         peds = tuple(ObservedPedestrian(int(t.id), float(t.radius), t.x[:2].copy(), self._previous(t, frame.dt))

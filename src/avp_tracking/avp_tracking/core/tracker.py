@@ -73,6 +73,7 @@ class TrackerConfig:
     pedestrian_velocity: str = "difference"  # a pedestrian's previous position: last estimate, or "filter" (.perceive)
     history_smoothing: str = "none"  # "rts": a moving vehicle track's last smoothing_lag poses smoothed (.smoother)
     smoothing_lag: int = 10  # steps
+    static_until_moved: float = 0.0  # m: a vehicle track in a spot is given as static until it moved this far; 0 = off
 
 
 class Tracker:
@@ -277,7 +278,7 @@ class Tracker:
         x = np.array([d.pose[0], d.pose[1], wrap(float(d.pose[2])), v, 0.0])
         return Track(id=tid, pedestrian=False, x=x, P=P, born_step=step, length=float(d.length),
                      width=float(d.width), existence=float(d.existence), last_step=step,
-                     confirmed=cfg.n_init <= 1)
+                     confirmed=cfg.n_init <= 1, born_position=x[:2].copy())
 
 
 def _scaled(q: MotionNoise, k: float) -> MotionNoise:

@@ -37,6 +37,8 @@ class Track:
     held: np.ndarray | None = None  # (x, y, theta, length, width) given while stationary (Tracker._hold)
     near_held: bool = False  # unseen beyond max_coast, kept standing near the ego (guards.keep_near)
     filter_steps: deque = field(default_factory=deque)  # the filter's last steps, to smooth the history (smoother)
+    born_position: np.ndarray | None = None  # a vehicle's estimate at birth (tracking.static_until_moved)
+    moved: bool = False  # its estimate has been static_until_moved or more from there (perceive)
 
     @property
     def position(self) -> np.ndarray:
