@@ -444,3 +444,32 @@ def test_history_smoothing_rts_reads_a_steady_car_steady_and_a_braking_one_braki
     assert error(smooth) < 0.85 * error(plain)  # the poses before the last (the last is the filter's own)
     brakes = _car_history_run("rts", lambda k: 2.0 if k < 60 else max(0.0, 2.0 - 0.2 * (k - 60)), steps=75)
     assert braking_share(brakes[22:30]) > 0.5  # steps 62-69: slowing from 1.6 to 0.2 m/s
+
+
+def test_static_until_moved_keeps_a_newly_seen_parked_car_static_and_releases_a_leaving_one(paper_lot):
+    """A parked car in spot 14 first detected with a noisy speed (1 m/s, then 0): without `static_until_moved` its
+    young track is given as a moving car (the intent CNN would read it), with 1 m it is static from the start. A car
+    that drives out of the spot at 1 m/s is given as moving once it has moved 1 m, and not before."""
+    from avp_tracking.core.perceive import TrackingPerception
+
+    spot = paper_lot.spot_poses[paper_lot.spot_index(14)]
+    heading = np.array([math.cos(spot[2]), math.sin(spot[2])])
+
+    def flags(until: float, drive: float) -> list[tuple[bool, float]]:
+        p = TrackingPerception(paper_lot, Tracker(TrackerConfig(static_until_moved=until)))
+        out = []
+        for k in range(40):
+            moved = max(0.0, drive * DT * (k - 10))  # a leaving car starts at step 10
+            x, y = spot[:2] - heading * moved
+            speed = (1.0 if k < 5 else 0.0) if drive == 0 else (-drive if k >= 10 else 0.0)
+            obs = p.observe(_frame(k, [_det(x, y, spot[2], speed, sigma=0.05)]))
+            if obs.vehicles:
+                out.append((obs.vehicles[0].is_static, moved))
+        return out
+
+    paper_flags = flags(0.0, 0.0)
+    assert not all(s for s, _ in paper_flags[:5])  # the noisy start reads as a mover
+    assert all(s for s, _ in flags(1.0, 0.0))
+    leaving = flags(1.0, 1.0)
+    assert all(s for s, m in leaving if m < 0.8)
+    assert any(not s for s, m in leaving if m > 1.3) and not leaving[-1][0]
