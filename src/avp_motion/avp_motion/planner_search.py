@@ -43,7 +43,7 @@ class SearchMixin:
         entries = []
         for it in items:
             goals = self.spot_goals(it) if mode == PARK else it[0][None]
-            bonus = self._commitment_bonus(mode, it)  # decision.spot_commitment; 0 as the paper
+            bonus = self._commitment_bonus(mode, int(self.lot.spot_ids[it]) if mode == PARK else -1)  # 0: paper
             entries.append((0.0 if first_feasible else self._lower_bound(ego, goals, heur) - bonus, it, goals, bonus))
         if not first_feasible:
             entries.sort(key=lambda e: e[0])
@@ -87,19 +87,17 @@ class SearchMixin:
                                     stop_path or res.path, cost, wait, True if mode == PARK else bool(it[1]),
                                     wait_on_path=stop_path is not None))
             best = min(best, cost - bonus)
-        committed = getattr(self, "_committed_spot", -1)
-        found.sort(key=lambda c: c.cost - (self.settings.decision.spot_commitment if c.spot_id == committed
-                                           and mode == PARK else 0.0))
+        found.sort(key=lambda c: c.cost - self._commitment_bonus(mode, c.spot_id))
         return found, blocked_by_agents
 
-    def _commitment_bonus(self, mode: str, row) -> float:
+    def _commitment_bonus(self, mode: str, spot_id: int) -> float:
         """``decision.spot_commitment`` (extra; §V-D-1 takes the lowest c_park afresh at every search): the bonus a
         plan to the spot of the last parking plan gets, so that a search from a pose a few centimetres aside does not
         switch spots over a near tie; 0 for any other item or with the paper's 0."""
         m = self.settings.decision.spot_commitment
         if m <= 0 or mode != PARK:
             return 0.0
-        return m if int(self.lot.spot_ids[row]) == getattr(self, "_committed_spot", -1) else 0.0
+        return m if spot_id == getattr(self, "_committed_spot", -1) else 0.0
 
     def _adopt(self, cands: list[_Candidate], world: StaticWorld, dyn: DynamicObstacles, obs: Observation,
                timing: dict, require_dynamic: bool = True) -> _Plan | None:

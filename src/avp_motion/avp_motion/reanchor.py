@@ -24,6 +24,8 @@ import math
 
 import numpy as np
 
+from avp_search.paths import wrap
+
 HEADING_TOLERANCE = 0.02  # rad: the plan's own heading tolerance (with decision.replan_pose_tolerance in position)
 
 
@@ -59,6 +61,5 @@ def remaining_length(controls: np.ndarray, dt: float) -> float:
 
 
 def deviation(state: np.ndarray, pose: np.ndarray) -> tuple[float, float]:
-    """(position, |heading|) distance of ``pose`` from the plan's ``state``."""
-    dth = math.atan2(math.sin(pose[2] - state[2]), math.cos(pose[2] - state[2]))
-    return math.hypot(pose[0] - state[0], pose[1] - state[1]), abs(dth)
+    """(position, |heading|) distance of ``pose`` from the plan's ``state``, as §V-D's re-check reads it."""
+    return math.hypot(*(state[:2] - pose[:2])), abs(float(wrap(state[2] - pose[2])))

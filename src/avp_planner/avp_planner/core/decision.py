@@ -90,7 +90,6 @@ from avp_motion.yielding import ReactionEvidence
 from avp_planner.core.ego_yield import EgoYieldMixin
 from avp_planner.core.spot_selection import SelectionContext, make_spot_selector
 from avp_search.hybrid_astar import PlanResult
-from avp_search.paths import wrap
 from avp_world.lot import LotMap
 from avp_world.types import Observation, PredictedTrajectory, priority_from_probabilities
 
@@ -335,9 +334,8 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
         k = plan.index
         if k >= len(plan.traj.controls):
             return False, "plan finished"
-        exp = plan.traj.states[k]
-        off_th = abs(float(wrap(exp[2] - ego[2])))
-        if math.hypot(*(exp[:2] - ego[:2])) > d.replan_pose_tolerance or off_th > HEADING_TOLERANCE:
+        off, off_th = deviation(plan.traj.states[k], ego)
+        if off > d.replan_pose_tolerance or off_th > HEADING_TOLERANCE:
             return False, "ego off the plan"
         rest = plan.traj.states[k:]
         r1 = rest[1:]
