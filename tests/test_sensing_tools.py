@@ -55,10 +55,10 @@ def test_plan_drops_reruns_the_recorded_episode_and_counts_drops():
     folder = ROOT / "docs/results/sensing/grid/busy_realistic/bezier"
     with gzip.open(folder / "episodes.jsonl.gz", "rt") as f:
         rec = next(r for r in map(json.loads, f) if r["seed"] == 112)
-    rows, drops = plan_drops.run(folder, [112])
+    rows, drops, causes = plan_drops.run(folder, [112])
     assert rows[0][:4] == (112, rec["status"], rec["steps"], rec["reversals"]) and rows[0][4] >= 4  # 43 <-> 69
-    assert drops["park: ego off the plan"] > 0
+    assert drops["park: ego off the plan"] > 0 and sum(causes.values()) == rows[0][4]
     with gzip.open(ROOT / "docs/results/busy_dlp/default_reaction_assumed/episodes.jsonl.gz", "rt") as f:
         exact = next(r for r in map(json.loads, f) if r["seed"] == 112 and r["method"] == "bezier")
-    rows, drops = plan_drops.run(folder, [112], exact=True)
-    assert rows == [(112, exact["status"], exact["steps"], exact["reversals"], 0)] and not drops
+    rows, drops, causes = plan_drops.run(folder, [112], exact=True)
+    assert rows == [(112, exact["status"], exact["steps"], exact["reversals"], 0)] and not drops and not causes

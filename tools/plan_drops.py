@@ -22,6 +22,7 @@ from avp_episode.ego import MethodEgo
 from avp_episode.run_config import run_profile, sim_values, tracker_values
 from avp_episode.sensing import sensed_observer
 from avp_experiment.failures import _config
+from avp_experiment.runner import parse_planner_params, parse_tracker_params
 from avp_planner.core.decision import EgoPlanner
 from avp_sim.core.factory import load_lot_param, make_world
 
@@ -35,8 +36,10 @@ def seeds_of(text: str) -> list[int]:
 
 
 def run(out: Path, seeds: list[int], exact: bool = False, overrides: dict | None = None, method: str = "bezier",
-        tracker: dict | None = None) -> tuple[list[tuple[int, str, int, int, int]], Counter]:
-    """([(seed, status, steps, reversals, spot switches)], drops by "mode: reason")."""
+        tracker: dict | None = None) -> tuple[list[tuple[int, str, int, int, int]], Counter, Counter]:
+    """([(seed, status, steps, reversals, spot switches)], drops by "mode: reason", switches by what the last
+    target spot was at the switch: not seen vacant, believed taken (b_t > δ as the planner received it), or still a
+    candidate)."""
     cfg = _config(out)
     cfg.planner_overrides.update(overrides or {})
     cfg.tracker_overrides.update(tracker or {})
@@ -45,6 +48,7 @@ def run(out: Path, seeds: list[int], exact: bool = False, overrides: dict | None
         sim_p["sensing.model"] = "exact"
     lot = load_lot_param(sim_p["lot_file"])
     drops: Counter = Counter()
+    causes: Counter = Counter()
     original = EgoPlanner._still_valid
 
     def counted(self, plan, ego, world, dyn):
@@ -62,10 +66,14 @@ def run(out: Path, seeds: list[int], exact: bool = False, overrides: dict | None
             ego = MethodEgo(lot, run_profile(method, cfg), deterministic=True, intent_weights=cfg.intent_weights,
                             intent_seed=cfg.intent_seed, message_precision=cfg.message_precision)
             last, reversals, k, spot, switches = 0.0, 0, 0, -1, 0
+            delta = ego.planner.settings.decision.candidate_threshold
             while not world.done:
-                step = ego.step(observe())
+                obs = observe()
+                step = ego.step(obs)
                 if step.decision.mode == "park":
-                    switches += spot >= 0 and step.decision.spot_id != spot
+                    if spot >= 0 and step.decision.spot_id != spot:
+                        switches += 1
+                        causes[_switch_cause(lot, obs, step.beliefs, spot, delta)] += 1
                     spot = step.decision.spot_id
                 v = step.command[0]
                 reversals += v * last < 0
@@ -75,7 +83,15 @@ def run(out: Path, seeds: list[int], exact: bool = False, overrides: dict | None
             rows.append((seed, world.status, k, reversals, switches))
     finally:
         EgoPlanner._still_valid = original
-    return rows, drops
+    return rows, drops, causes
+
+
+def _switch_cause(lot, obs, beliefs, spot: int, delta: float) -> str:
+    if spot not in {int(s) for s in obs.vacant_spot_ids}:
+        return "last spot not seen vacant"
+    if beliefs is not None and beliefs[lot.spot_index(spot)] > delta:
+        return "last spot believed taken (b > δ)"
+    return "last spot still a candidate"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -87,16 +103,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tracker-param", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--method", default="bezier")
     args = ap.parse_args(argv)
-    over = {}
-    for item in args.planner_param:
-        key, _, value = item.partition("=")
-        over[key] = float(value)
-    tracker = {k: float(v) for k, _, v in (t.partition("=") for t in args.tracker_param)}
-    rows, drops = run(args.out, seeds_of(args.seeds), args.sensing == "exact", over, args.method, tracker)
+    over = parse_planner_params(args.planner_param)
+    tracker = parse_tracker_params(args.tracker_param)
+    rows, drops, causes = run(args.out, seeds_of(args.seeds), args.sensing == "exact", over, args.method, tracker)
     print("| seed | outcome | steps | reversals | spot switches |\n|--:|---|--:|--:|--:|")
     for seed, status, steps, rev, switches in rows:
         print(f"| {seed} | {status} | {steps} | {rev} | {switches} |")
-    print(f"\nplans dropped ({sum(drops.values())}): " + ", ".join(f"{k} {n}" for k, n in drops.most_common()))
+    print(f"\nspot switches ({sum(causes.values())}): " + ", ".join(f"{k} {n}" for k, n in causes.most_common()))
+    print(f"plans dropped ({sum(drops.values())}): " + ", ".join(f"{k} {n}" for k, n in drops.most_common()))
     return 0
 
 

@@ -70,6 +70,7 @@ class _Plan:
     wait_from: int = 0  # ... from this control on (0: at its start; > 0: at a stop on the way, mechanism c)
     kind: str = ""  # "detour" / "evasive": how it was found (the trace's mode); "" = its mode
     wait_cause: dict = field(default_factory=dict)  # who it waits for (avp_motion.trace.blocker_trace)
+    steer: np.ndarray | None = None  # decision.pose_drift steer: the estimate this step's control steers back from
 
 
 @dataclass

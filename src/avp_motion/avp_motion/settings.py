@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 
 from avp_search.settings import CollisionSettings, SearchConfig, SearchSettings
 
+POSE_DRIFT_RESPONSES = ("reanchor", "steer")  # decision.pose_drift
+
 __all__ = ["CollisionSettings", "SearchSettings", "SearchConfig", "ControlSettings", "CostSettings",
            "DecisionSettings", "PlannerSettings", "DEFAULT_SETTINGS"]
 
@@ -61,9 +63,15 @@ class DecisionSettings:
     # onto the estimate and kept (avp_motion.reanchor); 0 = the paper. Exact sensing reports no covariance: no change
     replan_pose_sigmas: float = 0.0  # re-anchor a driven plan within this many localisation std devs (0: the paper)
     replan_pose_near: float = 0.0  # m: a parking plan with less path left is not re-anchored (0: to the end)
+    # within those std devs: reanchor = the plan moved onto the estimate; steer = the plan kept in the lot's frame and
+    # the estimate steered back onto it (avp_motion.drift_steer)
+    pose_drift: str = "reanchor"  # what replan_pose_sigmas does with a drifted-off plan: reanchor | steer
     # extra (§V-D-1 takes the lowest c_park afresh at every search): a plan to the spot the last parking plan aimed at
     # is priced spot_commitment lower, so a search from a pose a few cm aside does not switch spots over a near tie
     spot_commitment: float = 0.0  # c_park bonus of the spot the last parking plan aimed at (0: the paper)
+    # extra (§V-D-1 reads this step's b_t): an observed vacant spot's belief read as the lower median of its eq. (8)
+    # values over its last belief_window vacant steps (avp_motion.belief_window), so a one-step spike is not seen
+    belief_window: int = 1  # steps of an observed vacant spot's belief the planner reads (1: this step's, the paper)
     fallback_prediction: str = "constant_velocity"  # for observed agents without a prediction: | "static" | "none"
     fallback_horizon: float = 3.0  # seconds of the fallback constant-velocity prediction
     dynamic_as_static_fallback: bool = True  # replan around current agent footprints if all plans are blocked
@@ -152,7 +160,9 @@ class PlannerSettings(SearchConfig):
             ("decision.keep_plan_window", d.keep_plan_window >= 0),
             ("decision.replan_pose_sigmas", d.replan_pose_sigmas >= 0),
             ("decision.replan_pose_near", d.replan_pose_near >= 0),
+            ("decision.pose_drift", d.pose_drift in POSE_DRIFT_RESPONSES),
             ("decision.spot_commitment", d.spot_commitment >= 0),
+            ("decision.belief_window", 1 <= d.belief_window <= 100),
             ("decision.make_way_reach", d.make_way_reach > 0),
             ("decision.make_way_clear", d.make_way_clear >= d.make_way_reach),
             ("decision.make_way_hold", d.make_way_hold >= 0),

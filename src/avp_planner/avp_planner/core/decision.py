@@ -65,6 +65,8 @@ from dataclasses import replace
 import numpy as np
 
 from avp_collision.static import DynamicObstacles, StaticWorld
+from avp_motion.belief_window import BeliefWindow
+from avp_motion.drift_steer import follows, steer_control
 from avp_motion.making_way import MakeWayMixin
 from avp_motion.planner_candidates import CandidatesMixin
 from avp_motion.planner_inputs import InputsMixin
@@ -139,6 +141,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
         self._ped_heading: dict[int, float] = {}  # make_way: the direction each pedestrian last walked in
         self._wanted = np.zeros((0, 3))  # the plan the last idle decision was blocked on (Decision.wanted)
         self._committed_spot = -1  # decision.spot_commitment: the spot the last parking plan aimed at
+        self._belief_window = BeliefWindow(self.lot.n_spots, self.settings.decision.belief_window)
 
     def tell_reacting(self, keys) -> None:
         """With ``collision.reactive_evidence: told``: the agents that stop for the ego (keys (is a pedestrian,
@@ -203,6 +206,9 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
                       time_budget: float | None = None) -> _Step:
         """Beliefs, static world, predicted obstacles and candidate spots of this step (spot-selection time)."""
         b = self.update_beliefs(obs).copy() if beliefs is None else np.asarray(beliefs, dtype=float)
+        if self.settings.decision.belief_window > 1:  # extra: a vacant spot's belief over its last steps
+            vacant = [self.lot.spot_index(s) for s in np.asarray(obs.vacant_spot_ids).tolist()]
+            b = self._belief_window.read(b, np.asarray(vacant, dtype=np.int64))
         ego = np.asarray(obs.ego_pose, dtype=float)
         t0 = time.perf_counter()
         world = self._static_world(obs, b)
@@ -318,10 +324,16 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
         """``decision.replan_pose_sigmas``: a plan the pose estimate has drifted off, within the localiser's
         tolerance, moved onto the estimate (:mod:`avp_motion.reanchor`); nothing for exact sensing or k = 0."""
         d, k = self.settings.decision, plan.index
+        plan.steer = None
         if d.replan_pose_sigmas <= 0 or obs.ego_covariance is None or k >= len(plan.traj.controls):
             return
         if plan.mode == PARK and remaining_length(plan.traj.controls[k:], plan.traj.dt) < d.replan_pose_near:
             return  # near the spot the paper's re-check aims at it again, from a short lever arm
+        if d.pose_drift == "steer":  # kept in the lot's frame, steered back to (avp_motion.drift_steer)
+            tol = follow_tolerance(obs.ego_covariance, d.replan_pose_sigmas, d.replan_pose_tolerance)
+            if follows(plan.traj.states, k, ego, tol, self.settings.control.lateral_correction_length):
+                plan.steer = np.array(ego[:3], dtype=float)
+            return
         off, off_th = deviation(plan.traj.states[k], ego)
         if off <= d.replan_pose_tolerance and off_th <= HEADING_TOLERANCE:
             return  # on the plan: as the paper
@@ -335,7 +347,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
         if k >= len(plan.traj.controls):
             return False, "plan finished"
         off, off_th = deviation(plan.traj.states[k], ego)
-        if off > d.replan_pose_tolerance or off_th > HEADING_TOLERANCE:
+        if plan.steer is None and (off > d.replan_pose_tolerance or off_th > HEADING_TOLERANCE):
             return False, "ego off the plan"
         rest = plan.traj.states[k:]
         r1 = rest[1:]
@@ -356,6 +368,10 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
             self._committed_spot = plan.spot_id
         k = plan.index
         u = plan.traj.controls[k]
+        if plan.steer is not None:  # decision.pose_drift steer: the estimate steered back onto the plan
+            c = self.settings.control
+            u = steer_control(plan.traj.states, plan.traj.controls, k, plan.steer, c.dt,
+                              c.lateral_correction_length, self.settings.vehicle.max_curvature)
         plan.index += 1
         trace = ({"mode": "wait_and_go", **plan.wait_cause} if plan.wait_from <= k < plan.wait_from + plan.wait_steps
                  else {"mode": plan.kind or plan.mode})
