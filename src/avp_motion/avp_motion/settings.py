@@ -65,7 +65,7 @@ class DecisionSettings:
     replan_pose_near: float = 0.0  # m: a parking plan with less path left is not re-anchored (0: to the end)
     # within those std devs: reanchor = the plan moved onto the estimate; steer = the plan kept in the lot's frame and
     # the estimate steered back onto it (avp_motion.drift_steer)
-    pose_drift: str = "reanchor"  # what replan_pose_sigmas does with a drifted-off plan: reanchor | steer
+    pose_drift: str = "reanchor"  # what replan_pose_sigmas does with a drifted-off plan: reanchor or steer
     # extra (§V-D-1 takes the lowest c_park afresh at every search): a plan to the spot the last parking plan aimed at
     # is priced spot_commitment lower, so a search from a pose a few cm aside does not switch spots over a near tie
     spot_commitment: float = 0.0  # c_park bonus of the spot the last parking plan aimed at (0: the paper)
