@@ -473,3 +473,39 @@ def test_static_until_moved_keeps_a_newly_seen_parked_car_static_and_releases_a_
     leaving = flags(1.0, 1.0)
     assert all(s for s, m in leaving if m < 0.8)
     assert any(not s for s, m in leaving if m > 1.3) and not leaving[-1][0]
+
+
+def test_the_oracle_is_told_the_truth_in_the_frame_and_ids_of_what_it_sees(paper_lot):
+    """Under noisy sensing the oracle's told futures are moved into the pose estimate's frame and named by the tracks
+    that follow the agents (avp_episode.oracle.seen_through): each track's told future starts where the track is, an
+    agent no track follows keeps a negative id, and the reacting set is named the same way."""
+    from avp_episode.oracle import ground_truth, seen_through
+    from avp_episode.run_config import RunConfig, sim_values
+    from avp_episode.sensing import sensed_observer
+    from avp_planner.scripted_driver import ScriptedDriver
+    from avp_sim.core.factory import make_world
+
+    p = sim_values(RunConfig(sim_overrides={"sensing.model": "realistic"}))
+    world = make_world(paper_lot, p, 3, True)
+    observe, driver = sensed_observer(world, p, 3), ScriptedDriver(paper_lot)
+    matched = unmatched = 0
+    for _ in range(60):
+        obs = observe()
+        truth = ground_truth(world, 4.0)
+        seen = seen_through(truth, world, obs)
+        assert len(seen.trajectories) == len(truth.trajectories) and seen.target_spots == truth.target_spots
+        tracks = {v.id: v for v in obs.vehicles}
+        for told, p_true in zip(seen.trajectories, truth.trajectories, strict=True):
+            if told.agent_id in tracks:
+                matched += 1
+                first = np.asarray(p_true.poses[0][:2])  # a step on from the agent: within a metre of its track
+                near = np.asarray(tracks[told.agent_id].history[-1][:2])
+                assert np.hypot(*(told.poses[0][:2] - near)) < 1.5
+                assert not np.allclose(told.poses[0][:2], first)  # moved into the estimate's frame
+            else:
+                unmatched += 1
+                assert told.agent_id == -1 - p_true.agent_id
+        assert {k for k in seen.reacting if not k[0]} <= {(False, i) for i in tracks} | {
+            (False, -1 - i) for i in world.vehicle_ids}
+        world.step(*driver.command(obs))
+    assert matched >= 5 and unmatched > 0

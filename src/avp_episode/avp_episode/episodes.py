@@ -22,7 +22,7 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
     ``on_step(world, ego_step)``, if given, is called after every step (the failure analysis watches episodes)."""
     from avp_episode.ego import MethodEgo
     from avp_episode.metrics import episode_record, lot_record, prediction_errors
-    from avp_episode.oracle import OracleEgo, ground_truth
+    from avp_episode.oracle import OracleEgo, ground_truth, seen_through
     from avp_sim.core.factory import make_world
 
     t0 = time.perf_counter()
@@ -42,7 +42,8 @@ def run_episode_inproc(lot, sim_p: dict, profile: MethodProfile, seed: int, reac
     while not world.done:
         obs = observe()
         if profile.ground_truth:  # the oracle bound, and only it, is told the simulator's state (.oracle)
-            ego.tell(ground_truth(world, ORACLE_HORIZON))
+            truth = ground_truth(world, ORACLE_HORIZON)
+            ego.tell(truth if noisy is None else seen_through(truth, world, obs))
         out = ego.step(obs)
         preds[out.step] = [p for p in out.predictions if not p.is_pedestrian]
         if noisy is not None:  # tracks: scored against the vehicle each follows (truth for scoring only)

@@ -16,6 +16,14 @@ What the oracle knows at step t, for every dynamic vehicle (observed or not):
   ``collision.reactive_evidence: told`` (:meth:`avp_planner.core.decision.EgoPlanner.tell_reacting`), so the
   bound checks its plans with the braking rule of every agent that reacts and of no other (docs/research/unfreezing.md).
   Its own n_pass stays unknown: the check's look-ahead is ``collision.reactive_steps``.
+
+Under noisy sensing (``sensing.model`` other than exact) the ego sees tracks, with the tracker's ids, placed in the
+map with its pose estimate. :func:`seen_through` then gives the truth as that observation carries it: every future
+moved into the estimate's frame (the rigid motion that takes the true ego pose onto the estimate, as the sensor
+places its detections), and every agent named by the id of the track that follows it (an optimal one-to-one pairing
+within 2 m); an agent no track follows keeps a negative id (-1 - its simulator id), which no track carries. So
+the bound is told every plan of the world it sees, and plans around the tracks it sees with their told futures,
+not with a constant-velocity guess (what the planner gives an observed agent without a prediction).
 """
 
 from __future__ import annotations
@@ -58,6 +66,38 @@ def ground_truth(world, horizon: float) -> GroundTruth:
     reacting = {(False, int(world.vehicle_ids[i])) for i in np.nonzero(world.is_dynamic & (world.passiveness > 0))[0]}
     reacting |= {(True, int(world.ped_ids[j])) for j in np.nonzero(world.ped_pass > 0)[0]}
     return GroundTruth(tuple(targets), tuple(trajs), frozenset(reacting))
+
+
+def seen_through(truth: GroundTruth, world, obs: Observation, max_distance: float = 2.0) -> GroundTruth:
+    """``truth`` (of ``world``'s current step) in the frame and with the agent ids of the noisy observation ``obs``
+    (see the module docstring); the target spots are kept."""
+    from dataclasses import replace
+
+    from avp_sensing.noisy import pair_ids
+
+    true_ego, est = np.asarray(world.ego, dtype=float), np.asarray(obs.ego_pose, dtype=float)
+    dth = float(est[2] - true_ego[2])
+    rot = np.array([[np.cos(dth), -np.sin(dth)], [np.sin(dth), np.cos(dth)]])
+
+    def moved(poses: np.ndarray) -> np.ndarray:
+        out = np.array(poses, dtype=float, copy=True).reshape(-1, 3)
+        out[:, :2] = est[:2] + (out[:, :2] - true_ego[:2]) @ rot.T
+        out[:, 2] = np.arctan2(np.sin(out[:, 2] + dth), np.cos(out[:, 2] + dth))
+        return out
+
+    def ids(est_xy, est_ids, true_xy, true_ids) -> dict[int, int]:  # true id -> track id
+        pairs = pair_ids(est_xy, est_ids, moved(np.column_stack([np.asarray(true_xy, float).reshape(-1, 2),
+                                                                  np.zeros(len(true_xy))]))[:, :2],
+                         true_ids, max_distance)
+        return {t: e for e, t in pairs.items()}
+
+    veh = ids([v.history[-1][:2] for v in obs.vehicles], [v.id for v in obs.vehicles], world.states[:, :2],
+              world.vehicle_ids)
+    ped = ids([p.position for p in obs.pedestrians], [p.id for p in obs.pedestrians], world.ped_pos, world.ped_ids)
+    trajs = tuple(replace(p, agent_id=veh.get(int(p.agent_id), -1 - int(p.agent_id)), poses=moved(p.poses))
+                  for p in truth.trajectories)
+    reacting = frozenset((is_ped, (ped if is_ped else veh).get(i, -1 - i)) for is_ped, i in truth.reacting)
+    return GroundTruth(truth.target_spots, trajs, reacting)
 
 
 def apply_targets(beliefs: np.ndarray, lot, truth: GroundTruth) -> np.ndarray:

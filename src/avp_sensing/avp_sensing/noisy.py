@@ -312,12 +312,20 @@ def truth_ids(world, obs, max_distance: float = 2.0) -> dict[int, int]:
     """For scoring only: the simulator id of the vehicle each of ``obs``'s tracks follows now (an optimal one-to-one
     pairing of the tracks' current estimates with the world's vehicles, within ``max_distance`` m); a track that
     follows no vehicle (clutter) is left out. The ego never sees this."""
-    from scipy.optimize import linear_sum_assignment
-
     if not obs.vehicles or not len(world.states):
         return {}
-    est = np.array([v.history[-1][:2] for v in obs.vehicles])
-    d = np.hypot(est[:, None, 0] - world.states[None, :, 0], est[:, None, 1] - world.states[None, :, 1])
+    return pair_ids(np.array([v.history[-1][:2] for v in obs.vehicles]), [v.id for v in obs.vehicles],
+                    world.states[:, :2], world.vehicle_ids, max_distance)
+
+
+def pair_ids(est_xy: np.ndarray, est_ids, true_xy: np.ndarray, true_ids, max_distance: float) -> dict[int, int]:
+    """{estimate id: true id} of an optimal one-to-one pairing of the points ``est_xy`` with ``true_xy`` (the sum of
+    distances least), pairs within ``max_distance`` m only."""
+    from scipy.optimize import linear_sum_assignment
+
+    est_xy, true_xy = np.asarray(est_xy, float).reshape(-1, 2), np.asarray(true_xy, float).reshape(-1, 2)
+    if not len(est_xy) or not len(true_xy):
+        return {}
+    d = np.hypot(est_xy[:, None, 0] - true_xy[None, :, 0], est_xy[:, None, 1] - true_xy[None, :, 1])
     rows, cols = linear_sum_assignment(np.where(d < max_distance, d, 1e9))
-    return {int(obs.vehicles[r].id): int(world.vehicle_ids[c]) for r, c in zip(rows, cols, strict=True)
-            if d[r, c] < max_distance}
+    return {int(est_ids[r]): int(true_ids[c]) for r, c in zip(rows, cols, strict=True) if d[r, c] < max_distance}
