@@ -79,17 +79,15 @@ def seen_through(truth: GroundTruth, world, obs: Observation, max_distance: floa
     dth = float(est[2] - true_ego[2])
     rot = np.array([[np.cos(dth), -np.sin(dth)], [np.sin(dth), np.cos(dth)]])
 
+    def placed(xy: np.ndarray) -> np.ndarray:  # a true position where the sensor places it (the estimate's frame)
+        return est[:2] + (np.asarray(xy, dtype=float).reshape(-1, 2) - true_ego[:2]) @ rot.T
+
     def moved(poses: np.ndarray) -> np.ndarray:
-        out = np.array(poses, dtype=float, copy=True).reshape(-1, 3)
-        out[:, :2] = est[:2] + (out[:, :2] - true_ego[:2]) @ rot.T
-        out[:, 2] = np.arctan2(np.sin(out[:, 2] + dth), np.cos(out[:, 2] + dth))
-        return out
+        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+        return np.column_stack([placed(poses[:, :2]), np.arctan2(np.sin(poses[:, 2] + dth), np.cos(poses[:, 2] + dth))])
 
     def ids(est_xy, est_ids, true_xy, true_ids) -> dict[int, int]:  # true id -> track id
-        pairs = pair_ids(est_xy, est_ids, moved(np.column_stack([np.asarray(true_xy, float).reshape(-1, 2),
-                                                                  np.zeros(len(true_xy))]))[:, :2],
-                         true_ids, max_distance)
-        return {t: e for e, t in pairs.items()}
+        return {t: e for e, t in pair_ids(est_xy, est_ids, placed(true_xy), true_ids, max_distance).items()}
 
     veh = ids([v.history[-1][:2] for v in obs.vehicles], [v.id for v in obs.vehicles], world.states[:, :2],
               world.vehicle_ids)

@@ -18,6 +18,8 @@ import math
 
 import numpy as np
 
+from avp_motion.reanchor import deviation
+
 
 def steer_control(states: np.ndarray, controls: np.ndarray, k: int, pose: np.ndarray, dt: float,
                   correction_length: float, max_curvature: float) -> tuple[float, float]:
@@ -46,7 +48,5 @@ def follows(states: np.ndarray, k: int, pose: np.ndarray, tolerance: tuple[float
             correction_length: float) -> bool:
     """Whether the estimate ``pose`` is within ``tolerance`` (position, heading) of the plan's state ``k``, the
     heading allowed the steering's own turn on top."""
-    ref = np.asarray(states[k], dtype=float)
-    off = math.hypot(float(pose[0] - ref[0]), float(pose[1] - ref[1]))
-    dth = abs((float(pose[2]) - float(ref[2]) + math.pi) % (2.0 * math.pi) - math.pi)
+    off, dth = deviation(np.asarray(states[k], dtype=float), np.asarray(pose, dtype=float))
     return off <= tolerance[0] and dth <= tolerance[1] + heading_allowance(tolerance[0], correction_length)

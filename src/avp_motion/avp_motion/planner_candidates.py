@@ -22,10 +22,13 @@ from avp_world.types import Observation
 class CandidatesMixin:
     """Methods of :class:`~avp_planner.core.decision.EgoPlanner`; see the module docstring."""
 
+    def vacant_rows(self, obs: Observation) -> np.ndarray:
+        """Indices (into ``lot.spots``) of the observed vacant spots I_vac,t, in the observation's order."""
+        return np.asarray([self.lot.spot_index(s) for s in np.asarray(obs.vacant_spot_ids).tolist()], dtype=np.int64)
+
     def candidate_spots(self, obs: Observation, beliefs: np.ndarray) -> np.ndarray:
         """Indices (into ``lot.spots``) of I_can,0 = {i in I_vac,t : b_t,i <= δ} (§V-D-1)."""
-        idx = [self.lot.spot_index(s) for s in np.asarray(obs.vacant_spot_ids).tolist()]
-        idx = sorted(i for i in idx if beliefs[i] <= self.settings.decision.candidate_threshold)
+        idx = sorted(int(i) for i in self.vacant_rows(obs) if beliefs[i] <= self.settings.decision.candidate_threshold)
         return np.asarray(idx, dtype=np.int64)
 
     def spot_goals(self, k: int) -> np.ndarray:

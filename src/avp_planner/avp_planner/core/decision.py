@@ -207,8 +207,7 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
         """Beliefs, static world, predicted obstacles and candidate spots of this step (spot-selection time)."""
         b = self.update_beliefs(obs).copy() if beliefs is None else np.asarray(beliefs, dtype=float)
         if self.settings.decision.belief_window > 1:  # extra: a vacant spot's belief over its last steps
-            vacant = [self.lot.spot_index(s) for s in np.asarray(obs.vacant_spot_ids).tolist()]
-            b = self._belief_window.read(b, np.asarray(vacant, dtype=np.int64))
+            b = self._belief_window.read(b, self.vacant_rows(obs))
         ego = np.asarray(obs.ego_pose, dtype=float)
         t0 = time.perf_counter()
         world = self._static_world(obs, b)
@@ -322,7 +321,8 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
 
     def _reanchor(self, plan: _Plan, ego: np.ndarray, obs: Observation) -> None:
         """``decision.replan_pose_sigmas``: a plan the pose estimate has drifted off, within the localiser's
-        tolerance, moved onto the estimate (:mod:`avp_motion.reanchor`); nothing for exact sensing or k = 0."""
+        tolerance, moved onto the estimate (``decision.pose_drift`` reanchor, :mod:`avp_motion.reanchor`) or kept and
+        marked to be steered back to (steer, :mod:`avp_motion.drift_steer`); nothing for exact sensing or k = 0."""
         d, k = self.settings.decision, plan.index
         plan.steer = None
         if d.replan_pose_sigmas <= 0 or obs.ego_covariance is None or k >= len(plan.traj.controls):
@@ -346,9 +346,10 @@ class EgoPlanner(InputsMixin, CandidatesMixin, SearchMixin, SafetyMixin, MakeWay
         k = plan.index
         if k >= len(plan.traj.controls):
             return False, "plan finished"
-        off, off_th = deviation(plan.traj.states[k], ego)
-        if plan.steer is None and (off > d.replan_pose_tolerance or off_th > HEADING_TOLERANCE):
-            return False, "ego off the plan"
+        if plan.steer is None:  # a plan being steered back to was checked against its tolerance (_reanchor)
+            off, off_th = deviation(plan.traj.states[k], ego)
+            if off > d.replan_pose_tolerance or off_th > HEADING_TOLERANCE:
+                return False, "ego off the plan"
         rest = plan.traj.states[k:]
         r1 = rest[1:]
         if not world.free_xyc(r1[:, 0], r1[:, 1], np.cos(r1[:, 2]), np.sin(r1[:, 2]), plan.margins[k + 1:]).all():
