@@ -40,3 +40,35 @@ def test_the_table_names_every_predictor_and_sensing_row():
            **{k: [1.0, 2.0] for k in ("oracle_learned", "oracle_bezier", "intent_learned", "intent_bezier", "cv")}}
     text = table([row, {**row, "sensing": "exact", "intent_bezier": None}])
     assert text.count("1.00 / 2.00") == 9 and "–" in text and "| realistic |" in text
+
+
+def test_train_sensing_mixes_the_training_splits_and_keys_the_cache(both, tmp_path):
+    """``--train-sensing exact,realistic``: the training and validation splits are the same episodes seen both ways,
+    concatenated; the test sets stay exact; the cache is keyed by the presets, so exact-only data is not reused."""
+    import argparse
+
+    from avp_trajectory_training.data import TrajDataSpec, TrajSamples
+    from avp_training.run import cached_split, sensing_list
+
+    calls = []
+
+    def generate_from_fixture(name, n, spec, workers=1, progress=False, sensing="exact"):
+        calls.append((name, sensing))
+        return both[0] if sensing == "exact" else both[1]
+
+    args = argparse.Namespace(reuse_data=True, workers=1, quiet=True, train_sensing=sensing_list("exact,realistic"))
+    spec, log = TrajDataSpec(), (lambda msg: None)
+    s, _ = cached_split("t", "train", 1, spec, args, tmp_path, generate_from_fixture, TrajSamples.load, log)
+    assert calls == [("train", "exact"), ("train", "realistic")]
+    assert len(s) == len(both[0]) + len(both[1])
+    np.testing.assert_array_equal(s.history[len(both[0]):], both[1].history)
+    calls.clear()
+    again, _ = cached_split("t", "train", 1, spec, args, tmp_path, generate_from_fixture, TrajSamples.load, log)
+    assert calls == [] and len(again) == len(s)  # same presets: read back
+    exact_only = argparse.Namespace(**{**vars(args), "train_sensing": sensing_list("exact")})
+    cached_split("t", "train", 1, spec, exact_only, tmp_path, generate_from_fixture, TrajSamples.load, log)
+    cached_split("t", "test", 1, spec, args, tmp_path, generate_from_fixture, TrajSamples.load, log)
+    assert calls == [("train", "exact"), ("test", "exact")]
+    with pytest.raises(argparse.ArgumentTypeError, match="foggy"):
+        sensing_list("exact,foggy")
+    assert sensing_list("realistic, exact,realistic") == ("realistic", "exact")

@@ -46,6 +46,21 @@ def add_train_arguments(p: argparse.ArgumentParser, scales: dict = SCALES, out: 
     p.add_argument("--epochs", type=int, default=None, help="override the scale's maximum number of epochs")
     p.add_argument("--reuse-data", action="store_true", help="reuse OUT/data/*.npz made with the same settings")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_argument("--train-sensing", default="exact", type=sensing_list,
+                   help="sensing presets the training and validation episodes are seen through, comma-separated: "
+                        "exact (the shipped weights), or e.g. exact,realistic: the same episodes once exactly and "
+                        "once through the noisy sensor and the tracker (docs/perception.md); test sets stay exact")
+
+
+def sensing_list(text: str) -> tuple[str, ...]:
+    """``--train-sensing``: comma-separated presets of avp_sensing.noisy (or exact), each once."""
+    from avp_sensing.noisy import PRESETS
+
+    names = tuple(dict.fromkeys(t.strip() for t in text.split(",") if t.strip()))
+    bad = [n for n in names if n != "exact" and n not in PRESETS]
+    if not names or bad:
+        raise argparse.ArgumentTypeError(f"expected exact or presets of {sorted(PRESETS)}, got {text!r}")
+    return names
 
 
 def add_intent_arguments(p: argparse.ArgumentParser) -> None:
@@ -74,11 +89,16 @@ def cached_split(prog: str, name: str, n: int, spec, args, data_dir: Path, gener
     ``avp train-trajectory``."""
     path, meta = data_dir / f"{name}.npz", data_dir / f"{name}.json"
     key = {"split": name, "episodes": n, "spec": repr(spec)}
+    sensing = split_sensing(name, args)
+    if sensing != ("exact",):
+        key["sensing"] = list(sensing)
     if args.reuse_data and path.is_file() and meta.is_file() and json.loads(meta.read_text()) == key:
         log(f"[{prog}] reusing {path}")
         return load(path), 0.0
     t0 = time.monotonic()
-    s = generate(name, n, spec, workers=args.workers, progress=not args.quiet)
+    parts = [generate(name, n, spec, workers=args.workers, progress=not args.quiet, sensing=preset)
+             for preset in sensing]
+    s = parts[0] if len(parts) == 1 else type(parts[0]).concat(parts)
     dt = time.monotonic() - t0
     s.save(path)
     meta.write_text(json.dumps(key))
@@ -87,6 +107,13 @@ def cached_split(prog: str, name: str, n: int, spec, args, data_dir: Path, gener
 
 
 SPLITS = ("train", "val", "test", "paper")
+
+
+def split_sensing(name: str, args: argparse.Namespace) -> tuple[str, ...]:
+    """The presets split ``name`` is seen through: ``--train-sensing`` for training and validation (the best epoch is
+    chosen on the same mix), exact for the test sets (the model card's figures; noisy ones by the noisy_eval
+    modules)."""
+    return tuple(getattr(args, "train_sensing", None) or ("exact",)) if name in ("train", "val") else ("exact",)
 
 
 def start_run(prog: str, args: argparse.Namespace, scales: dict, default_weights: Path, file_name: str, base_config,
@@ -124,14 +151,16 @@ def save_weights(save, model, weights: Path, out: Path, file_name: str) -> None:
         save(model, out / file_name)
 
 
-def card_provenance(prog: str, model, weights: Path, scale: str) -> dict:
-    """The model card fields every training command records: size, command line, commit, scale."""
+def card_provenance(prog: str, model, weights: Path, scale: str, train_sensing=("exact",)) -> dict:
+    """The model card fields every training command records: size, command line, commit, scale, the sensing the
+    training and validation episodes were seen through."""
     return {
         "parameters": int(sum(p.numel() for p in model.parameters())),
         "weights_bytes": weights.stat().st_size,
         "command": f"avp {prog} " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if len(sys.argv) > 1 else "",
         "commit": source_commit(__file__),
         "scale": scale,
+        "train_sensing": list(train_sensing),
     }
 
 
@@ -198,7 +227,7 @@ def cmd_train_intent(args: argparse.Namespace) -> int:
     card = {
         "model": "SmallRegularizedCNN (ParkPredict+), 100 x 100 px BEV at 0.4 m/px, "
                  f"{config.n_features} features: {', '.join(FEATURE_NAMES[: config.n_features])}",
-        **card_provenance("train-intent", model, weights, args.scale),
+        **card_provenance("train-intent", model, weights, args.scale, args.train_sensing),
         "data": {name: {"episodes": n, "samples": len(sets[name]),
                         "mean_options": float(sets[name].n_candidates.mean() + 1) if len(sets[name]) else 0.0,
                         "none_share": float((sets[name].labels == 0).mean()) if len(sets[name]) else 0.0}

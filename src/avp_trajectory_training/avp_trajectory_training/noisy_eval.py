@@ -3,7 +3,7 @@
 (docs/trajectory_model.md: the same seeds, traffic and observer tour), per sensing preset.
 
     python -m avp_trajectory_training.noisy_eval [--sensing exact,realistic,harsh] [--test 50] [--paper 60]
-        [--workers 2] [--json out/noisy_trajectory.json]
+        [--workers 2] [--weights out/trajectory/trajectory_transformer.pt] [--json out/noisy_trajectory.json]
 
 Under noise a sample is a track the observer's tracker confirmed that follows a traffic car: its history is the
 track's (shorter for a young track, noisy), its future and goal the car's from the simulator's log (labels only),
@@ -25,13 +25,14 @@ COLUMNS = (("oracle_learned", "learned (true goal)"), ("oracle_bezier", "Bézier
            ("cv", "constant velocity"))
 
 
-def evaluate_presets(presets: list[str], episodes: dict[str, int], workers: int) -> list[dict]:
-    """One row per (preset, set, group): n and [minADE, minFDE] of each predictor."""
+def evaluate_presets(presets: list[str], episodes: dict[str, int], workers: int, weights: str = "") -> list[dict]:
+    """One row per (preset, set, group): n and [minADE, minFDE] of each predictor; the learned model's weights
+    from ``weights`` (default: the shipped ones)."""
     from avp_predictors.learned_prediction import default_weights_path, load_model
     from avp_trajectory_training.data import generate
     from avp_trajectory_training.train import evaluate
 
-    model = load_model(default_weights_path())
+    model = load_model(Path(weights) if weights else default_weights_path())
     rows = []
     for preset in presets:
         for name in SETS:
@@ -66,12 +67,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--test", type=int, default=50, help="held-out traffic episodes (the model card's 50)")
     ap.add_argument("--paper", type=int, default=60, help="paper-lot scenarios (the model card's 60)")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--weights", default="", help="the learned model's weights (default: the shipped ones)")
     ap.add_argument("--json", default="")
     args = ap.parse_args(argv)
     import torch
 
     torch.set_num_threads(1)
-    rows = evaluate_presets(args.sensing.split(","), {"test": args.test, "paper": args.paper}, args.workers)
+    rows = evaluate_presets(args.sensing.split(","), {"test": args.test, "paper": args.paper}, args.workers,
+                            args.weights)
     print(table(rows))
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)

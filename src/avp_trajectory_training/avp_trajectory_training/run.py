@@ -69,7 +69,7 @@ def cmd_train_trajectory(args: argparse.Namespace) -> int:
     card = {
         "model": "TrajectoryTransformer (ParkPredict+ decoder with intent cross-attention), 0.4 s step, "
                  "10 history / 10 future poses, 100 x 100 px BEV",
-        **card_provenance("train-trajectory", model, weights, args.scale),
+        **card_provenance("train-trajectory", model, weights, args.scale, args.train_sensing),
         "seeds": {name: [TRAJ_SEED0[name], TRAJ_SEED0[name] + n - 1] for name, n in episodes.items()},
         "data": {name: {"episodes": n, "samples": len(sets[name]),
                         "goal_kinds": np.bincount(sets[name].goal_kind, minlength=3).tolist()}
