@@ -47,8 +47,8 @@ def test_train_sensing_mixes_the_training_splits_and_keys_the_cache(both, tmp_pa
     concatenated; the test sets stay exact; the cache is keyed by the presets, so exact-only data is not reused."""
     import argparse
 
-    from avp_trajectory_training.data import TrajDataSpec, TrajSamples
     from avp_training.run import cached_split, sensing_list
+    from avp_trajectory_training.data import TrajDataSpec, TrajSamples
 
     calls = []
 
