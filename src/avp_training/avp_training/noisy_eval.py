@@ -4,7 +4,7 @@ seeds, traffic and observer tour as the committed figures, only the observer's s
 split, the Bayes observer that knows the driver model (:mod:`.oracle`) on the same samples.
 
     python -m avp_training.noisy_eval [--sensing exact,realistic,harsh] [--split test] [--episodes 60]
-        [--workers 2] [--json out/noisy_intent.json]
+        [--workers 2] [--weights out/intent/intent_cnn.pt] [--json out/noisy_intent.json]
 
 Under noise a sample is a *track* the observer's tracker confirmed; its label is the spot the vehicle it follows
 takes (the simulator's truth, for the label only). Fewer samples exist than with exact sensing (missed and
@@ -20,14 +20,15 @@ import time
 from pathlib import Path
 
 
-def evaluate_presets(presets: list[str], split: str, episodes: int, workers: int) -> list[dict]:
+def evaluate_presets(presets: list[str], split: str, episodes: int, workers: int, weights: str = "") -> list[dict]:
     """One row per preset: the CNN's top-1 / top-3 and its baseline; on the held-out split also the Bayes observer
-    of :mod:`.oracle` beside the CNN on the same samples, per group (docs/intent_model.md)."""
+    of :mod:`.oracle` beside the CNN on the same samples, per group (docs/intent_model.md). The CNN's weights from
+    ``weights`` (default: the shipped ones)."""
     from avp_predictors.intent_model import IntentPredictor
     from avp_training.dataset import DataSpec, generate_split
     from avp_training.train import evaluate
 
-    model = IntentPredictor.pretrained().model
+    model = IntentPredictor.pretrained(path=weights or None).model
     rows = []
     for preset in presets:
         t0 = time.perf_counter()
@@ -51,12 +52,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--split", default="test", choices=("test", "paper", "val"))
     ap.add_argument("--episodes", type=int, default=60)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--weights", default="", help="the intent CNN's weights (default: the shipped ones)")
     ap.add_argument("--json", default="")
     args = ap.parse_args(argv)
     import torch
 
     torch.set_num_threads(1)
-    rows = evaluate_presets(args.sensing.split(","), args.split, args.episodes, args.workers)
+    rows = evaluate_presets(args.sensing.split(","), args.split, args.episodes, args.workers, args.weights)
     print("| split | sensing | samples | top-1 | top-3 | nearest-ahead top-1 | label a spot: top-1 | "
           "label none: top-1 |")
     print("|---|---|--:|--:|--:|--:|--:|--:|")
