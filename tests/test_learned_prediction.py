@@ -258,6 +258,25 @@ def test_shipped_weights_card_and_forward_motion(paper_lot):
     assert np.all(np.diff(t.poses[:, 1]) < 0.05)  # never backwards
 
 
+
+def test_weights_named_in_the_models_folder_load_the_tracked_model(paper_lot):
+    """``learned.weights: trajectory_transformer_tracked.pt`` names the model trained on tracked histories too
+    (docs/trajectory_model.md): loaded from the package's models/, other weights than the shipped ones, its card
+    records the sensing its training episodes were seen through."""
+    from dataclasses import replace
+
+    from avp_predictors.prediction import LearnedPredictionSettings
+
+    name = "trajectory_transformer_tracked.pt"
+    card = json.loads((default_weights_path().parent / name).with_suffix(".json").read_text())
+    assert card["train_sensing"] == ["exact", "realistic"]
+    cfg = replace(PredictionConfig(), learned=LearnedPredictionSettings(weights=name))
+    tracked = make_predictor("learned", paper_lot, cfg)
+    assert name in tracked.info and "shipped" not in tracked.info
+    shipped = make_predictor("learned", paper_lot)
+    a, b = (dict(m.model.named_parameters()) for m in (tracked, shipped))
+    assert a.keys() == b.keys() and any(not torch.equal(a[k], b[k]) for k in a)
+
 @pytest.mark.slow
 @_NO_WEIGHTS
 def test_shipped_weights_beat_constant_velocity_on_fresh_episodes():

@@ -81,7 +81,7 @@ class HybridAStarPredictionSettings:
 class LearnedPredictionSettings:
     """The ``"learned"`` predictor (:mod:`.learned_prediction`): weights and inference settings."""
 
-    weights: str = ""  # trajectory transformer file; empty: the shipped models/trajectory_transformer.pt, else random
+    weights: str = ""  # trajectory transformer file or a name in models/; empty: the shipped one, else random
     seed: int = 0  # seed of the random weights (used only without a weights file)
     threads: int = 1  # torch.set_num_threads at start-up (1: deterministic and fastest on a shared CPU)
     t_hist: float = 4.0  # s of ego poses kept for the ego's trail in the BEVs (as the belief node's t_hist)

@@ -229,9 +229,12 @@ def load_model(path: str | Path) -> TrajectoryTransformer:
 
 
 def make_model(weights: str = "", seed: int = 0) -> tuple[TrajectoryTransformer, str]:
-    """The model and a line saying which weights: ``weights`` file, else the shipped file if present, else
-    seeded random weights (valid but uninformative output)."""
+    """The model and a line saying which weights: ``weights`` file (or the name of a file in the package's models/,
+    e.g. ``trajectory_transformer_tracked.pt``), else the shipped file if present, else seeded random weights (valid
+    but uninformative output)."""
     p = Path(weights) if weights else default_weights_path()
+    if weights and not p.is_file() and (default_weights_path().parent / weights).is_file():
+        p = default_weights_path().parent / weights
     if weights and not p.is_file():
         raise ValueError(f"trajectory weights {p}: no such file")
     if p.is_file():
