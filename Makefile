@@ -33,13 +33,13 @@ bench: setup
 # 2 cores), checked against the committed digests (tools/records_digest.py; docs/experiment.md "Records check").
 RECORD_METHODS := bezier,constant_velocity,hybrid_astar,learned,implicit,nawaz,oracle,blind
 records-check: setup
-	@source tools/env.sh && for p in default paper; do \
+	@source tools/env.sh && rc=0 && for p in default paper; do \
 		rm -rf out/records_check/$$p && \
 		avp experiment --protocol $$p --scenarios 50 --mode both --methods $(RECORD_METHODS) \
-			--workers $${WORKERS:-2} --no-progress --out out/records_check/$$p > /dev/null && \
-		echo "protocol $$p:" && \
+			--workers $${WORKERS:-2} --no-progress --out out/records_check/$$p > /dev/null || exit 2; \
+		echo "protocol $$p:"; \
 		python tools/records_digest.py check out/records_check/$$p docs/results/reference_records/$${p}_50x8x2.json \
-			|| exit 1; done
+			|| rc=1; done; exit $$rc
 
 # Every figure of the README's results table (config/suites/headline.yaml): `make results` runs the whole suite into
 # out/results (hours on 2 cores; resumable, WORKERS=N, or BACKEND=ray), `make results QUICK=1` a small one into
