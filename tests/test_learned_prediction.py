@@ -258,7 +258,6 @@ def test_shipped_weights_card_and_forward_motion(paper_lot):
     assert np.all(np.diff(t.poses[:, 1]) < 0.05)  # never backwards
 
 
-
 def test_weights_named_in_the_models_folder_load_the_tracked_model(paper_lot):
     """``learned.weights: trajectory_transformer_tracked.pt`` names the model trained on tracked histories too
     (docs/trajectory_model.md): loaded from the package's models/, other weights than the shipped ones, its card
@@ -276,6 +275,7 @@ def test_weights_named_in_the_models_folder_load_the_tracked_model(paper_lot):
     shipped = make_predictor("learned", paper_lot)
     a, b = (dict(m.model.named_parameters()) for m in (tracked, shipped))
     assert a.keys() == b.keys() and any(not torch.equal(a[k], b[k]) for k in a)
+
 
 @pytest.mark.slow
 @_NO_WEIGHTS

@@ -76,6 +76,7 @@ from avp_predictors.trajectory_net import (  # noqa: F401 - re-exported: the pre
     make_model,
     save_model,
     sinusoidal_encoding,
+    weights_path,
 )
 from avp_world.geometry import wrap_angle
 from avp_world.lot import LotMap

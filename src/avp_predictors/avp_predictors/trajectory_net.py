@@ -228,13 +228,18 @@ def load_model(path: str | Path) -> TrajectoryTransformer:
     return model.eval()
 
 
-def make_model(weights: str = "", seed: int = 0) -> tuple[TrajectoryTransformer, str]:
-    """The model and a line saying which weights: ``weights`` file (or the name of a file in the package's models/,
-    e.g. ``trajectory_transformer_tracked.pt``), else the shipped file if present, else seeded random weights (valid
-    but uninformative output)."""
+def weights_path(weights: str = "") -> Path:
+    """The file ``weights`` names: a path, or the name of a file in the package's models/ (e.g.
+    ``trajectory_transformer_tracked.pt``); empty: the shipped file (:func:`default_weights_path`)."""
     p = Path(weights) if weights else default_weights_path()
-    if weights and not p.is_file() and (default_weights_path().parent / weights).is_file():
-        p = default_weights_path().parent / weights
+    in_models = default_weights_path().parent / weights
+    return in_models if weights and not p.is_file() and in_models.is_file() else p
+
+
+def make_model(weights: str = "", seed: int = 0) -> tuple[TrajectoryTransformer, str]:
+    """The model and a line saying which weights: the file ``weights`` names (:func:`weights_path`), else the shipped
+    file if present, else seeded random weights (valid but uninformative output)."""
+    p = weights_path(weights)
     if weights and not p.is_file():
         raise ValueError(f"trajectory weights {p}: no such file")
     if p.is_file():

@@ -27,12 +27,12 @@ COLUMNS = (("oracle_learned", "learned (true goal)"), ("oracle_bezier", "Bézier
 
 def evaluate_presets(presets: list[str], episodes: dict[str, int], workers: int, weights: str = "") -> list[dict]:
     """One row per (preset, set, group): n and [minADE, minFDE] of each predictor; the learned model's weights
-    from ``weights`` (default: the shipped ones)."""
-    from avp_predictors.learned_prediction import default_weights_path, load_model
+    from the file ``weights`` names (a path or a name in the package's models/; default: the shipped ones)."""
+    from avp_predictors.learned_prediction import load_model, weights_path
     from avp_trajectory_training.data import generate
     from avp_trajectory_training.train import evaluate
 
-    model = load_model(Path(weights) if weights else default_weights_path())
+    model = load_model(weights_path(weights))
     rows = []
     for preset in presets:
         for name in SETS:
