@@ -4,11 +4,12 @@ exploration plan nearly done), with each episode's outcome, steps, reversals and
 another spot than the last parking plan's) (docs/results/sensing/README.md).
 
     python tools/plan_drops.py OUT SEEDS [--sensing exact] [--planner-param KEY=VALUE ...]
-        [--tracker-param KEY=VALUE ...] [--method bezier]
+        [--tracker-param KEY=VALUE ...] [--method bezier] [--mode reactive]
 
-OUT is a run's folder (its run.json gives the settings; the reactive episode of each seed), SEEDS a comma list or a
-range a-b. ``--sensing exact`` runs the same episodes with the paper's exact sensor; ``--planner-param`` overrides a
-planner value and ``--tracker-param`` a tracker value (as ``avp experiment`` does).
+OUT is a run's folder (its run.json gives the settings; each seed's episode in ``--mode``, reactive unless told:
+`contested` is non-reactive), SEEDS a comma list or a range a-b. ``--sensing exact`` runs the same episodes with
+the paper's exact sensor; ``--planner-param`` overrides a planner value and ``--tracker-param`` a tracker value (as
+``avp experiment`` does).
 """
 
 from __future__ import annotations
@@ -36,7 +37,8 @@ def seeds_of(text: str) -> list[int]:
 
 
 def run(out: Path, seeds: list[int], exact: bool = False, overrides: dict | None = None, method: str = "bezier",
-        tracker: dict | None = None) -> tuple[list[tuple[int, str, int, int, int]], Counter, Counter]:
+        tracker: dict | None = None, reactive: bool = True
+        ) -> tuple[list[tuple[int, str, int, int, int]], Counter, Counter]:
     """([(seed, status, steps, reversals, spot switches)], drops by "mode: reason", switches by what the last
     target spot was at the switch: not seen vacant, believed taken (b_t > δ as the planner received it), or still a
     candidate)."""
@@ -61,7 +63,7 @@ def run(out: Path, seeds: list[int], exact: bool = False, overrides: dict | None
     rows = []
     try:
         for seed in seeds:
-            world = make_world(lot, sim_p, seed, True)
+            world = make_world(lot, sim_p, seed, reactive)
             observe = sensed_observer(world, sim_p, seed, tracker_values(cfg)) or world.observe
             ego = MethodEgo(lot, run_profile(method, cfg), deterministic=True, intent_weights=cfg.intent_weights,
                             intent_seed=cfg.intent_seed, message_precision=cfg.message_precision)
@@ -102,10 +104,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--planner-param", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--tracker-param", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--method", default="bezier")
+    ap.add_argument("--mode", choices=("reactive", "non-reactive"), default="reactive")
     args = ap.parse_args(argv)
     over = parse_planner_params(args.planner_param)
     tracker = parse_tracker_params(args.tracker_param)
-    rows, drops, causes = run(args.out, seeds_of(args.seeds), args.sensing == "exact", over, args.method, tracker)
+    rows, drops, causes = run(args.out, seeds_of(args.seeds), args.sensing == "exact", over, args.method, tracker,
+                              args.mode == "reactive")
     print("| seed | outcome | steps | reversals | spot switches |\n|--:|---|--:|--:|--:|")
     for seed, status, steps, rev, switches in rows:
         print(f"| {seed} | {status} | {steps} | {rev} | {switches} |")
