@@ -62,3 +62,17 @@ def test_plan_drops_reruns_the_recorded_episode_and_counts_drops():
         exact = next(r for r in map(json.loads, f) if r["seed"] == 112 and r["method"] == "bezier")
     rows, drops, causes = plan_drops.run(folder, [112], exact=True)
     assert rows == [(112, exact["status"], exact["steps"], exact["reversals"], 0)] and not drops and not causes
+
+
+def test_plan_drops_reruns_a_contested_episode_in_its_own_mode():
+    """`contested` is non-reactive: with ``reactive=False`` the re-run is the record (seed 170, a racing car drives
+    into the ego); the reactive episode of the same seed is another (its car brakes and the ego parks)."""
+    import plan_drops
+
+    folder = ROOT / "docs/results/sensing/grid/contested_realistic/bezier"
+    with gzip.open(folder / "episodes.jsonl.gz", "rt") as f:
+        rec = next(r for r in map(json.loads, f) if r["seed"] == 170)
+    rows, _, _ = plan_drops.run(folder, [170], reactive=False)
+    assert rec["status"] == "collision" and rows[0][:4] == (170, rec["status"], rec["steps"], rec["reversals"])
+    rows, _, _ = plan_drops.run(folder, [170], reactive=True)
+    assert rows[0][1:3] != (rec["status"], rec["steps"])
