@@ -402,6 +402,11 @@ def test_intent_identity_names_the_weights_without_machine_paths(tmp_path):
     assert intent_identity(RunConfig(intent_weights=given)).endswith(f" ({given})")
     with pytest.raises(ValueError, match="no such file"):
         intent_identity(RunConfig(intent_weights=str(tmp_path / "missing.pt")))
+    # a name in avp_predictors/models/ (as --intent-weights and the belief node's intent.weights take it): that file
+    named = intent_identity(RunConfig(intent_weights=shipped.name))
+    assert named == f"sha256:{hashlib.sha256(shipped.read_bytes()).hexdigest()} ({shipped.name})"
+    with pytest.raises(ValueError, match="no such file"):
+        intent_identity(RunConfig(intent_weights="no_such_model.pt"))
 
 
 @pytest.mark.slow

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -404,3 +405,25 @@ def test_columns_the_network_does_not_read_are_skipped_not_changed(tmp_path):
     for a, b in zip(f_full, f_five, strict=True):
         np.testing.assert_array_equal(a[:, :5], b[:, :5])
     assert all(np.all(b[:, 11] == 0.0) for b in f_five)  # slow_roll_distance: not tracked for this network
+
+
+def test_weights_named_in_the_models_folder(tmp_path, monkeypatch):
+    """``intent.weights`` takes a path or the name of a file in avp_predictors/models/: the name loads that file
+    (here the shipped one, by name), a path wins over a models/ file of the same name, an unknown name is one error
+    naming it."""
+    from avp_perception.core.pipeline import make_intent_predictor
+    from avp_predictors.intent_model import default_weights_path, weights_path
+
+    shipped = default_weights_path()
+    if not shipped.is_file():
+        pytest.skip("no shipped weights")
+    assert weights_path(shipped.name) == shipped and weights_path("") == shipped
+    pred, info = make_intent_predictor(LOT, weights=shipped.name)
+    assert str(shipped) in info
+    ref = IntentPredictor.pretrained(LOT).model.state_dict()
+    assert all(torch.equal(a, ref[k]) for k, a in pred.model.state_dict().items())
+    torch.save(IntentPredictor(LOT, seed=3).model.state_dict(), tmp_path / shipped.name)
+    monkeypatch.chdir(tmp_path)
+    assert weights_path(shipped.name) == Path(shipped.name)  # the local file, not the package's
+    with pytest.raises(FileNotFoundError, match="no_such_model.pt"):
+        IntentPredictor.pretrained(LOT, path="no_such_model.pt")

@@ -43,8 +43,9 @@ def intent_identity(cfg: RunConfig) -> str:
     """Which intent weights the episodes use: 'sha256:<hex> (shipped)', 'sha256:<hex> (<path as given>)' or
     'random seed N' (no machine-specific path: summaries made on two machines compare)."""
     from avp_perception.core.pipeline import shipped_weights_path
+    from avp_predictors.intent_model import weights_path
 
-    path = Path(cfg.intent_weights) if cfg.intent_weights else shipped_weights_path()
+    path = weights_path(cfg.intent_weights) if cfg.intent_weights else shipped_weights_path()
     if path is None:
         return f"random seed {cfg.intent_seed}"
     if not path.is_file():

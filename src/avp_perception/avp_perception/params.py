@@ -44,9 +44,9 @@ BELIEF_NODE_PARAMS = [
               min=0.0, max=1.0, default=BELIEF_INIT),
     ParamSpec("t_hist", float, "Ego poses kept for the ego's trail in the other vehicles' BEVs (as the "
               "observed histories).", "t_hist", "§III-A", min=0.0, max=20.0, default=4.0),
-    ParamSpec("intent.weights", str, "Intent CNN state-dict file; empty = the shipped weights "
-              "(avp_predictors/models/intent_cnn.pt) if present, else untrained seeded random weights. The "
-              "node logs which.", "", "§V-A", default=""),
+    ParamSpec("intent.weights", str, "Intent CNN state-dict file, or the name of one in avp_predictors/models/ "
+              "(e.g. intent_cnn_tracked.pt); empty = the shipped weights (avp_predictors/models/intent_cnn.pt) if "
+              "present, else untrained seeded random weights. The node logs which.", "", "§V-A", default=""),
     ParamSpec("intent.seed", int, "Seed of the random weights (used only without a weights file).", "", "§V-A",
               min=0, max=2**31 - 1, default=0),
     ParamSpec("intent.mode", str, "Inference path (all compute the same logits; incremental is fastest).", "",

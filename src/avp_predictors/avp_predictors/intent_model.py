@@ -82,6 +82,7 @@ from avp_predictors.intent_net import (  # noqa: F401 - re-exported: the model's
     max_pool_2x2,
     receptive_field,
     sigmoid_normalise,
+    weights_path,
 )
 from avp_predictors.intention import Intention, split_none_mass
 from avp_world.lot import LotMap
@@ -176,9 +177,9 @@ class IntentPredictor:
     @classmethod
     def pretrained(cls, lot: LotMap | None = None, bev_config: BEVConfig = BEVConfig(), mode: str = "incremental",
                    path: str | Path | None = None) -> IntentPredictor:
-        """An intent model with trained weights: ``path`` or the shipped ones (:func:`default_weights_path`).
+        """An intent model with trained weights: ``path`` (or a name in models/) or the shipped ones.
         FileNotFoundError names a missing file."""
-        p = Path(path) if path is not None else default_weights_path()
+        p = weights_path(str(path)) if path is not None else default_weights_path()
         if not p.is_file():
             raise FileNotFoundError(f"intent weights {p}: no such file (run `avp train-intent`)")
         pred = cls(lot, bev_config, mode=mode)

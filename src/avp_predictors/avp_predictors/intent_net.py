@@ -13,6 +13,7 @@ import torch
 from torch import nn
 
 from avp_predictors.intent_features import N_FEATURES
+from avp_predictors.weights import resolve_weights
 
 KERNELS = (7, 5, 3)
 CHANNELS = (3, 8, 8, 3)
@@ -110,6 +111,12 @@ def default_weights_path() -> Path:
     """Where the shipped intent CNN weights live: ``avp_predictors/models/intent_cnn.pt`` (made by
     ``avp train-intent``; a JSON card with the same stem records data, command and accuracy)."""
     return Path(__file__).resolve().parent / "models" / WEIGHTS_FILE
+
+
+def weights_path(weights: str = "") -> Path:
+    """The file ``weights`` names: a path, or the name of a file in the package's models/ (e.g.
+    ``intent_cnn_tracked.pt``); empty: the shipped file (:func:`default_weights_path`)."""
+    return resolve_weights(weights, default_weights_path())
 
 
 def _cell_range(lo: int, hi: int, n_out: int, field: int, stride: int) -> tuple[int, int]:

@@ -14,6 +14,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from avp_predictors.intent_model import CHANNELS, KERNELS, SLOPE, SmallRegularizedCNN, conv_output_size
+from avp_predictors.weights import resolve_weights
 
 MODEL_DT = 0.4  # s between model poses (ParkPredict+'s stride, sheet §2.1)
 N_HIST = 10  # history poses t - 3.6 s ... t
@@ -231,9 +232,7 @@ def load_model(path: str | Path) -> TrajectoryTransformer:
 def weights_path(weights: str = "") -> Path:
     """The file ``weights`` names: a path, or the name of a file in the package's models/ (e.g.
     ``trajectory_transformer_tracked.pt``); empty: the shipped file (:func:`default_weights_path`)."""
-    p = Path(weights) if weights else default_weights_path()
-    in_models = default_weights_path().parent / weights
-    return in_models if weights and not p.is_file() and in_models.is_file() else p
+    return resolve_weights(weights, default_weights_path())
 
 
 def make_model(weights: str = "", seed: int = 0) -> tuple[TrajectoryTransformer, str]:

@@ -27,6 +27,7 @@ from avp_belief_map.ego_trail import EgoTrail
 from avp_perception.core.nawaz import NawazOccupancy
 from avp_predictors.implicit import ego_intention
 from avp_predictors.intent_model import IntentPredictor, default_weights_path
+from avp_predictors.intent_model import weights_path as intent_weights_path
 from avp_predictors.intention import Intention
 from avp_predictors.prediction import PredictionConfig, make_predictor
 from avp_world.lot import LotMap
@@ -159,12 +160,12 @@ def make_intent_predictor(lot: LotMap | None, bev_config: BEVConfig = BEVConfig(
                           mode: str = "incremental") -> tuple[IntentPredictor, str]:
     """The intent model of §V-A and a line saying which weights it runs with.
 
-    ``weights``: a state-dict file (``torch.save(model.state_dict(), path)``); empty = the shipped weights
-    (:func:`shipped_weights_path`) if present, else seeded random weights (valid but uninformative).
-    A file that cannot be loaded raises ValueError naming it.
+    ``weights``: a state-dict file (``torch.save(model.state_dict(), path)``) or the name of one in the package's
+    models/ (e.g. ``intent_cnn_tracked.pt``); empty = the shipped weights (:func:`shipped_weights_path`) if present,
+    else seeded random weights (valid but uninformative). A file that cannot be loaded raises ValueError naming it.
     """
     intent = IntentPredictor(lot, bev_config, seed=seed, mode=mode)
-    path = Path(weights) if weights else shipped_weights_path()
+    path = intent_weights_path(weights) if weights else shipped_weights_path()
     if path is None:
         return intent, f"intent CNN: untrained seeded random weights (seed {seed}); no shipped weights found"
     try:
