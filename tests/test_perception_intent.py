@@ -427,3 +427,26 @@ def test_weights_named_in_the_models_folder(tmp_path, monkeypatch):
     assert weights_path(shipped.name) == Path(shipped.name)  # the local file, not the package's
     with pytest.raises(FileNotFoundError, match="no_such_model.pt"):
         IntentPredictor.pretrained(LOT, path="no_such_model.pt")
+
+
+def test_the_tracked_intent_model_ships_as_an_option():
+    """``intent.weights: intent_cnn_tracked.pt`` names the intent CNN trained on tracked histories too
+    (docs/results/sensing/README.md): loaded from the package's models/, other weights than the shipped ones; its card
+    records the sensing of its training episodes and its exact held-out top-1 (below the shipped model's, hence an
+    option)."""
+    import json
+
+    from avp_perception.core.pipeline import make_intent_predictor
+    from avp_predictors.intent_model import default_weights_path
+
+    name = "intent_cnn_tracked.pt"
+    models = default_weights_path().parent
+    card = json.loads((models / name).with_suffix(".json").read_text())
+    shipped_card = json.loads(default_weights_path().with_suffix(".json").read_text())
+    assert card["train_sensing"] == ["exact", "realistic"]
+    assert card["metrics"]["test"]["n"] == shipped_card["metrics"]["test"]["n"]
+    assert card["metrics"]["test"]["top1"] < shipped_card["metrics"]["test"]["top1"]
+    tracked, info = make_intent_predictor(LOT, weights=name)
+    assert name in info
+    ref = IntentPredictor.pretrained(LOT).model.state_dict()
+    assert any(not torch.equal(a, ref[k]) for k, a in tracked.model.state_dict().items())
