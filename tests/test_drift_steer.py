@@ -112,3 +112,22 @@ def test_a_break_in_the_vacant_run_starts_the_window_again():
     w.read(np.array([0.9]), np.array([0]))
     w.read(np.array([1.0]), np.array([], dtype=np.int64))  # not seen vacant: the run ends
     assert w.read(np.array([0.05]), np.array([0]))[0] == 0.05
+
+
+def test_the_noisy_profile_is_the_path_follower_its_figures_were_measured_with():
+    """Planner profile ``noisy`` sets what the sensing suite's row ``bezier_steer`` measured (its figures are quoted
+    in the profile and in docs/results/sensing), and the shipped planner leaves both at the paper's values."""
+    from pathlib import Path as FilePath
+
+    import yaml
+
+    root = FilePath(__file__).resolve().parents[1]
+    prof = yaml.safe_load((root / "src/avp_planner/config/profiles/noisy.yaml").read_text())
+    decision = prof["/**"]["ros__parameters"]["decision"]
+    suite = yaml.safe_load((root / "src/avp_experiment/config/suites/sensing.yaml").read_text())
+    row = next(r for r in suite["rows"] if r["id"] == "bezier_steer")
+    measured = dict(p.split("=", 1) for p in row["planner"])
+    assert {f"decision.{k}": str(v) for k, v in decision.items()}.items() <= measured.items()
+    shipped = yaml.safe_load((root / "src/avp_planner/config/planner.param.yaml").read_text())
+    d = shipped["/**"]["ros__parameters"]["decision"]
+    assert (d["replan_pose_sigmas"], d["pose_drift"]) == (0.0, "reanchor")
