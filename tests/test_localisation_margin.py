@@ -71,3 +71,57 @@ def test_the_localiser_covariance_crosses_the_message_and_exact_sends_none():
     from avp_common.conversions import MessageError
     with pytest.raises(MessageError, match="ego_pose_covariance"):
         observation_from_msg(msg)
+
+
+HARSH = np.diag([0.30**2, 0.30**2, 0.05**2])  # harsh sensing's localiser: m = 2 (0.30 + 2.5 x 0.05) = 0.85 m
+
+
+def _decide_at_entrance(paper_lot, keep: bool, covariance=HARSH):
+    """The ego's estimate at the paper lot's entrance, where the episodes start (seed 66 of `contested`), nearer the
+    wall behind it than the margin: one decision of the shipped planner, spot 14 vacant."""
+    from dataclasses import replace
+
+    from test_planner_decision import make_obs
+    from unhurried import unhurried
+
+    from avp_collision.localisation import footprint_inside
+    from avp_planner.core.decision import EgoPlanner
+    from avp_world.geometry import rect_corners
+
+    s = unhurried()
+    planner = EgoPlanner(paper_lot, replace(s, collision=replace(s.collision, localisation_keep_start=keep)))
+    ego = np.array([21.42, 38.5, -1.57])
+    obs = replace(make_obs(paper_lot, ego, vacant=[14]), ego_covariance=covariance)
+    m = localisation_margin(covariance, obs.ego_length, obs.ego_width, 2.0)
+    corners = rect_corners(ego[None], obs.ego_length, obs.ego_width)[0]
+    assert footprint_inside(localised_lot(paper_lot, 0.0 + 1e-9), corners)  # inside L ...
+    inside_margin = footprint_inside(localised_lot(paper_lot, m), corners)  # ... and, under harsh noise, not L'
+    return planner.decide(obs), inside_margin
+
+
+def test_the_margin_alone_holds_the_ego_still_at_the_entrance_and_keeping_its_footprint_frees_it(paper_lot):
+    still, inside = _decide_at_entrance(paper_lot, keep=False)
+    assert not inside
+    assert still.mode == "idle" and still.trace.get("cause") == "static", (still.mode, still.trace)
+    moves, _ = _decide_at_entrance(paper_lot, keep=True)
+    assert moves.mode == "park" and moves.spot_id == 14 and moves.command[0] != 0.0
+    # the plan keeps the margin away from the wall once it has left the ego's own footprint
+    from shapely.geometry import Polygon
+    from test_planner_decision import L, W
+
+    from avp_world.geometry import rect_corners
+
+    m = localisation_margin(HARSH, L, W, 2.0)
+    lp = Polygon(localised_lot(paper_lot, m).boundary)
+    start = Polygon(rect_corners(moves.poses[:1], L, W)[0]).buffer(0.3)
+    spot = Polygon(paper_lot.spot_corners[paper_lot.spot_index(14)])
+    for p in moves.poses[::5]:
+        fp = Polygon(rect_corners(p[None], L, W)[0])
+        assert fp.difference(lp.union(start).union(spot)).area < 1e-3
+
+
+def test_keeping_the_footprint_changes_nothing_where_the_margin_leaves_the_ego_inside(paper_lot):
+    realistic = np.diag([0.15**2, 0.15**2, 0.025**2])
+    a, inside = _decide_at_entrance(paper_lot, keep=False, covariance=realistic)
+    b, _ = _decide_at_entrance(paper_lot, keep=True, covariance=realistic)
+    assert inside and a.mode == b.mode == "park" and np.array_equal(a.poses, b.poses)

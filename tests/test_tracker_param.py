@@ -122,3 +122,22 @@ def test_a_tracker_parameter_added_since_a_run_reads_as_its_default(tmp_path):
     grown = RunConfig(sim_overrides={"sensing.model": "realistic"}, tracker_overrides={"tracking.box_sigmas": 2.0})
     with pytest.raises(ValueError, match=r"tracking\.box_sigmas"):
         check_run_file(tmp_path, run_identity(grown, [load_profile("bezier")]))
+
+
+def test_a_planner_parameter_added_since_a_run_reads_as_its_shipped_default(tmp_path):
+    """A folder whose run.json lacks a planner parameter added later (here collision.localisation_keep_start) is
+    resumed when the method runs it at its shipped default, and refused when the command sets it."""
+    from avp_episode.profiles import load_profile
+    from avp_episode.protocols import apply_planner
+    from avp_experiment.results import RUN_FILE, check_run_file, run_identity
+
+    cfg = RunConfig(sim_overrides={"sensing.model": "harsh"})
+    check_run_file(tmp_path, run_identity(cfg, [load_profile("bezier")]))
+    old = json.loads((tmp_path / RUN_FILE).read_text())
+    del old["resolved"]["planner"]["bezier"]["collision.localisation_keep_start"]  # written before it existed
+    (tmp_path / RUN_FILE).write_text(json.dumps(old))
+    check_run_file(tmp_path, run_identity(cfg, [load_profile("bezier")]))
+    (tmp_path / RUN_FILE).write_text(json.dumps(old))
+    kept = apply_planner(load_profile("bezier"), {}, {"collision.localisation_keep_start": True})
+    with pytest.raises(ValueError, match="bezier"):
+        check_run_file(tmp_path, run_identity(cfg, [kept]))

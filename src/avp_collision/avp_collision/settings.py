@@ -21,6 +21,10 @@ class CollisionSettings:
     # plans inside L shrunk by this many of its standard deviations, spots kept whole (avp_collision.localisation);
     # exact sensing reports no covariance, so the paper's setting is unchanged
     localisation_sigmas: float = 2.0  # extra: L shrunk by this many localisation std devs under noisy sensing; 0 = L
+    # extra: L' also keeps the ego's own estimated footprint whole where L' leaves it outside (at a wall the
+    # estimate has drifted towards, e.g. the entrance it starts at), so that the margin alone never holds it still;
+    # false: the ego plans only inside L' and stands while its estimate is nearer a wall than the margin
+    localisation_keep_start: bool = False  # extra: the ego's own footprint kept inside L' (false: L' alone)
     vehicle_margin: float = 0.3  # clearance to predicted vehicle footprints (§V-D, time-indexed)
     pedestrian_margin: float = 0.4  # clearance to predicted pedestrian discs
     keep_current_gap: bool = True  # extra: an agent already nearer than the margin need only keep its gap (§V-D: no)

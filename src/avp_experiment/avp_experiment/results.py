@@ -117,6 +117,17 @@ def run_identity(cfg: RunConfig, profiles: Iterable[MethodProfile]) -> dict:
             "methods": {p.name: profile_digest(p) for p in profiles}, "resolved": resolved}
 
 
+def shipped_planner_values() -> dict:
+    """The shipped planner.param.yaml's values (as run.json holds them): what a planner parameter added since a
+    results folder was written reads as there (a profile that set it would have changed the method's digest)."""
+    from avp_common.params import load_yaml_params
+    from avp_common.share import package_share
+    from avp_planner.params import PLANNER_PARAMS
+
+    path = package_share("avp_planner") / "config" / "planner.param.yaml"
+    return json.loads(json.dumps(load_yaml_params(path, "avp_planner", PLANNER_PARAMS)))
+
+
 def _changed_values(old: dict | None, new: dict) -> list[str]:
     """The keys whose values differ between two resolved-value dicts (none when ``old`` was not recorded: a folder
     written before run.json held them)."""
@@ -159,6 +170,11 @@ def check_run_file(out: Path, ident: dict) -> dict:
                 raise ValueError(f"{path}: method profile {name!r} changed since its episodes there were run; "
                                  f"use another --out")
         before = old.get("resolved") or {}
+        if isinstance(before.get("planner"), dict):  # planner parameters added since read as their shipped defaults
+            shipped = shipped_planner_values()
+            before = {**before, "planner": {n: {**{k: v for k, v in shipped.items() if k not in vals}, **vals}
+                                            if isinstance(vals, dict) and vals else vals
+                                            for n, vals in before["planner"].items()}}
         for name, values in ident["resolved"]["planner"].items():
             changed = _changed_values(before.get("planner", {}).get(name), values)
             if changed:

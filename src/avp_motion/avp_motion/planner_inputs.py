@@ -12,7 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from avp_collision.localisation import localisation_margin, localised_lot
+from avp_collision.localisation import footprint_inside, localisation_margin, localised_lot
 from avp_collision.static import DynamicObstacles, StaticWorld
 from avp_motion.planner_types import (
     CONTAINED_MARGIN,
@@ -134,10 +134,11 @@ class InputsMixin:
                 self._spots_cache.pop(next(iter(self._spots_cache)))
         return world
 
-    def _planning_lot(self, obs: Observation) -> tuple[LotMap, float]:
-        """(lot, m): the lot whose boundary the ego plans against and its localisation margin m
-        (:mod:`avp_collision.localisation`; the lot itself, m = 0, for exact sensing or
-        ``collision.localisation_sigmas`` 0)."""
+    def _planning_lot(self, obs: Observation) -> tuple[LotMap, float | tuple]:
+        """(lot, key): the lot whose boundary the ego plans against and the key its static worlds are cached by: its
+        localisation margin m (:mod:`avp_collision.localisation`; the lot itself, m = 0, for exact sensing or
+        ``collision.localisation_sigmas`` 0), or (m, the ego's footprint) where ``collision.localisation_keep_start``
+        keeps that footprint in L'."""
         m = localisation_margin(obs.ego_covariance, obs.ego_length, obs.ego_width,
                                 self.settings.collision.localisation_sigmas)
         if m <= 0:
@@ -146,7 +147,21 @@ class InputsMixin:
         if m not in cache:
             cache.clear()  # one margin an episode for a steady localiser
             cache[m] = localised_lot(self.lot, m)
-        return cache[m], m
+        c = self.settings.collision
+        if not c.localisation_keep_start:
+            return cache[m], m
+        ego = rect_corners(np.asarray(obs.ego_pose, float)[None], obs.ego_length, obs.ego_width)[0]
+        if footprint_inside(cache[m], ego):
+            return cache[m], m
+        # collision.localisation_keep_start: the ego's own footprint kept whole in L' (avp_collision.localisation),
+        # grown by the search's clearance and a little more so that a path may leave it
+        grow = max(c.footprint_margin, c.verify_margin) + 0.05
+        key = (m, np.round(ego, 3).tobytes())
+        kept = self.__dict__.setdefault("_kept_lots", {})
+        if key not in kept:
+            kept.clear()  # the ego's pose moves: one at a time
+            kept[key] = localised_lot(self.lot, m, keep=ego, grow=grow)
+        return kept[key], key
 
     def _not_inside_occupied(self, poses: np.ndarray, dims: np.ndarray, occ: np.ndarray) -> np.ndarray:
         """(N,) bool: the vehicle rectangles not inside the nearest believed-occupied spot with
