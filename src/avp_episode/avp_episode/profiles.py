@@ -228,15 +228,20 @@ def load_profile(name_or_path: str | Path) -> MethodProfile:
 # ------------------------------------------------------------------------------------ derived settings
 
 
-def planner_values(profile: MethodProfile, deterministic: bool = True) -> dict[str, Any]:
-    """avp_planner parameter values: the shipped planner.param.yaml, the profile's ``planner`` block, and
-    (``deterministic``) the lifted wall-clock caps."""
+def shipped_planner_values() -> dict[str, Any]:
+    """avp_planner parameter values of the shipped planner.param.yaml."""
     from avp_common.params import load_yaml_params
     from avp_common.share import package_share
     from avp_planner.params import PLANNER_PARAMS
 
     path = package_share("avp_planner") / "config" / "planner.param.yaml"
-    values = load_yaml_params(path, "avp_planner", PLANNER_PARAMS)
+    return load_yaml_params(path, "avp_planner", PLANNER_PARAMS)
+
+
+def planner_values(profile: MethodProfile, deterministic: bool = True) -> dict[str, Any]:
+    """avp_planner parameter values: the shipped planner.param.yaml, the profile's ``planner`` block, and
+    (``deterministic``) the lifted wall-clock caps."""
+    values = shipped_planner_values()
     values.update(profile.planner)
     if deterministic:
         values.update(DETERMINISTIC_PLANNER)

@@ -120,12 +120,9 @@ def run_identity(cfg: RunConfig, profiles: Iterable[MethodProfile]) -> dict:
 def shipped_planner_values() -> dict:
     """The shipped planner.param.yaml's values (as run.json holds them): what a planner parameter added since a
     results folder was written reads as there (a profile that set it would have changed the method's digest)."""
-    from avp_common.params import load_yaml_params
-    from avp_common.share import package_share
-    from avp_planner.params import PLANNER_PARAMS
+    from avp_episode.profiles import shipped_planner_values as shipped
 
-    path = package_share("avp_planner") / "config" / "planner.param.yaml"
-    return json.loads(json.dumps(load_yaml_params(path, "avp_planner", PLANNER_PARAMS)))
+    return json.loads(json.dumps(shipped()))
 
 
 def _changed_values(old: dict | None, new: dict) -> list[str]:
