@@ -117,14 +117,6 @@ def run_identity(cfg: RunConfig, profiles: Iterable[MethodProfile]) -> dict:
             "methods": {p.name: profile_digest(p) for p in profiles}, "resolved": resolved}
 
 
-def shipped_planner_values() -> dict:
-    """The shipped planner.param.yaml's values (as run.json holds them): what a planner parameter added since a
-    results folder was written reads as there (a profile that set it would have changed the method's digest)."""
-    from avp_episode.profiles import shipped_planner_values as shipped
-
-    return json.loads(json.dumps(shipped()))
-
-
 def _changed_values(old: dict | None, new: dict) -> list[str]:
     """The keys whose values differ between two resolved-value dicts (none when ``old`` was not recorded: a folder
     written before run.json held them)."""
@@ -168,7 +160,9 @@ def check_run_file(out: Path, ident: dict) -> dict:
                                  f"use another --out")
         before = old.get("resolved") or {}
         if isinstance(before.get("planner"), dict):  # planner parameters added since read as their shipped defaults
-            shipped = shipped_planner_values()
+            from avp_episode.profiles import shipped_planner_values  # (a profile that set one changed its digest)
+
+            shipped = json.loads(json.dumps(shipped_planner_values()))  # as run.json holds them
             before = {**before, "planner": {n: {**{k: v for k, v in shipped.items() if k not in vals}, **vals}
                                             if isinstance(vals, dict) and vals else vals
                                             for n, vals in before["planner"].items()}}
