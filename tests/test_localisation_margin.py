@@ -125,3 +125,33 @@ def test_keeping_the_footprint_changes_nothing_where_the_margin_leaves_the_ego_i
     a, inside = _decide_at_entrance(paper_lot, keep=False, covariance=realistic)
     b, _ = _decide_at_entrance(paper_lot, keep=True, covariance=realistic)
     assert inside and a.mode == b.mode == "park" and np.array_equal(a.poses, b.poses)
+
+
+def test_the_footprint_is_checked_against_the_margin_once_a_step(paper_lot, monkeypatch):
+    """With ``collision.localisation_keep_start`` on, the static world and the spots' world of one decision (a parked
+    car outside the believed-occupied spots builds both) ask for the same planning lot: the footprint test runs once,
+    and the ego still leaves the entrance for spot 14."""
+    from dataclasses import replace
+
+    from test_planner_decision import make_obs, static_car
+    from unhurried import unhurried
+
+    import avp_motion.planner_inputs as inputs
+    from avp_planner.core.decision import EgoPlanner
+
+    calls = []
+    real = inputs.footprint_inside
+
+    def counted(lot, corners):
+        calls.append(1)
+        return real(lot, corners)
+
+    monkeypatch.setattr(inputs, "footprint_inside", counted)
+    s = unhurried()
+    planner = EgoPlanner(paper_lot, replace(s, collision=replace(s.collision, localisation_keep_start=True)))
+    x, y, th = paper_lot.spot_poses[paper_lot.spot_index(3)]
+    obs = replace(make_obs(paper_lot, (21.42, 38.5, -1.57), vacant=[14, 3], vehicles=[static_car(7, x, y, th)]),
+                  ego_covariance=HARSH)
+    moves = planner.decide(obs)
+    assert len(calls) == 1
+    assert moves.mode == "park" and moves.spot_id == 14

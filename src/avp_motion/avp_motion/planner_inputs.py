@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import replace
 
 import numpy as np
 
+from avp_collision.hypotheses import held_where_they_are, most_likely, receding_straight
 from avp_collision.localisation import footprint_inside, localisation_margin, localised_lot
 from avp_collision.static import DynamicObstacles, StaticWorld
 from avp_motion.planner_types import (
@@ -151,12 +151,23 @@ class InputsMixin:
         if not c.localisation_keep_start:
             return cache[m], m
         ego = rect_corners(np.asarray(obs.ego_pose, float)[None], obs.ego_length, obs.ego_width)[0]
-        if footprint_inside(cache[m], ego):
-            return cache[m], m
+        step_key = (m, ego.tobytes())
+        last = self.__dict__.get("_planning_lot_last")
+        if last is not None and last[0] == step_key:  # the static world and the spots' world of one step ask alike
+            return last[1]
+        result = self._kept_start_lot(cache[m], m, ego, (m, np.round(ego, 3).tobytes()))
+        self.__dict__["_planning_lot_last"] = (step_key, result)
+        return result
+
+    def _kept_start_lot(self, lot_m: LotMap, m: float, ego: np.ndarray, key: tuple) -> tuple[LotMap, float | tuple]:
+        """``collision.localisation_keep_start`` (see :meth:`_planning_lot`): L' where it holds the ego's footprint,
+        else L'' keeping it (cached under ``key``, the margin and the footprint)."""
+        if footprint_inside(lot_m, ego):
+            return lot_m, m
         # collision.localisation_keep_start: the ego's own footprint kept whole in L' (avp_collision.localisation),
         # grown by the search's clearance and a little more so that a path may leave it
+        c = self.settings.collision
         grow = max(c.footprint_margin, c.verify_margin) + 0.05
-        key = (m, np.round(ego, 3).tobytes())
         kept = self.__dict__.setdefault("_kept_lots", {})
         if key not in kept:
             kept.clear()  # the ego's pose moves: one at a time
@@ -180,7 +191,7 @@ class InputsMixin:
         if self.settings.collision.hypotheses == "most_likely":
             preds = most_likely(preds)
         if self.settings.collision.receding == "straight":
-            preds = receding_straight(preds, obs, dt)
+            preds = receding_straight(preds, obs, dt, STILL_SPEED)
         covered = {(bool(p.is_pedestrian), int(p.agent_id)) for p in preds}
         if d.fallback_prediction != "none":
             n = max(1, int(round(d.fallback_horizon / dt)))
@@ -282,66 +293,3 @@ def vehicle_stands(v, dt: float) -> bool:
 def pedestrian_stands(p, dt: float) -> bool:
     """An observed pedestrian that moved less than ``STILL_SPEED`` since its previous position."""
     return np.hypot(*(np.asarray(p.position) - np.asarray(p.previous_position))) / dt < STILL_SPEED
-
-
-def most_likely(preds: list[PredictedTrajectory]) -> list[PredictedTrajectory]:
-    """``collision.hypotheses: most_likely``: of each agent's predicted trajectories only the most probable (the
-    first of equals), in the order the agents came."""
-    best: dict[tuple[bool, int], PredictedTrajectory] = {}
-    for p in preds:
-        key = (bool(p.is_pedestrian), int(p.agent_id))
-        if key not in best or float(p.probability) > float(best[key].probability):
-            best[key] = p
-    return list(best.values())
-
-
-def _set_aside(preds: list[PredictedTrajectory], chosen) -> tuple[list[PredictedTrajectory], dict]:
-    """The predictions of the agents not ``chosen(key)`` (key: (is a pedestrian, id)), and for each chosen agent that
-    has predictions: (its first prediction, the longest horizon among them), in the order the agents came."""
-    kept, set_aside = [], {}
-    for p in preds:
-        key = (bool(p.is_pedestrian), int(p.agent_id))
-        if chosen(key):
-            first, n = set_aside.get(key, (p, 0))
-            set_aside[key] = (first, max(n, len(p.poses)))
-        else:
-            kept.append(p)
-    return kept, set_aside
-
-
-def receding_straight(preds: list[PredictedTrajectory], obs: Observation, dt: float) -> list[PredictedTrajectory]:
-    """``collision.receding: straight``: the predicted trajectories of every observed dynamic car that drives away from
-    the ego (faster than ``STILL_SPEED``, its last displacement pointing away from the ego) are replaced by one,
-    probability 1: straight on at that displacement per step with its heading (§VI-B-1's constant velocity), as many
-    steps as its longest hypothesis. The other agents' are kept as given."""
-    ego = np.asarray(obs.ego_pose[:2], dtype=float)
-    receding = {}
-    for v in obs.vehicles:
-        h = np.asarray(v.history, dtype=float).reshape(-1, 3)
-        if v.is_static or len(h) < 2:
-            continue
-        d = h[-1, :2] - h[-2, :2]
-        if np.hypot(*d) / obs.dt >= STILL_SPEED and float(np.dot(d, ego - h[-1, :2])) < 0.0:
-            receding[(False, int(v.id))] = (v, h[-1], d * (dt / obs.dt))
-    if not receding:
-        return preds
-    out, set_aside = _set_aside(preds, receding.__contains__)
-    for key, (_, steps) in set_aside.items():
-        v, cur, step = receding[key]
-        k = np.arange(1, steps + 1)[:, None]
-        poses = np.column_stack([cur[:2] + k * step, np.full(steps, cur[2])])
-        out.append(PredictedTrajectory(agent_id=key[1], poses=poses, dt=dt, length=float(v.length),
-                                       width=float(v.width)))
-    return out
-
-
-def held_where_they_are(preds: list[PredictedTrajectory], obs: Observation,
-                        keys: frozenset | None) -> list[PredictedTrajectory]:
-    """``collision.reactive_model: hold``: each agent the reaction applies to (``keys``; None = every one) is predicted
-    by one trajectory standing at its observed pose, as `blind` predicts every agent; the others keep theirs."""
-    now = {(False, int(v.id)): np.asarray(v.history, dtype=float).reshape(-1, 3)[-1] for v in obs.vehicles}
-    now.update({(True, int(p.id)): np.array([*np.asarray(p.position, dtype=float), 0.0]) for p in obs.pedestrians})
-    out, set_aside = _set_aside(preds, lambda key: key in now and (keys is None or key in keys))
-    for key, (first, n) in set_aside.items():
-        out.append(replace(first, poses=np.tile(now[key], (n, 1)), probability=1.0))
-    return out
