@@ -41,6 +41,40 @@ def test_idle_causes_counts_the_committed_records(capsys):
     assert int(cells[3]) == len(timeouts) and int(cells[4]) == frozen
 
 
+def test_idle_causes_splits_the_parking_time_by_spot(capsys):
+    """The paired line's parking-time change where both parked in the same spot and in another one, and the share of
+    the total from changes over 10 s, are those of the records read directly."""
+    grid = ROOT / "docs/results/sensing/grid/paper_realistic"
+    recs = {}
+    for row in ("bezier", "bezier_steer"):
+        with gzip.open(grid / row / "episodes.jsonl.gz", "rt") as f:
+            recs[row] = {(r["seed"], r["mode"]): r for r in map(json.loads, f) if r["status"] == "success"}
+    a, b = recs["bezier"], recs["bezier_steer"]
+    pairs = [(a[k], b[k]) for k in a if k in b]
+    same = [y["parking_time"] - x["parking_time"] for x, y in pairs if x["parked_spot_id"] == y["parked_spot_id"]]
+    tail = sum(d for x, y in pairs if abs(d := y["parking_time"] - x["parking_time"]) > 10)
+    assert idle_causes.main([f"a={grid / 'bezier'}", f"b={grid / 'bezier_steer'}"]) == 0
+    line = next(t for t in capsys.readouterr().out.splitlines() if t.startswith("* a -> b"))
+    assert f"same spot {len(same)}: {sum(same) / len(same):+.2f} s" in line
+    assert f"another {len(pairs) - len(same)}:" in line and f"{tail:+.0f} of the" in line
+
+
+def test_inloop_errors_pairs_episodes_and_sums_samples(capsys):
+    """tools/inloop_errors.py on one folder read as two presets: every episode with a value paired, the samples the
+    records' sum, the means the records' and the ratio 1."""
+    import inloop_errors
+
+    folder = ROOT / "docs/results/sensing/grid/paper_realistic/bezier"
+    with gzip.open(folder / "episodes.jsonl.gz", "rt") as f:
+        recs = [r for r in map(json.loads, f) if r["min_ade"] is not None and r["seed"] < 50]
+    assert inloop_errors.main([f"exact={folder}", f"realistic={folder}", "--methods", "bezier", "--seeds", "0-49"]) == 0
+    row = next(t for t in capsys.readouterr().out.splitlines() if t.startswith("| bezier |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    n, samples = len(recs), sum(r["ade_samples"] for r in recs)
+    ade, fde = (sum(r[k] for r in recs) / n for k in ("min_ade", "min_fde"))
+    assert cells[1] == str(n) and cells[2] == cells[3] == f"{samples}: {ade:.2f} / {fde:.2f}" and cells[4] == "1.00"
+
+
 def test_motion_from_tracks_reads_a_standing_pedestrian_still_with_the_filter():
     fast = {m: motion_from_tracks.run("pedestrian", 0.0, 0.15, m, 160, 0)["flagged"] for m in ("difference", "filter")}
     assert fast["difference"] > 0.5 and fast["filter"] < 0.2

@@ -62,17 +62,33 @@ def driving(name: str, recs: list[dict]) -> str:
     return f"| {name} | {rev:.2f} | {plans:.1f} | {len(timeouts)} | {frozen} |"
 
 
+def _by_spot(both: list[tuple]) -> str:
+    """The parking time's mean change split by whether both parked in the same spot, and the share of its total
+    from the episodes that changed by more than 10 s."""
+    out = []
+    for label, same in (("same spot", True), ("another", False)):
+        sel = [b for b in both if (b[1] == b[3]) == same]
+        if sel:
+            out.append(f"{label} {len(sel)}: {sum(b[2] - b[0] for b in sel) / len(sel):+.2f} s")
+    total = sum(b[2] - b[0] for b in both)
+    tail = sum(b[2] - b[0] for b in both if abs(b[2] - b[0]) > 10)
+    n_tail = sum(abs(b[2] - b[0]) > 10 for b in both)
+    return f"; {', '.join(out)}; {tail:+.0f} of the {total:+.0f} s from the {n_tail} that changed by > 10 s"
+
+
 def transitions(first: list[dict], other: list[dict]) -> str:
     """How the outcomes of the seeds both hold changed from ``first`` to ``other``."""
     a = {(r["seed"], r["mode"]): r["status"] for r in first}
     moves = Counter(f"{a[k]} -> {r['status']}" for r in other if (k := (r["seed"], r["mode"])) in a
                     and a[k] != r["status"])
     shared = sum((r["seed"], r["mode"]) in a for r in other)
-    times = {(r["seed"], r["mode"]): r["parking_time"] for r in first if r["status"] == "success"}
-    both = [(times[k], r["parking_time"]) for r in other if r["status"] == "success" and (k := (r["seed"], r["mode"]))
-            in times]
-    paired = (f"; on the {len(both)} both park, parking time {sum(t for t, _ in both) / len(both):.1f} -> "
-              f"{sum(t for _, t in both) / len(both):.1f} s (longer on {sum(u > t for t, u in both)})" if both else "")
+    times = {(r["seed"], r["mode"]): (r["parking_time"], r.get("parked_spot_id")) for r in first
+             if r["status"] == "success"}
+    both = [(*times[k], r["parking_time"], r.get("parked_spot_id")) for r in other
+            if r["status"] == "success" and (k := (r["seed"], r["mode"])) in times]
+    paired = (f"; on the {len(both)} both park, parking time {sum(b[0] for b in both) / len(both):.1f} -> "
+              f"{sum(b[2] for b in both) / len(both):.1f} s (longer on {sum(b[2] > b[0] for b in both)}"
+              f"{_by_spot(both)})" if both else "")
     return (f"{shared} shared seeds: " + (", ".join(f"{m} {n}" for m, n in sorted(moves.items())) or "no change")
             + paired)
 
