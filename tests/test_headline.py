@@ -84,6 +84,8 @@ def test_a_cell_agrees_with_its_records_read_independently(committed):
 
 @pytest.mark.parametrize("name", ["headline", "fleet", "sensing"])
 def test_every_cell_of_the_suite_is_a_valid_experiment_command(name):
+    from avp_episode.profiles import load_profile
+    from avp_experiment.headline import suite_method
     from avp_experiment.runner import _cell_args
 
     suite = load_suite(name)
@@ -91,7 +93,9 @@ def test_every_cell_of_the_suite_is_a_valid_experiment_command(name):
         for row in suite["rows"]:
             for quick in (False, True):
                 args = _cell_args(cell_argv(col, row, quick))
-                assert args.methods == row["methods"]
+                assert args.methods == ",".join(suite_method(m) for m in row["methods"].split(","))
+                for m in args.methods.split(","):  # a profile file of the suite's methods/ is there and loads
+                    assert not m.endswith(".yaml") or load_profile(m).name == Path(m).stem
                 full = int(col["args"][col["args"].index("--scenarios") + 1])
                 assert args.scenarios == (col["quick"] if quick else full)
 

@@ -29,7 +29,9 @@ EXACT_COLUMN = {"contested": "contested", "paper": "paper", "busy": "busy_dlp"}
 #: the headline row with exact sensing of a sensing row that has none of its own: every ``bezier_*`` row switches
 #: something of the shipped default that exact sensing leaves unchanged (no localisation covariance, no tracker) or
 #: that the row's comparison under noise measures; its exact-sensing figure is the shipped default's
-EXACT_ROW = {"bezier_no_loc": "bezier"}
+EXACT_ROW = {"bezier_no_loc": "bezier", "learned_tracked": "learned"}
+#: rows that change one thing of another row than the shipped default: paired with that row under the same noise too
+BASE_ROW = {"learned_tracked": "learned"}
 
 
 def exact_row(rid: str) -> str:
@@ -38,8 +40,9 @@ def exact_row(rid: str) -> str:
 
 
 def is_ablation(rid: str) -> bool:
-    """Rows that switch one thing of the shipped default: paired with row ``bezier`` under the same noise too."""
-    return rid.startswith("bezier_")
+    """Rows that switch one thing of the shipped default (or of :data:`BASE_ROW`'s row): paired with it under the
+    same noise too."""
+    return rid.startswith("bezier_") or rid in BASE_ROW
 
 
 def _bad(metric: str, r: dict) -> bool:
@@ -116,13 +119,17 @@ def table(out: Path, columns: list[str] | None = None) -> str:
                 f"{ade_n:.2f} / {fde_n:.2f} | "
                 f"{fde_n / fde_x if fde_x > 0.05 else float('nan'):.2f} |".replace("nan", "—"))  # oracle: ~0 exact
         lines.append("")
-        shipped = cells.get("bezier", (None, {}))[1]
-        for rid in (r for r in cells if is_ablation(r) and shipped):
+        for rid in (r for r in cells if is_ablation(r)):
+            base = BASE_ROW.get(rid, "bezier")
+            shipped = cells.get(base, (None, {}))[1]
+            if not shipped:
+                continue
             n, k_row, k_shipped, p = _pair(metric, cells[rid][1], shipped)
             shared = set(cells[rid][1]) & set(shipped)
             f_row, f_shipped = (sum(bool(recs[k].get("collision_at_fault")) for k in shared)
                                 for recs in (cells[rid][1], shipped))
-            lines += [f"Row `{rid}` against the shipped default under the same noise, {n} paired episodes: {what} "
+            against = "the shipped default" if base == "bezier" else f"row `{base}`"
+            lines += [f"Row `{rid}` against {against} under the same noise, {n} paired episodes: {what} "
                       f"{_rate(k_row, n)} against {_rate(k_shipped, n)} (exact McNemar p = {p:.3f}); at fault "
                       f"{f_row} against {f_shipped}.", ""]
     return "\n".join(lines)

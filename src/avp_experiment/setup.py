@@ -12,6 +12,7 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml", "README.md"]),
         ("share/" + package_name + "/config/suites", glob("config/suites/*.yaml")),
+        ("share/" + package_name + "/config/suites/methods", glob("config/suites/methods/*.yaml")),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

@@ -62,7 +62,8 @@ class MethodEgo:
         lot: the lot map.
         profile: the method (:func:`~.profiles.load_profile`); must be ``available``.
         deterministic: lift the wall-clock caps of the planner and of the Hybrid A* predictor.
-        intent_weights: intent CNN state-dict file; "" = the shipped weights if present, else seeded random.
+        intent_weights: intent CNN state-dict file; "" = the shipped weights if present, else seeded random; the
+            profile's ``perception.intent_weights`` when it sets one.
         intent_seed: seed of the random weights.
         message_precision: round float32 message fields as the node graph does.
     """
@@ -75,9 +76,11 @@ class MethodEgo:
         from avp_perception.core.pipeline import make_intent_predictor
 
         settings, use_beliefs, use_predictions = planner_settings(profile, deterministic)
-        intent, self.intent_info = make_intent_predictor(lot, bev_config, intent_weights, intent_seed)
+        intent, self.intent_info = make_intent_predictor(lot, bev_config, profile.intent_weights or intent_weights,
+                                                         intent_seed)
         core = PerceptionCore(lot, bev_config, predictor=profile.predictor,
-                              prediction_config=prediction_config(deterministic), intent=intent, t_hist=t_hist)
+                              prediction_config=prediction_config(deterministic, profile.prediction), intent=intent,
+                              t_hist=t_hist)
         self._assemble(lot, profile, core, core.predictor, EgoPlanner(lot, settings), use_beliefs, use_predictions,
                        NawazOccupancy(lot, nawaz_config) if profile.beliefs == "nawaz" else None, message_precision)
 

@@ -15,6 +15,10 @@ pipeline — §VI-A: "all compared methods only differ in how they choose the eg
       predictor: bezier           # trajectory predictor of the other agents (avp_perception make_predictor)
       ego_intent: false           # true: the intent CNN on the ego's own BEV orders its candidate spots
       ground_truth: false         # true only for the oracle bound: true targets and futures (in-process only)
+      intent_weights: ""          # optional: the intent CNN's weights (a file or a name in models/) this method
+                                  # reads, over the run's (--intent-weights) and the belief node's file
+    prediction:                   # optional: avp_prediction parameters over prediction.param.yaml (not `method`,
+      mu: 0.3                     # which is perception.predictor), e.g. learned.weights for the learned model
     planner:                      # avp_planner parameters over planner.param.yaml — a planner profile
       use_beliefs: true
       use_predictions: true
@@ -31,6 +35,8 @@ profile field                  node parameter
 ``perception.beliefs``         avp_belief ``belief_source`` (intent | nawaz | observation)
 ``perception.ego_intent``      avp_belief ``ego_intent`` and avp_planner ``use_ego_intention``
 ``perception.predictor``       avp_prediction ``method``
+``perception.intent_weights``  avp_belief ``intent.weights`` (when set)
+``prediction.*``               avp_prediction parameters as they are
 ``planner.*``                  avp_planner parameters as they are
 =============================  ====================================================================
 
@@ -80,6 +86,8 @@ class MethodProfile:
     ground_truth: bool = False  # the oracle bound: told the true targets and futures (in-process only, .oracle)
     coordination: str = "none"  # "reserve": spots granted by the reservation book only (several egos, in-process)
     planner: dict[str, Any] = field(default_factory=dict)  # flat dotted keys
+    prediction: dict[str, Any] = field(default_factory=dict)  # avp_prediction parameters, flat dotted keys
+    intent_weights: str = ""  # the intent CNN's weights; "" = the run's (--intent-weights, else shipped)
     unavailable_reason: str = ""
     source: str = ""
 
@@ -134,6 +142,15 @@ def _planner_specs():
     return {s.name: s for s in PLANNER_PARAMS}
 
 
+def _prediction_specs():
+    """The avp_prediction parameters a profile may set: the §V-C settings (PredictionConfig), not the node's own
+    (``method`` is ``perception.predictor``; ``auth_inputs`` is the node's security, not the method's)."""
+    from avp_perception.params import PREDICTION_NODE_PARAMS, PREDICTION_PARAMS
+
+    node = {s.name for s in PREDICTION_NODE_PARAMS}
+    return {s.name: s for s in PREDICTION_PARAMS if s.name not in node}
+
+
 def checked_params(flat: dict[str, Any], specs: dict, source: str, block: str, node: str) -> dict[str, Any]:
     """``flat`` ({dotted key: value}) with each value checked against ``specs``; ProfileError names the field."""
     out = {}
@@ -151,7 +168,8 @@ def profile_from_dict(data: Any, source: str) -> MethodProfile:
     """Validate a parsed profile; :class:`ProfileError` names ``source`` and the field."""
     if not isinstance(data, dict):
         raise ProfileError(f"{source}: top level must be a mapping")
-    known = {"name", "label", "group", "available", "unavailable_reason", "perception", "planner", "coordination"}
+    known = {"name", "label", "group", "available", "unavailable_reason", "perception", "prediction", "planner",
+             "coordination"}
     unknown = sorted(set(data) - known)
     if unknown:
         raise ProfileError(f"{source}: field '{unknown[0]}': unknown key (known: {sorted(known)})")
@@ -166,7 +184,7 @@ def profile_from_dict(data: Any, source: str) -> MethodProfile:
 
     name = req(data, "name", str, "")
     per = req(data, "perception", dict, "")
-    unknown = sorted(set(per) - {"beliefs", "predictor", "ego_intent", "ground_truth"})
+    unknown = sorted(set(per) - {"beliefs", "predictor", "ego_intent", "ground_truth", "intent_weights"})
     if unknown:
         raise ProfileError(f"{source}: field 'perception.{unknown[0]}': unknown key")
     beliefs = req(per, "beliefs", str, "perception.")
@@ -182,6 +200,11 @@ def profile_from_dict(data: Any, source: str) -> MethodProfile:
         raise ProfileError(f"{source}: field 'planner.use_ego_intention': follows perception.ego_intent "
                            f"({ego_intent}); leave it out")
     flat = checked_params(flat, _planner_specs(), source, "planner", "avp_planner")
+    prediction = data.get("prediction") or {}
+    if not isinstance(prediction, dict):
+        raise ProfileError(f"{source}: field 'prediction': expected a mapping of avp_prediction parameters")
+    prediction = checked_params(_flatten(prediction), _prediction_specs(), source, "prediction", "avp_prediction")
+    intent_weights = req(per, "intent_weights", str, "perception.") if "intent_weights" in per else ""
     coordination = req(data, "coordination", str, "") if "coordination" in data else "none"
     if coordination not in COORDINATIONS:
         raise ProfileError(f"{source}: field 'coordination': {coordination!r} is not one of {list(COORDINATIONS)}")
@@ -189,8 +212,8 @@ def profile_from_dict(data: Any, source: str) -> MethodProfile:
         name=name, label=str(data.get("label", name)), group=str(data.get("group", "")),
         available=req(data, "available", bool, ""), beliefs=beliefs,
         predictor=req(per, "predictor", str, "perception."), ego_intent=ego_intent, ground_truth=ground_truth,
-        planner=flat, unavailable_reason=str(data.get("unavailable_reason", "")), source=source,
-        coordination=coordination,
+        planner=flat, prediction=prediction, intent_weights=intent_weights,
+        unavailable_reason=str(data.get("unavailable_reason", "")), source=source, coordination=coordination,
     )
 
 
@@ -257,12 +280,13 @@ def planner_settings(profile: MethodProfile, deterministic: bool = True):
     return dataclass_from_values(DEFAULT_SETTINGS, v).validate(), bool(v["use_beliefs"]), bool(v["use_predictions"])
 
 
-def prediction_config(deterministic: bool = True):
-    """The §V-C prediction settings (library defaults; the Hybrid A* predictor's wall-clock cap lifted)."""
+def prediction_config(deterministic: bool = True, values: dict[str, Any] | None = None):
+    """The §V-C prediction settings: the library defaults, ``values`` (a profile's ``prediction`` block) on top, the
+    Hybrid A* predictor's wall-clock cap lifted when ``deterministic``."""
     from avp_common.params import dataclass_from_values
     from avp_predictors.prediction import PredictionConfig
 
-    cfg = PredictionConfig()
+    cfg = dataclass_from_values(PredictionConfig(), dict(values)) if values else PredictionConfig()
     if deterministic:
         names = {f.name for f in dataclasses.fields(cfg)}
         vals = {k: v for k, v in DETERMINISTIC_PREDICTION.items() if k.split(".")[0] in names}
@@ -292,11 +316,11 @@ def method_node_params(profile: MethodProfile, *, deterministic: bool = False, i
         raise ProfileError(f"method {profile.name!r} is an oracle bound (perception.ground_truth): the live graph "
                            "never feeds ground truth to the ego; run it with avp experiment --transport inproc")
     belief: dict[str, Any] = {"belief_source": profile.beliefs, "ego_intent": profile.ego_intent}
-    if intent_weights is not None:
-        belief["intent.weights"] = str(intent_weights)
+    if profile.intent_weights or intent_weights is not None:  # the method's own, else the run's
+        belief["intent.weights"] = str(profile.intent_weights or intent_weights)
     if intent_seed is not None:
         belief["intent.seed"] = int(intent_seed)
-    prediction: dict[str, Any] = {"method": profile.predictor}
+    prediction: dict[str, Any] = {**profile.prediction, "method": profile.predictor}
     planner: dict[str, Any] = {**profile.planner, "use_ego_intention": profile.ego_intent}
     if deterministic:
         prediction.update(DETERMINISTIC_PREDICTION)

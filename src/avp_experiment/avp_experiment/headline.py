@@ -80,13 +80,22 @@ def runs_in(row: Mapping, col: Mapping) -> bool:
     return col["id"] in row.get("only", [col["id"]])
 
 
+def suite_method(name: str) -> str:
+    """A row's method: a name as it is; a profile file (``*.yaml``) given relative, under the suites' directory
+    (``config/suites/methods/*.yaml``: methods that only a suite runs)."""
+    name = name.strip()
+    if name.endswith((".yaml", ".yml")) and not Path(name).is_absolute():
+        return str(suites_dir() / name)
+    return name
+
+
 def cell_argv(col: Mapping, row: Mapping, quick: bool) -> list[str]:
     """The ``avp experiment`` arguments of one cell (the column's, then the row's; no --out)."""
     argv = [str(a) for a in col["args"]]
     if quick:
         i = argv.index("--scenarios")
         argv[i + 1] = str(col["quick"])
-    argv += ["--methods", row["methods"]]
+    argv += ["--methods", ",".join(suite_method(m) for m in str(row["methods"]).split(","))]
     for kv in row.get("planner", []):
         argv += ["--planner-param", kv]
     for kv in row.get("tracker", []):  # the tracker's settings (noisy sensing columns only)

@@ -68,16 +68,24 @@ def check_method(profile: MethodProfile) -> str:
 
 
 def profile_digest(profile: MethodProfile) -> str:
-    """Hash of the profile file; for the learned predictor also of the shipped trajectory weights it loads (so
-    episodes of other weights are never mixed into one results folder)."""
+    """Hash of the profile file; for the learned predictor also of the trajectory weights it loads, and of the
+    intent weights a profile names (``perception.intent_weights``), so that episodes of other weights are never
+    mixed into one results folder."""
     h = hashlib.sha256(Path(profile.source).read_bytes())
     if profile.planner != load_profile(profile.source).planner:  # protocol / --planner-param values on top
         h.update(json.dumps(profile.planner, sort_keys=True).encode())
     if profile.predictor == "learned":
-        from avp_predictors.learned_prediction import default_weights_path
+        from avp_predictors.learned_prediction import weights_path
 
-        w = default_weights_path()
+        w = weights_path(str(profile.prediction.get("learned.weights", "")))
         h.update(w.read_bytes() if w.is_file() else b"random weights")
+    if profile.intent_weights:
+        from avp_predictors.intent_model import weights_path as intent_weights_path
+
+        w = intent_weights_path(profile.intent_weights)
+        if not w.is_file():
+            raise ValueError(f"{profile.source}: field 'perception.intent_weights': {w}: no such file")
+        h.update(w.read_bytes())
     return h.hexdigest()[:16]
 
 

@@ -236,11 +236,12 @@ def _run_locked(args: argparse.Namespace, out: Path, cfg: RunConfig, profiles: l
                                    getattr(args, "shared_pool", None), args.workers if local else 1)
     keys = episode_keys(units, seeds, MODES[args.mode])
     todo = [k for k in keys if k not in done]
+    own = "".join(f"; {p.name}: {p.intent_weights} (its profile)" for p in profiles if p.intent_weights)
     print(f"[avp experiment] {len(keys)} episodes ({len(profiles)} methods x {args.scenarios} scenarios x "
           f"{len(MODES[args.mode])} modes; seeds {seeds[0]}..{seeds[-1]}"
           f"{', without ' + str(bad_seeds) + ' (no scenario)' if bad_seeds else ''}), {len(keys) - len(todo)} "
-          f"already in {path}, {len(todo)} to run over --transport {args.transport}; intent CNN: {ident['intent']}",
-          flush=True)
+          f"already in {path}, {len(todo)} to run over --transport {args.transport}; intent CNN: {ident['intent']}"
+          f"{own}", flush=True)
     n_run = 0
     errors: list[str] = []
     started, t0, commit = time.strftime("%Y-%m-%dT%H:%M:%S%z"), time.perf_counter(), code_commit()
@@ -285,7 +286,7 @@ def _run_locked(args: argparse.Namespace, out: Path, cfg: RunConfig, profiles: l
         (out / "fleet.md").write_text(f"# Several egos\n\n{fleet_table(records)}\n\nColumns: docs/metrics.md, "
                                       "\"Several egos\".\n")
     summary = write_summary(out, records, skipped,
-                            {"ade_horizon": cfg.ade_horizon, "t_final": cfg.t_final, "intent": ident["intent"],
+                            {"ade_horizon": cfg.ade_horizon, "t_final": cfg.t_final, "intent": ident["intent"] + own,
                              "seeds_without_scenario": bad_seeds, "sim_overrides": ident["config"]["sim_overrides"],
                              "protocol": cfg.protocol, "planner_overrides": cfg.planner_overrides,
                              "tracker_overrides": cfg.tracker_overrides},
