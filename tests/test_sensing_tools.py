@@ -110,3 +110,24 @@ def test_plan_drops_reruns_a_contested_episode_in_its_own_mode():
     assert rec["status"] == "collision" and rows[0][:4] == (170, rec["status"], rec["steps"], rec["reversals"])
     rows, _, _ = plan_drops.run(folder, [170], reactive=True)
     assert rows[0][1:3] != (rec["status"], rec["steps"])
+
+
+def test_the_in_loop_table_is_made_from_the_committed_records(capsys):
+    """docs/results/sensing/README.md's in-loop table (constant velocity, Hybrid A*, learned) is what
+    tools/inloop_errors.py makes of the committed records, cell for cell."""
+    import inloop_errors
+
+    sensing = ROOT / "docs/results/sensing"
+    assert inloop_errors.main([f"exact={ROOT / 'docs/results/paper_protocol/paper'}",
+                               f"realistic={sensing / 'inloop/realistic'}", f"harsh={sensing / 'inloop/harsh'}",
+                               "--methods", "constant_velocity,hybrid_astar,learned", "--seeds", "0-49"]) == 0
+    made = {t.split("|")[1].strip(): [c.strip() for c in t.strip("|").split("|")[1:]]
+            for t in capsys.readouterr().out.splitlines() if t.startswith("| ") and "---" not in t}
+    text = (sensing / "README.md").read_text()
+    block = text[text.index("<!-- inloop:begin -->"):text.index("<!-- inloop:end -->")]
+    names = {"constant velocity": "constant_velocity", "Hybrid A*": "hybrid_astar", "learned": "learned"}
+    rows = {t.split("|")[1].strip(): [c.strip() for c in t.strip("|").split("|")[1:]] for t in block.splitlines()
+            if t.startswith("| ") and t.split("|")[1].strip() in names}
+    assert len(rows) == 3
+    for label, cells in rows.items():
+        assert cells == made[names[label]], label
